@@ -1,0 +1,1 @@
+"""Propagation engine: every transmitter-to-receiver path through a scene."""

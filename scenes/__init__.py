@@ -1,0 +1,1 @@
+"""scenes: builders, built-in scenes and the scene file (TOML) for acoustisim."""
