@@ -1,0 +1,445 @@
+"""Builders of scene objects: posts, edges, cylinders, spheres, plates and user meshes.
+
+Every builder returns an :class:`acoustisim.scene.SceneObject` whose mesh is watertight with
+outward normals (positive volume, consistent winding), in the tank frame (m). Curved objects
+keep their analytic primitive (:class:`CylinderPrimitive`, :class:`SpherePrimitive`); their
+meshes are tessellated under the sagitta criterion of :mod:`scenes.tessellation`.
+
+``parameters`` holds the object's scene-file table in canonical form (floats, tuples), so
+that a scene saved and loaded again compares equal.
+
+Bad arguments raise :class:`acoustisim.errors.InputError` naming the object and the value.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import trimesh
+from numpy.typing import NDArray
+
+from acoustisim.errors import InputError
+from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
+from acoustisim.materials import Material, get_material
+from acoustisim.scene import SceneObject
+from acoustisim.sonar import SonarHead
+from scenes.tessellation import circle_segments, icosphere_subdivisions
+
+
+# --------------------------------------------------------------------------- argument checks
+def _number(owner: str, key: str, value: Any, *, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{owner}.{key} = {value!r}: expected a number")
+    x = float(value)
+    if not math.isfinite(x):
+        raise InputError(f"{owner}.{key} = {value!r}: must be finite")
+    if positive and x <= 0.0:
+        raise InputError(f"{owner}.{key} = {value!r}: must be > 0")
+    return x
+
+
+def _vector(owner: str, key: str, value: Any, n: int, *, unit: bool = False) -> tuple[float, ...]:
+    try:
+        arr = np.asarray(value, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(f"{owner}.{key} = {value!r}: expected {n} numbers") from None
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{owner}.{key} = {value!r}: expected {n} finite numbers")
+    if unit and float(np.linalg.norm(arr)) < 1e-12:
+        raise InputError(f"{owner}.{key} = {value!r}: must be a non-zero vector")
+    return tuple(float(v) for v in arr)
+
+
+def _material(owner: str, material: str | Material) -> Material:
+    if isinstance(material, Material):
+        return material
+    try:
+        return get_material(material)
+    except KeyError as exc:
+        raise InputError(f"{owner}.material = {material!r}: {exc.args[0]}") from None
+
+
+# --------------------------------------------------------------------------- mesh helpers
+def _rotation_between(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A rotation matrix (3, 3) taking unit vector ``a`` to unit vector ``b``."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    v = np.cross(a, b)
+    c = float(np.dot(a, b))
+    if c < -1.0 + 1e-12:  # opposite: half turn about any axis normal to a
+        axis = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+def _transform(rotation: NDArray[np.float64], translation: Sequence[float]) -> NDArray[np.float64]:
+    matrix = np.eye(4)
+    matrix[:3, :3] = rotation
+    matrix[:3, 3] = translation
+    return matrix
+
+
+def euler_rotation(yaw_deg: float, pitch_deg: float, roll_deg: float) -> NDArray[np.float64]:
+    """Rotation matrix (3, 3) of a placed object, R = Rz(yaw) Ry(-pitch) Rx(roll).
+
+    The object's own +x axis is its "forward": yaw turns it counter-clockwise seen from above
+    (like the sonar's yaw), positive pitch raises its nose (+x toward +z), roll turns about it.
+    """
+    y, p, r = (math.radians(v) for v in (yaw_deg, pitch_deg, roll_deg))
+    rz = np.array([[math.cos(y), -math.sin(y), 0.0], [math.sin(y), math.cos(y), 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[math.cos(-p), 0.0, math.sin(-p)], [0.0, 1.0, 0.0], [-math.sin(-p), 0.0, math.cos(-p)]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(r), -math.sin(r)], [0.0, math.sin(r), math.cos(r)]])
+    return rz @ ry @ rx
+
+
+def _outward(mesh: trimesh.Trimesh, owner: str) -> trimesh.Trimesh:
+    """Check a closed mesh and wind it so its normals point outward (positive volume)."""
+    if not mesh.is_watertight or not mesh.is_winding_consistent:
+        raise InputError(f"{owner}: the mesh is not watertight")
+    if mesh.volume < 0.0:
+        mesh.invert()
+    if not mesh.volume > 0.0:
+        raise InputError(f"{owner}: the mesh encloses no volume")
+    return mesh
+
+
+def _vertical_extent(owner: str, bottom_m: float, top_m: float) -> tuple[float, float]:
+    bottom = _number(owner, "bottom_m", bottom_m)
+    top = _number(owner, "top_m", top_m)
+    if top <= bottom:
+        raise InputError(f"{owner}.top_m = {top!r}: must be above bottom_m = {bottom!r}")
+    return bottom, top
+
+
+# --------------------------------------------------------------------------- builders
+def cylinder(
+    name: str,
+    center_m: Sequence[float],
+    axis: Sequence[float],
+    radius_m: float,
+    length_m: float,
+    material: str | Material = "pvc",
+) -> SceneObject:
+    """A finite circular cylinder with flat caps.
+
+    Parameters
+    ----------
+    name : str
+        Object name.
+    center_m : sequence of 3 float
+        Centre of the axis segment (tank frame, m).
+    axis : sequence of 3 float
+        Axis direction (any length, normalised).
+    radius_m, length_m : float
+        Radius and length (m), > 0.
+    material : str or Material
+        Material name in the library, or a Material.
+    """
+    owner = name
+    center = _vector(owner, "center_m", center_m, 3)
+    direction = _vector(owner, "axis", axis, 3, unit=True)
+    radius = _number(owner, "radius_m", radius_m, positive=True)
+    length = _number(owner, "length_m", length_m, positive=True)
+    mat = _material(owner, material)
+    primitive = CylinderPrimitive(center, direction, radius, length)
+    rotation = _rotation_between(np.array([0.0, 0.0, 1.0]), np.asarray(primitive.axis))
+    mesh = trimesh.creation.cylinder(
+        radius=radius, height=length, sections=circle_segments(radius), transform=_transform(rotation, center)
+    )
+    return SceneObject(
+        name,
+        "cylinder",
+        mat,
+        _outward(mesh, owner),
+        primitive,
+        (("center_m", center), ("axis", direction), ("radius_m", radius), ("length_m", length)),
+    )
+
+
+def post(
+    name: str,
+    center_m: Sequence[float],
+    radius_m: float,
+    water_depth_m: float,
+    material: str | Material = "pvc",
+    *,
+    bottom_m: float = 0.0,
+) -> SceneObject:
+    """A vertical post: a cylinder from the floor (z = ``bottom_m``, default 0) to the surface.
+
+    Parameters
+    ----------
+    name : str
+    center_m : sequence of 2 float
+        (x, y) of the axis (tank frame, m).
+    radius_m : float
+        Radius (m), > 0.
+    water_depth_m : float
+        z of the top (m): the free surface in a tank; in free field, the top of the post.
+    material : str or Material
+    bottom_m : float, keyword-only
+        z of the bottom (m): 0 (the floor) in a tank.
+    """
+    owner = name
+    center = _vector(owner, "center_m", center_m, 2)
+    radius = _number(owner, "radius_m", radius_m, positive=True)
+    bottom, top = _vertical_extent(owner, bottom_m, water_depth_m)
+    obj = cylinder(name, (center[0], center[1], 0.5 * (bottom + top)), (0.0, 0.0, 1.0), radius, top - bottom, material)
+    parameters = (("center_m", center), ("radius_m", radius), ("bottom_m", bottom), ("top_m", top))
+    return SceneObject(name, "post", obj.material, obj.mesh, obj.primitive, parameters)
+
+
+def edge_prism(
+    name: str,
+    edge_m: Sequence[float],
+    interior_angle_deg: float,
+    facing_deg: float,
+    size_m: float,
+    water_depth_m: float,
+    material: str | Material = "steel",
+    *,
+    bottom_m: float = 0.0,
+) -> SceneObject:
+    """A vertical triangular prism whose sharp vertical edge is a point target in 2-D.
+
+    Parameters
+    ----------
+    name : str
+    edge_m : sequence of 2 float
+        (x, y) of the sharp vertical edge (tank frame, m).
+    interior_angle_deg : float
+        Interior angle of the prism at that edge (degrees), in (0, 180).
+    facing_deg : float
+        Direction the edge points (degrees, tank frame, counter-clockwise from +x like yaw):
+        the prism lies behind the edge, symmetric about the opposite direction.
+    size_m : float
+        Length of the two faces that meet at the edge (m), > 0.
+    water_depth_m : float
+        z of the top (m): the free surface in a tank.
+    material : str or Material
+    bottom_m : float, keyword-only
+        z of the bottom (m): 0 (the floor) in a tank.
+    """
+    owner = name
+    edge = _vector(owner, "edge_m", edge_m, 2)
+    angle = _number(owner, "interior_angle_deg", interior_angle_deg)
+    if not 0.0 < angle < 180.0:
+        raise InputError(f"{owner}.interior_angle_deg = {interior_angle_deg!r}: must lie in (0, 180)")
+    facing = _number(owner, "facing_deg", facing_deg)
+    size = _number(owner, "size_m", size_m, positive=True)
+    bottom, top = _vertical_extent(owner, bottom_m, water_depth_m)
+    mat = _material(owner, material)
+    back = math.radians(facing) + math.pi  # from the edge into the prism
+    half = math.radians(angle) / 2.0
+    corners = np.array(
+        [
+            edge,
+            (edge[0] + size * math.cos(back + half), edge[1] + size * math.sin(back + half)),
+            (edge[0] + size * math.cos(back - half), edge[1] + size * math.sin(back - half)),
+        ]
+    )
+    vertices = np.vstack([np.column_stack([corners, np.full(3, bottom)]), np.column_stack([corners, np.full(3, top)])])
+    faces = np.array([[0, 2, 1], [3, 4, 5], [0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]])
+    mesh = trimesh.Trimesh(vertices, faces, process=True)
+    parameters = (
+        ("edge_m", edge),
+        ("interior_angle_deg", angle),
+        ("facing_deg", facing),
+        ("size_m", size),
+        ("bottom_m", bottom),
+        ("top_m", top),
+    )
+    return SceneObject(name, "edge", mat, _outward(mesh, owner), None, parameters)
+
+
+def sphere(
+    name: str, center_m: Sequence[float], radius_m: float, material: str | Material = "steel"
+) -> SceneObject:
+    """A sphere (icosphere mesh under the sagitta criterion, exact primitive kept).
+
+    Parameters
+    ----------
+    name : str
+    center_m : sequence of 3 float
+        Centre (tank frame, m).
+    radius_m : float
+        Radius (m), > 0.
+    material : str or Material
+    """
+    owner = name
+    center = _vector(owner, "center_m", center_m, 3)
+    radius = _number(owner, "radius_m", radius_m, positive=True)
+    mat = _material(owner, material)
+    mesh = trimesh.creation.icosphere(subdivisions=icosphere_subdivisions(radius), radius=radius)
+    mesh.apply_translation(center)
+    return SceneObject(
+        name,
+        "sphere",
+        mat,
+        _outward(mesh, owner),
+        SpherePrimitive(center, radius),
+        (("center_m", center), ("radius_m", radius)),
+    )
+
+
+def plate(
+    name: str,
+    center_m: Sequence[float],
+    normal: Sequence[float],
+    width_m: float,
+    height_m: float,
+    thickness_m: float,
+    material: str | Material = "steel",
+    up: Sequence[float] = (0.0, 0.0, 1.0),
+) -> SceneObject:
+    """A flat plate: a thin box.
+
+    Parameters
+    ----------
+    name : str
+    center_m : sequence of 3 float
+        Centre of the box (tank frame, m).
+    normal : sequence of 3 float
+        Normal of the two large faces (any length).
+    width_m, height_m, thickness_m : float
+        Extent across ``up``, along ``up`` and along ``normal`` (m), > 0.
+    material : str or Material
+    up : sequence of 3 float
+        The direction of the height, projected onto the plate's plane; must not be parallel
+        to ``normal``.
+    """
+    owner = name
+    center = _vector(owner, "center_m", center_m, 3)
+    n = np.asarray(_vector(owner, "normal", normal, 3, unit=True))
+    n = n / np.linalg.norm(n)
+    up_vec = np.asarray(_vector(owner, "up", up, 3, unit=True))
+    width = _number(owner, "width_m", width_m, positive=True)
+    height = _number(owner, "height_m", height_m, positive=True)
+    thickness = _number(owner, "thickness_m", thickness_m, positive=True)
+    mat = _material(owner, material)
+    v = up_vec - np.dot(up_vec, n) * n
+    if np.linalg.norm(v) < 1e-6 * np.linalg.norm(up_vec):
+        raise InputError(f"{owner}.up = {tuple(up)!r}: must not be parallel to normal = {tuple(normal)!r}")
+    v /= np.linalg.norm(v)
+    u = np.cross(v, n)
+    rotation = np.column_stack([u, v, n])
+    mesh = trimesh.creation.box(extents=(width, height, thickness), transform=_transform(rotation, center))
+    parameters = (
+        ("center_m", center),
+        ("normal", _vector(owner, "normal", normal, 3)),
+        ("width_m", width),
+        ("height_m", height),
+        ("thickness_m", thickness),
+        ("up", _vector(owner, "up", up, 3)),
+    )
+    return SceneObject(name, "plate", mat, _outward(mesh, owner), None, parameters)
+
+
+def load_mesh_file(path: str | os.PathLike[str], owner: str = "mesh") -> trimesh.Trimesh:
+    """Read a mesh file (STL, OBJ, PLY, ... anything trimesh reads), repaired when possible.
+
+    Holes are filled and normals made consistent and outward when trimesh can; a mesh that
+    stays open is rejected.
+
+    Raises
+    ------
+    InputError
+        Missing, unreadable or empty file, or a mesh that cannot be made watertight.
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise InputError(f"{owner}.path = {str(path)!r}: no such file")
+    try:
+        loaded = trimesh.load(file, force="mesh", process=True)
+    except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file
+        raise InputError(f"{owner}.path = {str(path)!r}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise InputError(f"{owner}.path = {str(path)!r}: the file holds no triangles")
+    mesh = loaded
+    if not (mesh.is_watertight and mesh.is_winding_consistent):
+        mesh.merge_vertices()
+        mesh.update_faces(mesh.nondegenerate_faces())
+        mesh.update_faces(mesh.unique_faces())
+        mesh.remove_unreferenced_vertices()
+        trimesh.repair.fill_holes(mesh)
+        trimesh.repair.fix_normals(mesh)
+    if not (mesh.is_watertight and mesh.is_winding_consistent):
+        raise InputError(f"{owner}.path = {str(path)!r}: the mesh is not watertight and trimesh cannot repair it")
+    if mesh.volume < 0.0:
+        mesh.invert()
+    return mesh
+
+
+def user_mesh(
+    name: str,
+    path: str | os.PathLike[str],
+    position_m: Sequence[float],
+    yaw_deg: float = 0.0,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+    scale: float = 1.0,
+    material: str | Material = "concrete",
+) -> SceneObject:
+    """A mesh from a file, scaled, rotated (:func:`euler_rotation`) and moved.
+
+    Parameters
+    ----------
+    name : str
+    path : str or path-like
+        Mesh file; stored in ``parameters`` as an absolute path.
+    position_m : sequence of 3 float
+        Where the mesh's own origin goes (tank frame, m).
+    yaw_deg, pitch_deg, roll_deg : float
+        Orientation (degrees), see :func:`euler_rotation`.
+    scale : float
+        Uniform scale applied first (the file's units to metres), > 0.
+    material : str or Material
+    """
+    owner = name
+    position = _vector(owner, "position_m", position_m, 3)
+    yaw = _number(owner, "yaw_deg", yaw_deg)
+    pitch = _number(owner, "pitch_deg", pitch_deg)
+    roll = _number(owner, "roll_deg", roll_deg)
+    factor = _number(owner, "scale", scale, positive=True)
+    mat = _material(owner, material)
+    mesh = load_mesh_file(path, owner).copy()
+    mesh.apply_scale(factor)
+    mesh.apply_transform(_transform(euler_rotation(yaw, pitch, roll), position))
+    parameters = (
+        ("path", str(Path(path).resolve())),
+        ("position_m", position),
+        ("yaw_deg", yaw),
+        ("pitch_deg", pitch),
+        ("roll_deg", roll),
+        ("scale", factor),
+    )
+    return SceneObject(name, "mesh", mat, _outward(mesh, owner), None, parameters)
+
+
+def default_sonar() -> SonarHead:
+    """The thesis tank's sonar: d = 65 mm, 19 mm pistons, 500 kHz, T = 5 us, 20 MS/s, 12 bits.
+
+    Pose: (1.0, 1.5, 0.5) m, yaw 0 (looking down the tank's length, +x), mid-depth.
+    """
+    return SonarHead(
+        position_m=(1.0, 1.5, 0.5),
+        yaw_deg=0.0,
+        pitch_deg=0.0,
+        roll_deg=0.0,
+        separation_m=0.065,
+        transducer_diameter_m=0.019,
+        centre_frequency_hz=500e3,
+        pulse_duration_s=5e-6,
+        source_level_pa=1.0e5,
+        sample_rate_hz=20e6,
+        adc_bits=12,
+        record_length_s=0.0125,
+    )
