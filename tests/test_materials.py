@@ -1,0 +1,92 @@
+"""Reflection coefficients of the material library."""
+
+import numpy as np
+import pytest
+
+from acoustisim.materials import Material, get_material, material_library
+from acoustisim.medium import Medium
+
+WATER = Medium(water="fresh", temperature_c=20.0)
+RHO_W, C_W = WATER.density, WATER.sound_speed
+
+
+@pytest.mark.parametrize("name, handbook", [("pvc", 0.38), ("concrete", 0.72), ("glass", 0.81), ("steel", 0.94)])
+def test_normal_incidence_against_handbook(name, handbook):
+    # Handbook R values (physics.md) are printed to 2 decimals and were computed for water of
+    # Z = 1.48-1.50 MRayl; that spread moves R by < 0.006, so 0.01 is the honest tolerance.
+    assert get_material(name).normal_reflection(RHO_W, C_W) == pytest.approx(handbook, abs=0.01)
+
+
+def test_normal_incidence_is_impedance_formula():
+    steel = get_material("steel")
+    z1, z2 = RHO_W * C_W, steel.density_kg_m3 * steel.sound_speed_m_s
+    assert steel.normal_reflection(RHO_W, C_W) == pytest.approx((z2 - z1) / (z2 + z1), rel=1e-12)
+
+
+@pytest.mark.parametrize("name", ["steel", "pvc", "concrete", "glass"])
+def test_total_reflection_beyond_critical_angle(name):
+    material = get_material(name)
+    critical = np.arcsin(C_W / material.sound_speed_m_s)
+    angles = np.linspace(critical + 1e-6, np.pi / 2 - 1e-6, 50)
+    r = material.reflection_coefficient(np.cos(angles), RHO_W, C_W)
+    np.testing.assert_allclose(np.abs(r), 1.0, atol=1e-12)  # exact in the model: rounding only
+    below = material.reflection_coefficient(np.cos(np.linspace(0.0, critical - 1e-3, 20)), RHO_W, C_W)
+    assert np.all(np.abs(below) < 1.0)
+
+
+@pytest.mark.parametrize("name", ["steel", "pvc", "concrete", "rubber"])
+def test_energy_is_conserved_below_critical_angle(name):
+    # Independent invariant: reflected + transmitted normal intensity flux = incident,
+    # |R|^2 + (Z1 cos t2 / (Z2 cos t1)) |1 + R|^2 = 1 (fluid-fluid interface, real cos t2).
+    material = get_material(name)
+    sin_crit = min(C_W / material.sound_speed_m_s, 1.0)
+    theta1 = np.linspace(0.0, np.arcsin(sin_crit) * 0.999, 40)
+    r = material.reflection_coefficient(np.cos(theta1), RHO_W, C_W)
+    sin2 = material.sound_speed_m_s / C_W * np.sin(theta1)
+    cos2 = np.sqrt(1.0 - sin2**2)
+    z1, z2 = RHO_W * C_W, material.density_kg_m3 * material.sound_speed_m_s
+    flux = np.abs(r) ** 2 + (z1 * cos2) / (z2 * np.cos(theta1)) * np.abs(1.0 + r) ** 2
+    np.testing.assert_allclose(flux, 1.0, atol=1e-12)
+
+
+def test_water_against_water_does_not_reflect():
+    water = Material("water", RHO_W, C_W)
+    np.testing.assert_allclose(water.reflection_coefficient(np.linspace(0.01, 1.0, 9), RHO_W, C_W), 0.0, atol=1e-12)
+
+
+def test_grazing_incidence_gives_minus_one():
+    # At grazing incidence (cos t1 = 0) the fluid formula gives R = -1 for any contrast.
+    assert get_material("pvc").reflection_coefficient(0.0, RHO_W, C_W) == pytest.approx(-1.0)
+
+
+def test_idealised_and_fixed_models():
+    cos = np.linspace(0.0, 1.0, 5)
+    np.testing.assert_array_equal(get_material("rigid").reflection_coefficient(cos, RHO_W, C_W), 1.0)
+    np.testing.assert_array_equal(get_material("pressure-release").reflection_coefficient(cos, RHO_W, C_W), -1.0)
+    np.testing.assert_array_equal(get_material("pvc-pipe-air").reflection_coefficient(cos, RHO_W, C_W), -0.9)
+    np.testing.assert_array_equal(get_material("pvc-pipe-water").reflection_coefficient(cos, RHO_W, C_W), 0.35)
+
+
+def test_library_holds_the_required_materials():
+    required = {"concrete", "glass", "pvc", "steel", "pvc-pipe-air", "pvc-pipe-water", "rubber", "rigid",
+                "pressure-release"}
+    library = material_library()
+    assert required <= set(library)
+    assert all(library[name].name == name for name in library)
+    assert all(0.0 <= m.diffuse_mu <= 1.0 / np.pi for m in library.values())
+
+
+def test_unknown_material_names_the_known_ones():
+    with pytest.raises(KeyError, match="wood.*known: .*steel"):
+        get_material("wood")
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"density_kg_m3": -1.0}, {"sound_speed_m_s": float("nan")}, {"model": "magic"}, {"diffuse_mu": 0.5},
+     {"model": "fixed", "fixed_reflection": 1.5}],
+)
+def test_bad_material_is_rejected(kwargs):
+    base = {"name": "x", "density_kg_m3": 1000.0, "sound_speed_m_s": 1500.0}
+    with pytest.raises(ValueError):
+        Material(**{**base, **kwargs})
