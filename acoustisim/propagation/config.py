@@ -1,0 +1,76 @@
+"""The solver's fidelity knobs, independent of the scene and of the sensor."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from acoustisim.errors import InputError
+
+MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge", "diffuse")
+"""Every mechanism name :func:`acoustisim.propagation.solve` knows."""
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    """How hard the propagation solver works.
+
+    Attributes
+    ----------
+    max_order : int
+        Most reflections per specular path (>= 1). Default 3.
+    mechanisms : tuple of str
+        Which of "direct", "specular", "edge", "diffuse" to run.
+    diffuse_rays : int
+        Monte Carlo rays of the diffuse reverberation tracer (>= 0; 0 turns it off).
+    diffuse_bounces : int
+        Diffuse scattering events per ray (>= 1).
+    edge_segment_m : float
+        Length of the elements of a discretised diffracting edge (m, > 0).
+    amplitude_floor_db : float or None
+        Arrivals weaker than this (dB, <= 0) relative to the strongest non-direct arrival are
+        dropped; None keeps every path.
+    seed : int
+        Seed of the diffuse tracer's random draws (>= 0).
+    """
+
+    max_order: int = 3
+    mechanisms: tuple[str, ...] = MECHANISMS
+    diffuse_rays: int = 20_000
+    diffuse_bounces: int = 1
+    edge_segment_m: float = 5e-4
+    amplitude_floor_db: float | None = -80.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        def integer(name: str, minimum: int) -> None:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+                raise InputError(f"solver.{name} = {value!r}: must be an integer >= {minimum}")
+
+        integer("max_order", 1)
+        integer("diffuse_rays", 0)
+        integer("diffuse_bounces", 1)
+        integer("seed", 0)
+        if isinstance(self.mechanisms, str):
+            raise InputError(f"solver.mechanisms = {self.mechanisms!r}: must be a sequence of names")
+        mechanisms = tuple(self.mechanisms)
+        unknown = [m for m in mechanisms if m not in MECHANISMS]
+        if unknown:
+            raise InputError(
+                f"solver.mechanisms = {mechanisms!r}: unknown {unknown[0]!r} (known: {', '.join(MECHANISMS)})"
+            )
+        object.__setattr__(self, "mechanisms", mechanisms)
+        segment = self.edge_segment_m
+        if isinstance(segment, bool) or not isinstance(segment, (int, float)) or not (
+            math.isfinite(segment) and segment > 0
+        ):
+            raise InputError(f"solver.edge_segment_m = {segment!r}: must be a finite number > 0")
+        floor = self.amplitude_floor_db
+        if floor is not None and (
+            isinstance(floor, bool) or not isinstance(floor, (int, float)) or not (math.isfinite(floor) and floor <= 0)
+        ):
+            raise InputError(f"solver.amplitude_floor_db = {floor!r}: must be a finite number <= 0 or None")
+
+
+__all__ = ["MECHANISMS", "SolverConfig"]

@@ -1,0 +1,299 @@
+"""Planar mirrors and the image-source geometry, vectorised over candidate chains.
+
+A *mirror* is a bounded planar polygon that reflects specularly: a tank boundary, a coplanar
+facet of a polyhedral object (prism, plate: trimesh ``facets``), or a flat cap of a cylinder.
+The facets of spheres and of the curved side of cylinders are never mirrors (their flat
+facets would give the wrong spreading; see :mod:`acoustisim.propagation.curved`).
+
+:func:`unfold` mirrors a point across a sequence of planes (the images); :func:`backtrace`
+recovers the reflection points from the last image toward an end point and checks that each
+lies inside its polygon and that the path stays on the reflecting side of every mirror.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.geometry import CylinderPrimitive
+from acoustisim.materials import Material
+from acoustisim.propagation.raycast import RayCaster
+from acoustisim.scene import Scene
+
+MAX_OBJECT_MIRRORS = 256
+"""Objects (without a curved primitive) with more planar facets than this are not used as
+mirrors: they are smooth or finely detailed meshes, not polyhedra, and order-3 chains over
+their facets would explode combinatorially."""
+
+_INSIDE_TOL = 1e-9
+"""Barycentric tolerance of the point-in-polygon test (dimensionless): points on a shared
+edge of two facets' triangles, or on the tank's corner lines, count as inside."""
+
+
+@dataclass(frozen=True, eq=False)
+class PlanarMirrors:
+    """All planar mirrors of a scene.
+
+    Attributes
+    ----------
+    point : ndarray, shape (m, 3)
+        A point of each plane (m).
+    normal : ndarray, shape (m, 3)
+        Unit normal on the reflecting (water) side.
+    surface : ndarray of int64, shape (m,)
+        Index into ``scene.surface_names``.
+    patch : ndarray of int64, shape (m,)
+        The ray caster's patch label (excluded from the occlusion of legs ending on it).
+    material : ndarray of int64, shape (m,)
+        Index into ``materials``.
+    materials : tuple of Material
+    triangles : ndarray, shape (m, t, 3, 3)
+        The polygon as triangles, padded by repeating the first one.
+    disc_radius : ndarray, shape (m,)
+        For the circular caps of cylinders, the true radius (m) about ``point`` (the cap's
+        centre), tested instead of the tessellated polygon; NaN for polygons.
+    sees : ndarray of bool, shape (m, m)
+        ``sees[i, j]``: some vertex of mirror j lies strictly in front of mirror i and some
+        vertex of i strictly in front of j (a necessary condition for a leg i -> j).
+    """
+
+    point: NDArray[np.float64] = field(repr=False)
+    normal: NDArray[np.float64] = field(repr=False)
+    surface: NDArray[np.int64] = field(repr=False)
+    patch: NDArray[np.int64] = field(repr=False)
+    material: NDArray[np.int64] = field(repr=False)
+    materials: tuple[Material, ...]
+    triangles: NDArray[np.float64] = field(repr=False)
+    disc_radius: NDArray[np.float64] = field(repr=False)
+    sees: NDArray[np.bool_] = field(repr=False)
+
+    @property
+    def count(self) -> int:
+        """Number of mirrors."""
+        return int(self.point.shape[0])
+
+    @classmethod
+    def from_scene(cls, scene: Scene, raycaster: RayCaster) -> "PlanarMirrors":
+        """Collect the boundaries, polyhedral facets and cylinder caps of ``scene``."""
+        points: list[NDArray[np.float64]] = []
+        normals: list[NDArray[np.float64]] = []
+        surfaces: list[int] = []
+        patches: list[int] = []
+        material_of: list[int] = []
+        materials: list[Material] = []
+        polygons: list[NDArray[np.float64]] = []
+        discs: list[float] = []
+
+        def material_index(material: Material) -> int:
+            for i, known in enumerate(materials):
+                if known is material or known == material:
+                    return i
+            materials.append(material)
+            return len(materials) - 1
+
+        tri_all = raycaster.vertices[raycaster.faces]
+        n_boundaries = len(scene.boundaries)
+        for s, boundary in enumerate(scene.boundaries):
+            faces = np.flatnonzero(raycaster.surface_index == s)
+            points.append(np.asarray(boundary.plane.point_m, dtype=float))
+            normals.append(np.asarray(boundary.plane.normal, dtype=float))
+            surfaces.append(s)
+            patches.append(int(raycaster.patch_index[faces[0]]))
+            material_of.append(material_index(boundary.material))
+            polygons.append(tri_all[faces])
+            discs.append(np.nan)
+        for j, obj in enumerate(scene.objects):
+            s = n_boundaries + j
+            faces_of_object = np.flatnonzero(raycaster.surface_index == s)
+            offset = int(faces_of_object[0])
+            mesh = obj.mesh
+            facet_normals = np.asarray(mesh.facets_normal, dtype=float) if len(mesh.facets) else np.zeros((0, 3))
+            if obj.primitive is None:
+                if len(mesh.facets) > MAX_OBJECT_MIRRORS:
+                    continue
+                chosen = range(len(mesh.facets))
+            elif isinstance(obj.primitive, CylinderPrimitive):
+                axis = np.asarray(obj.primitive.axis, dtype=float)
+                chosen = [k for k in range(len(mesh.facets)) if abs(facet_normals[k] @ axis) > 1.0 - 1e-9]
+            else:
+                continue
+            for k in chosen:
+                faces = np.asarray(mesh.facets[k], dtype=np.int64) + offset
+                tri = tri_all[faces]
+                normals.append(facet_normals[k])
+                surfaces.append(s)
+                patches.append(int(raycaster.patch_index[faces[0]]))
+                material_of.append(material_index(obj.material))
+                if isinstance(obj.primitive, CylinderPrimitive):
+                    cyl = obj.primitive
+                    side = np.sign(facet_normals[k] @ np.asarray(cyl.axis))
+                    points.append(np.asarray(cyl.center_m) + side * 0.5 * cyl.length_m * np.asarray(cyl.axis))
+                    polygons.append(tri[:1])
+                    discs.append(float(cyl.radius_m))
+                else:
+                    points.append(tri[0, 0])
+                    polygons.append(tri)
+                    discs.append(np.nan)
+        m = len(points)
+        t = max((len(p) for p in polygons), default=1)
+        triangles = np.zeros((m, t, 3, 3))
+        for i, poly in enumerate(polygons):
+            triangles[i, : len(poly)] = poly
+            triangles[i, len(poly):] = poly[0]
+        point_arr = np.array(points, dtype=float).reshape(m, 3)
+        normal_arr = np.array(normals, dtype=float).reshape(m, 3)
+        disc_arr = np.array(discs, dtype=float)
+        corners = triangles.reshape(m, -1, 3).copy()
+        for i in np.flatnonzero(np.isfinite(disc_arr)):  # 8 rim points stand for a disc
+            helper = np.array([1.0, 0.0, 0.0]) if abs(normal_arr[i, 0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+            u = np.cross(normal_arr[i], helper)
+            u /= np.linalg.norm(u)
+            w = np.cross(normal_arr[i], u)
+            ang = np.linspace(0.0, 2.0 * np.pi, corners.shape[1], endpoint=False)
+            corners[i] = point_arr[i] + disc_arr[i] * (np.outer(np.cos(ang), u) + np.outer(np.sin(ang), w))
+        # front[i, j]: some corner of mirror j is in front of plane i (beyond 1e-9 m of round-off)
+        height = np.einsum("jvk,ik->ijv", corners, normal_arr) - np.einsum("ik,ik->i", point_arr, normal_arr)[:, None, None]
+        front = np.any(height > 1e-9, axis=2)
+        sees = front & front.T
+        np.fill_diagonal(sees, False)
+        return cls(
+            point=point_arr,
+            normal=normal_arr,
+            surface=np.array(surfaces, dtype=np.int64),
+            patch=np.array(patches, dtype=np.int64),
+            material=np.array(material_of, dtype=np.int64),
+            materials=tuple(materials),
+            triangles=triangles,
+            disc_radius=disc_arr,
+            sees=sees,
+        )
+
+    # ------------------------------------------------------------------ geometry
+    def signed_distance(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.float64]:
+        """Distance (n,) of points (n, 3) in front of mirrors (n,) (positive on the water side)."""
+        return np.einsum("ij,ij->i", points - self.point[mirror], self.normal[mirror])
+
+    def reflect(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.float64]:
+        """Images (n, 3) of points (n, 3) across the planes of mirrors (n,)."""
+        return points - 2.0 * self.signed_distance(points, mirror)[:, None] * self.normal[mirror]
+
+    def contains(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Whether points (n, 3) on the planes of mirrors (n,) lie inside their polygons (or discs)."""
+        radius = self.disc_radius[mirror]
+        in_disc = np.linalg.norm(points - self.point[mirror], axis=1) <= radius * (1.0 + _INSIDE_TOL)
+        tri = self.triangles[mirror]  # (n, t, 3, 3)
+        a, b, c = tri[:, :, 0], tri[:, :, 1], tri[:, :, 2]
+        p = points[:, None, :]
+        v0, v1, v2 = b - a, c - a, p - a
+        d00 = np.einsum("ntk,ntk->nt", v0, v0)
+        d01 = np.einsum("ntk,ntk->nt", v0, v1)
+        d11 = np.einsum("ntk,ntk->nt", v1, v1)
+        d20 = np.einsum("ntk,ntk->nt", v2, v0)
+        d21 = np.einsum("ntk,ntk->nt", v2, v1)
+        den = d00 * d11 - d01 * d01
+        den = np.where(den > 0, den, np.inf)
+        v = (d11 * d20 - d01 * d21) / den
+        w = (d00 * d21 - d01 * d20) / den
+        u = 1.0 - v - w
+        inside = (u >= -_INSIDE_TOL) & (v >= -_INSIDE_TOL) & (w >= -_INSIDE_TOL)
+        return np.where(np.isnan(radius), np.any(inside, axis=1), in_disc)
+
+
+def mirror_sequences(sees: NDArray[np.bool_], length: int, first: NDArray[np.bool_] | None = None,
+                     last: NDArray[np.bool_] | None = None) -> NDArray[np.int64]:
+    """Candidate mirror sequences (k, length) along which a wave could travel.
+
+    Parameters
+    ----------
+    sees : ndarray of bool, shape (m, m)
+        Mirror-to-mirror visibility (:attr:`PlanarMirrors.sees`); consecutive mirrors must see
+        each other (this also excludes a mirror twice in a row).
+    length : int
+        Number of mirrors (0 gives one empty sequence).
+    first, last : ndarray of bool, shape (m,), optional
+        Mirrors allowed first / last (e.g. those the transmitter is in front of).
+    """
+    m = sees.shape[0]
+    if length == 0:
+        return np.zeros((1, 0), dtype=np.int64)
+    allowed = np.ones(m, dtype=bool) if first is None else np.asarray(first, dtype=bool)
+    seqs = np.flatnonzero(allowed)[:, None]
+    for _ in range(length - 1):
+        rows, nxt = np.nonzero(sees[seqs[:, -1]])
+        seqs = np.concatenate([seqs[rows], nxt[:, None]], axis=1)
+    if last is not None:
+        seqs = seqs[np.asarray(last, dtype=bool)[seqs[:, -1]]]
+    return seqs.astype(np.int64)
+
+
+def unfold(mirrors: PlanarMirrors, start: NDArray[np.float64],
+           sequences: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Successive images of ``start`` across the mirrors of each sequence.
+
+    Parameters
+    ----------
+    start : ndarray, shape (n, 3)
+        The real point (transmitter, or receiver for a reversed sequence).
+    sequences : ndarray of int64, shape (n, k)
+        Mirror indices in the order the wave meets them from ``start``.
+
+    Returns
+    -------
+    images : ndarray, shape (n, k + 1, 3)
+        ``images[:, 0] = start``, ``images[:, j]`` the image across the first j mirrors.
+    valid : ndarray of bool, shape (n,)
+        Each image lies strictly in front of the next mirror (the wave can reach its face).
+    """
+    n, k = sequences.shape
+    images = np.empty((n, k + 1, 3))
+    images[:, 0] = start
+    valid = np.ones(n, dtype=bool)
+    for j in range(k):
+        m = sequences[:, j]
+        valid &= mirrors.signed_distance(images[:, j], m) > 0.0
+        images[:, j + 1] = mirrors.reflect(images[:, j], m)
+    return images, valid
+
+
+def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: NDArray[np.int64],
+              end: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Reflection points of the chains start -> mirrors -> ``end``.
+
+    Parameters
+    ----------
+    images : ndarray, shape (n, k + 1, 3)
+        From :func:`unfold`.
+    sequences : ndarray of int64, shape (n, k)
+    end : ndarray, shape (n, 3)
+        The point the chain arrives at (receiver, or a curved object's specular point).
+
+    Returns
+    -------
+    points : ndarray, shape (n, k, 3)
+        Reflection points in the order met from the start.
+    valid : ndarray of bool, shape (n,)
+        Every point lies inside its polygon, between its neighbours on the unfolded line, and
+        every leg leaves and reaches the mirrors on their water side.
+    """
+    n, k = sequences.shape
+    points = np.empty((n, k, 3))
+    valid = np.ones(n, dtype=bool)
+    current = np.asarray(end, dtype=float)
+    for j in range(k - 1, -1, -1):
+        m = sequences[:, j]
+        source = images[:, j + 1]
+        d_cur = mirrors.signed_distance(current, m)
+        d_src = mirrors.signed_distance(source, m)
+        # the segment current -> image must cross the plane: current in front, image behind
+        valid &= (d_cur > 0.0) & (d_src < 0.0)
+        denom = np.where(valid, d_cur - d_src, 1.0)
+        t = d_cur / denom
+        x = current + t[:, None] * (source - current)
+        valid &= mirrors.contains(x, m)
+        points[:, j] = x
+        current = x
+    return points, valid
+
+
+__all__ = ["MAX_OBJECT_MIRRORS", "PlanarMirrors", "backtrace", "mirror_sequences", "unfold"]

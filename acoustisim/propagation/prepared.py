@@ -1,0 +1,113 @@
+"""Per-scene work done once and reused for every sonar pose: checks, Embree scene, mirrors.
+
+:func:`prepare` validates the meshes (no zero-area faces, closed shells), builds the
+:class:`~acoustisim.propagation.raycast.RayCaster`, the planar mirrors and the list of curved
+reflectors. :func:`acoustisim.propagation.solve` accepts a :class:`PreparedScene` in place of a
+scene, so that many poses of one scene pay for this once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.errors import InputError
+from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
+from acoustisim.materials import Material
+from acoustisim.propagation.image_source import PlanarMirrors
+from acoustisim.propagation.raycast import RayCaster
+from acoustisim.scene import Scene, SceneObject
+
+MIN_FACE_AREA_FRACTION = 1e-14
+"""A face whose area is below this fraction of the mesh's squared extent is degenerate (zero
+area up to float64 round-off of the vertex coordinates)."""
+
+
+@dataclass(frozen=True, eq=False)
+class CurvedReflector:
+    """An object traced on its analytic primitive.
+
+    Attributes
+    ----------
+    surface : int
+        Index into ``scene.surface_names``.
+    patch : int
+        The ray caster's patch label of the whole object (excluded by legs touching it).
+    primitive : SpherePrimitive or CylinderPrimitive
+    material : Material
+    seen_by : ndarray of bool, shape (n_mirrors,)
+        Mirrors with some vertex of the object strictly in front of them (a necessary
+        condition for a leg between the mirror and the object).
+    """
+
+    surface: int
+    patch: int
+    primitive: SpherePrimitive | CylinderPrimitive
+    material: Material
+    seen_by: NDArray[np.bool_] = field(repr=False)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedScene:
+    """A scene with its validated geometry, Embree scene, mirrors and curved reflectors."""
+
+    scene: Scene
+    raycaster: RayCaster
+    mirrors: PlanarMirrors
+    curved: tuple[CurvedReflector, ...]
+
+
+def check_mesh(obj: SceneObject) -> None:
+    """Raise :class:`InputError` if an object's mesh is degenerate or open.
+
+    Degenerate: no faces, non-finite vertices, zero-area faces. Open: not watertight (an open
+    shell has no inside, so occlusion and scattering from it are ill-defined).
+    """
+    mesh = obj.mesh
+    if len(mesh.faces) == 0:
+        raise InputError(f"object {obj.name!r}: mesh has no faces")
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    if not np.all(np.isfinite(vertices)):
+        raise InputError(f"object {obj.name!r}: mesh has non-finite vertex coordinates")
+    extent = float(np.max(np.ptp(vertices, axis=0)))
+    areas = np.asarray(mesh.area_faces, dtype=float)
+    tiny = areas <= MIN_FACE_AREA_FRACTION * extent * extent
+    if np.any(tiny):
+        raise InputError(
+            f"object {obj.name!r}: mesh has {int(tiny.sum())} zero-area face(s), first is face {int(np.argmax(tiny))}"
+        )
+    if not mesh.is_watertight:
+        raise InputError(f"object {obj.name!r}: mesh is not a closed shell (open edges); close it or give it thickness")
+
+
+def prepare(scene: Scene) -> PreparedScene:
+    """Validate ``scene``'s meshes and build everything the solver reuses across poses.
+
+    Raises
+    ------
+    InputError
+        Degenerate or open meshes, or an empty scene.
+    """
+    if isinstance(scene, PreparedScene):
+        return scene
+    for obj in scene.objects:
+        check_mesh(obj)
+    raycaster = RayCaster.from_scene(scene)
+    mirrors = PlanarMirrors.from_scene(scene, raycaster)
+    n_boundaries = len(scene.boundaries)
+    curved = []
+    for j, obj in enumerate(scene.objects):
+        if isinstance(obj.primitive, (SpherePrimitive, CylinderPrimitive)):
+            s = n_boundaries + j
+            faces = np.flatnonzero(raycaster.surface_index == s)
+            vertices = raycaster.vertices[np.unique(raycaster.faces[faces])]
+            height = vertices @ mirrors.normal.T - np.einsum("ik,ik->i", mirrors.point, mirrors.normal)
+            seen_by = np.any(height > 1e-9, axis=0)
+            curved.append(
+                CurvedReflector(s, int(raycaster.patch_index[faces[0]]), obj.primitive, obj.material, seen_by))
+    return PreparedScene(scene, raycaster, mirrors, tuple(curved))
+
+
+__all__ = ["CurvedReflector", "PreparedScene", "check_mesh", "prepare"]

@@ -1,0 +1,166 @@
+"""``solve(scene, sonar, config) -> Paths``: every path from the transmitter to each receiver.
+
+Mechanisms run in order, each given a :class:`SolveContext` whose ``first_path_id`` is the next
+free id: direct, specular (:mod:`.specular`), then edge diffraction
+(``acoustisim.propagation.edges.edge_paths(context, config)``) and diffuse reverberation
+(``acoustisim.propagation.diffuse.diffuse_paths(context, config)``) when those modules are
+installed. :func:`~acoustisim.propagation.columns.complete_columns` then fills the derived
+columns of every row and the amplitude floor culls weak arrivals.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.errors import InputError
+from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
+from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.paths import PATH_DTYPE, Paths, empty_paths_array
+from acoustisim.propagation.prepared import PreparedScene, prepare
+from acoustisim.propagation.specular import direct_rows, specular_rows
+from acoustisim.scene import Scene
+from acoustisim.sonar import CHANNEL_NAMES, SonarHead
+
+_OPTIONAL_MECHANISMS = (
+    ("edge", "acoustisim.propagation.edges", "edge_paths"),
+    ("diffuse", "acoustisim.propagation.diffuse", "diffuse_paths"),
+)
+
+
+def check_sonar(prepared: PreparedScene, sonar: SonarHead) -> None:
+    """Raise :class:`InputError` if a transducer touches or is inside a surface, or a receive-only
+    transducer sits on the transmitter.
+
+    "Touching" is closer than the piston radius a to a tank boundary or an object surface: the
+    face of the piston would cut the surface.
+    """
+    scene = prepared.scene
+    a = float(sonar.piston_radius_m)
+    tx = np.asarray(sonar.transmitter_position, dtype=float)
+    positions = np.asarray(sonar.receiver_positions, dtype=float)
+    for i, name in enumerate(CHANNEL_NAMES):
+        if i != 1 and np.linalg.norm(positions[i] - tx) < a:
+            raise InputError(
+                f"sonar: the {name} receiver at {positions[i].round(4).tolist()} m coincides with the transmitter "
+                f"at {tx.round(4).tolist()} m (closer than the piston radius {a} m)"
+            )
+    if scene.tank is not None:
+        inside = scene.tank.contains(positions, margin_m=a)
+        if not np.all(inside):
+            i = int(np.argmin(inside))
+            raise InputError(
+                f"sonar.position_m: the {CHANNEL_NAMES[i]} transducer at {positions[i].round(4).tolist()} m is "
+                f"outside the water or within {a} m of a tank boundary"
+            )
+    for obj in scene.objects:
+        lo, hi = obj.bounds_m
+        near = np.all((positions >= lo - a) & (positions <= hi + a), axis=1)
+        if not np.any(near):
+            continue
+        candidates = positions[near]
+        primitive = obj.primitive
+        if isinstance(primitive, SpherePrimitive):
+            distance = np.linalg.norm(candidates - np.asarray(primitive.center_m), axis=1) - primitive.radius_m
+        elif isinstance(primitive, CylinderPrimitive):
+            local = candidates - np.asarray(primitive.center_m)
+            along = local @ np.asarray(primitive.axis)
+            radial = np.linalg.norm(local - np.outer(along, primitive.axis), axis=1) - primitive.radius_m
+            axial = np.abs(along) - 0.5 * primitive.length_m
+            outside = np.hypot(np.maximum(radial, 0.0), np.maximum(axial, 0.0))
+            distance = np.where((radial < 0) & (axial < 0), np.maximum(radial, axial), outside)
+        else:
+            import trimesh
+
+            # trimesh's sign convention: positive inside
+            distance = -trimesh.proximity.signed_distance(obj.mesh, candidates)
+        if np.any(distance < a):
+            i = int(np.flatnonzero(near)[int(np.argmin(distance))])
+            raise InputError(
+                f"sonar.position_m: the {CHANNEL_NAMES[i]} transducer at {positions[i].round(4).tolist()} m touches "
+                f"or is inside object {obj.name!r} (closer than the piston radius {a} m)"
+            )
+
+
+def _cull(rows: NDArray[Any], floor_db: float | None, paths: Paths) -> NDArray[Any]:
+    """Drop arrivals (path_id, channel groups) below ``floor_db`` relative to the strongest
+    non-direct arrival."""
+    if floor_db is None or rows.size == 0:
+        return rows
+    arrivals = paths.arrivals()
+    strong = arrivals["amplitude"][arrivals["kind"] != 0]
+    if strong.size == 0:
+        return rows
+    threshold = float(strong.max()) * 10.0 ** (floor_db / 20.0)
+    good = arrivals[(arrivals["amplitude"] >= threshold) | (arrivals["kind"] == 0)]
+    good_keys = good["path_id"].astype(np.int64) * 8 + good["channel"]
+    keys = rows["path_id"].astype(np.int64) * 8 + rows["channel"]
+    return rows[np.isin(keys, good_keys)]
+
+
+def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
+          config: SolverConfig | None = None) -> Paths:
+    """Every transmitter-to-receiver path of ``scene`` for one sonar pose.
+
+    Parameters
+    ----------
+    scene : Scene or PreparedScene
+        A prepared scene (:func:`acoustisim.propagation.prepared.prepare`) skips the per-scene
+        work (mesh checks, Embree build), for many poses of one scene.
+    sonar : SonarHead, optional
+        The pose; defaults to ``scene.sonar``.
+    config : SolverConfig, optional
+        Defaults to ``SolverConfig()``.
+
+    Returns
+    -------
+    Paths
+        Rows sorted by channel then delay.
+
+    Raises
+    ------
+    InputError
+        Degenerate meshes, a transducer touching a surface or coincident with the transmitter.
+    """
+    config = SolverConfig() if config is None else config
+    if not isinstance(config, SolverConfig):
+        raise InputError(f"solver config must be a SolverConfig, got {type(config).__name__}")
+    prepared = prepare(scene)
+    sonar = prepared.scene.sonar if sonar is None else sonar
+    check_sonar(prepared, sonar)
+    context = SolveContext.build(prepared.scene, sonar, prepared.raycaster)
+    parts: list[NDArray[Any]] = []
+    next_id = 0
+
+    def add(rows: NDArray[Any]) -> None:
+        nonlocal next_id
+        rows = np.asarray(rows, dtype=PATH_DTYPE)
+        parts.append(rows)
+        if rows.size:
+            next_id = max(next_id, int(rows["path_id"].max()) + 1)
+
+    if "direct" in config.mechanisms:
+        add(direct_rows(context.with_first_path_id(next_id)))
+    if "specular" in config.mechanisms:
+        add(specular_rows(context.with_first_path_id(next_id), prepared, config.max_order))
+    for name, module_name, function_name in _OPTIONAL_MECHANISMS:
+        if name in config.mechanisms and importlib.util.find_spec(module_name) is not None:
+            function = getattr(importlib.import_module(module_name), function_name)
+            add(function(context.with_first_path_id(next_id), config))
+    rows = np.concatenate(parts) if parts else empty_paths_array(0)
+    rows = complete_columns(rows, context)
+    rows = rows[np.lexsort((rows["delay_s"], rows["channel"]))]
+    paths = Paths(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s)
+    culled = _cull(rows, config.amplitude_floor_db, paths)
+    if culled.size != rows.size:
+        paths = Paths(culled, paths.surface_names, paths.centre_frequency_hz, paths.sound_speed_m_s)
+    return paths
+
+
+__all__ = ["check_sonar", "solve"]

@@ -1,0 +1,275 @@
+"""Direct and specular paths: image sources on planar mirrors, specular points on curved objects.
+
+Chains, for every receiver at once (numpy over candidates, no loop over rays):
+
+* planar chains of 1..``max_order`` mirrors (image-source method, :mod:`.image_source`);
+* mixed chains: planar mirrors, then one curved object (sphere, cylinder side), then planar
+  mirrors, of total order <= ``max_order``. The transmitter is unfolded across the mirrors
+  before the object, the receiver across the mirrors after it (in reverse), the specular point
+  is solved on the true surface between the two images (:mod:`.curved`), and the planar
+  reflection points are back-traced from it.
+
+Every leg of every valid candidate is checked for occlusion in one batched Embree query; legs
+ending on a mirror or a curved object ignore that patch (see :mod:`.raycast`).
+
+Gains (pressure factor relative to the source at 1 m): planar chains prod(R) / L with L the
+distance from the last image to the receiver; mixed chains prod(R) x the geometric-optics
+factor of the curved point with the unfolded distances. Reflection coefficients come from
+``Material.reflection_coefficient`` at each vertex's incidence angle; where the product is
+real its sign goes into ``geometric_gain``, otherwise ``geometric_gain`` holds the magnitude
+and ``phase_rad`` the phase. ``Material`` returns coefficients in the physics convention
+exp(-i omega t); ``phase_rad`` is applied as exp(+j phase) on positive frequencies of the
+engineering (FFT) convention, so ``phase_rad = -arg(R)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.curved import go_amplitude, primitive_specular_point, principal_directions
+from acoustisim.propagation.image_source import PlanarMirrors, backtrace, mirror_sequences, unfold
+from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
+from acoustisim.propagation.prepared import CurvedReflector, PreparedScene
+
+_REAL_TOL = 1e-12
+"""|Im R| below this fraction of |R| counts as a real coefficient (sign kept in the gain)."""
+
+
+@dataclass
+class _Chains:
+    """Valid candidate chains of one order (before occlusion)."""
+
+    vertices: NDArray[np.float64]  # (n, k + 2, 3): transmitter, k interaction points, receiver
+    surface: NDArray[np.int64]  # (n, k)
+    patch: NDArray[np.int64]  # (n, k)
+    normal: NDArray[np.float64]  # (n, k, 3) unit normals on the water side
+    material: list[Any]  # k arrays (n,) of Material indices into the materials list
+    length: NDArray[np.float64]  # (n,) total path length (m)
+    spreading: NDArray[np.float64]  # (n,) gain without reflection coefficients
+    channel: NDArray[np.int64]  # (n,)
+    chain: NDArray[np.int64]  # (n,) chain id (shared across channels)
+
+
+def direct_rows(context: SolveContext) -> NDArray[Any]:
+    """Direct transmitter -> receiver rows (skipping a receiver that is the transmitter itself).
+
+    Gain 1/r; blocked paths are dropped.
+    """
+    tx = context.transmitter_m
+    rx = context.receivers_m
+    dist = np.linalg.norm(rx - tx, axis=1)
+    channels = np.flatnonzero(dist > 1e-9)
+    blocked = context.raycaster.occluded(np.tile(tx, (channels.size, 1)), rx[channels])
+    channels = channels[~blocked]
+    rows = empty_paths_array(channels.size)
+    rows["path_id"] = context.first_path_id
+    rows["channel"] = channels
+    rows["kind"] = PathKind.DIRECT
+    rows["order"] = 0
+    r = dist[channels]
+    rows["path_length_m"] = r
+    rows["geometric_gain"] = 1.0 / r
+    direction = (rx[channels] - tx) / r[:, None]
+    rows["departure_dir"] = direction
+    rows["arrival_dir"] = direction
+    return rows
+
+
+def _receivers_in_front(context: SolveContext, mirrors: PlanarMirrors) -> NDArray[np.bool_]:
+    """Mirrors (m,) with at least one receiver in front of them."""
+    ids = np.arange(mirrors.count)
+    return np.any(
+        [mirrors.signed_distance(np.broadcast_to(r, (mirrors.count, 3)), ids) > 0 for r in context.receivers_m], axis=0)
+
+
+def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, chain_base: int) -> tuple[_Chains, int]:
+    tx = context.transmitter_m
+    first = mirrors.signed_distance(np.broadcast_to(tx, (mirrors.count, 3)), np.arange(mirrors.count)) > 0
+    last = _receivers_in_front(context, mirrors)
+    seqs = mirror_sequences(mirrors.sees, order, first, last)
+    images, ok = unfold(mirrors, np.broadcast_to(tx, (seqs.shape[0], 3)), seqs)
+    chain_ids = np.flatnonzero(ok)
+    seqs, images = seqs[ok], images[ok]
+    n_rx = context.receivers_m.shape[0]
+    s = seqs.shape[0]
+    seqs_all = np.tile(seqs, (n_rx, 1))
+    images_all = np.tile(images, (n_rx, 1, 1))
+    channel = np.repeat(np.arange(n_rx), s)
+    rx = context.receivers_m[channel]
+    points, valid = backtrace(mirrors, images_all, seqs_all, rx)
+    seqs_all, images_all, points, rx, channel = (
+        seqs_all[valid], images_all[valid], points[valid], rx[valid], channel[valid])
+    length = np.linalg.norm(images_all[:, -1] - rx, axis=1)
+    vertices = np.concatenate([np.broadcast_to(tx, (len(rx), 1, 3)), points, rx[:, None, :]], axis=1)
+    chains = _Chains(
+        vertices=vertices,
+        surface=mirrors.surface[seqs_all],
+        patch=mirrors.patch[seqs_all],
+        normal=mirrors.normal[seqs_all],
+        material=[("mirror", mirrors.material[seqs_all[:, j]]) for j in range(order)],
+        length=length,
+        spreading=1.0 / length,
+        channel=channel,
+        chain=chain_base + np.tile(chain_ids, n_rx)[valid],
+    )
+    return chains, chain_base + len(ok)
+
+
+def _mixed_chains(context: SolveContext, mirrors: PlanarMirrors, reflector: CurvedReflector, n_before: int,
+                  n_after: int, reflector_index: int, chain_base: int) -> tuple[_Chains, int]:
+    tx = context.transmitter_m
+    n_rx = context.receivers_m.shape[0]
+    first = mirrors.signed_distance(np.broadcast_to(tx, (mirrors.count, 3)), np.arange(mirrors.count)) > 0
+    seq_b = mirror_sequences(mirrors.sees, n_before, first, reflector.seen_by)
+    # in path order, from the object to the receiver
+    seq_a = mirror_sequences(mirrors.sees, n_after, reflector.seen_by, _receivers_in_front(context, mirrors))
+    images_b, ok_b = unfold(mirrors, np.broadcast_to(tx, (seq_b.shape[0], 3)), seq_b)
+    n_chain = seq_b.shape[0] * seq_a.shape[0]
+    ib = np.flatnonzero(ok_b)
+    ia = np.arange(seq_a.shape[0])
+    # candidate index grid: (before, after, receiver)
+    gb, ga, gr = (g.ravel() for g in np.meshgrid(ib, ia, np.arange(n_rx), indexing="ij"))
+    chain = chain_base + gb * seq_a.shape[0] + ga
+    sb, sa = seq_b[gb], seq_a[ga]
+    sa_rev = sa[:, ::-1]
+    images_a, ok_a = unfold(mirrors, context.receivers_m[gr], sa_rev)
+    keep = ok_a
+    gb, gr, sb, sa, sa_rev, images_a, chain = gb[keep], gr[keep], sb[keep], sa[keep], sa_rev[keep], images_a[keep], chain[keep]
+    img_b = images_b[gb]
+    a_pt = img_b[:, -1]
+    b_pt = images_a[:, -1]
+    x, normal, valid = primitive_specular_point(reflector.primitive, a_pt, b_pt)
+    pts_b, ok1 = backtrace(mirrors, img_b, sb, x)
+    pts_a_rev, ok2 = backtrace(mirrors, images_a, sa_rev, x)
+    valid &= ok1 & ok2
+    idx = np.flatnonzero(valid)
+    n = idx.size
+    rx = context.receivers_m[gr[idx]]
+    pts_after = pts_a_rev[idx][:, ::-1]
+    vertices = np.concatenate(
+        [np.broadcast_to(tx, (n, 1, 3)), pts_b[idx], x[idx][:, None, :], pts_after, rx[:, None, :]], axis=1)
+    a_v, b_v, x_v, n_v = a_pt[idx], b_pt[idx], x[idx], normal[idx]
+    e1, e2, k11, k22 = principal_directions(reflector.primitive, n_v)
+    spreading = go_amplitude(a_v, b_v, x_v, n_v, e1, e2, k11, k22)
+    length = np.linalg.norm(x_v - a_v, axis=1) + np.linalg.norm(x_v - b_v, axis=1)
+    sb_v, sa_v = sb[idx], sa[idx]
+    surface = np.concatenate([mirrors.surface[sb_v], np.full((n, 1), reflector.surface), mirrors.surface[sa_v]], axis=1)
+    patch = np.concatenate([mirrors.patch[sb_v], np.full((n, 1), reflector.patch), mirrors.patch[sa_v]], axis=1)
+    normals = np.concatenate([mirrors.normal[sb_v], n_v[:, None, :], mirrors.normal[sa_v]], axis=1)
+    material = ([("mirror", mirrors.material[sb_v[:, j]]) for j in range(n_before)]
+                + [("curved", np.full(n, reflector_index))]
+                + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
+    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, gr[idx], chain[idx])
+    return chains, chain_base + n_chain
+
+
+def _reflection_product(chains: _Chains, mirrors: PlanarMirrors, reflectors: tuple[CurvedReflector, ...],
+                        context: SolveContext) -> NDArray[np.complex128]:
+    """Product over the chain's vertices of R(cos theta_incidence) (n,), complex."""
+    n = chains.length.shape[0]
+    total = np.ones(n, dtype=complex)
+    rho, c = context.density_kg_m3, context.sound_speed_m_s
+    for j, (source, index) in enumerate(chains.material):
+        incoming = chains.vertices[:, j + 1] - chains.vertices[:, j]
+        incoming /= np.linalg.norm(incoming, axis=1, keepdims=True)
+        cos_i = np.abs(np.einsum("ij,ij->i", incoming, chains.normal[:, j]))
+        table = mirrors.materials if source == "mirror" else tuple(r.material for r in reflectors)
+        r = np.ones(n, dtype=complex)
+        for m in np.unique(index):
+            sel = index == m
+            r[sel] = table[int(m)].reflection_coefficient(cos_i[sel], rho, c)
+        total *= r
+    return total
+
+
+def _rows_from_chains(chains: _Chains, blocked: NDArray[np.bool_], reflection: NDArray[np.complex128],
+                      path_id_base: int) -> NDArray[Any]:
+    keep = ~blocked
+    k = chains.surface.shape[1]
+    n = int(keep.sum())
+    rows = empty_paths_array(n)
+    if n == 0:
+        return rows
+    v = chains.vertices[keep]
+    r = reflection[keep]
+    real = np.abs(r.imag) <= _REAL_TOL * np.abs(r)
+    gain = chains.spreading[keep]
+    rows["path_id"] = path_id_base + chains.chain[keep]
+    rows["channel"] = chains.channel[keep]
+    rows["kind"] = PathKind.SPECULAR
+    rows["order"] = k
+    rows["path_length_m"] = chains.length[keep]
+    rows["geometric_gain"] = np.where(real, gain * r.real, gain * np.abs(r))
+    rows["phase_rad"] = np.where(real, 0.0, -np.angle(r))
+    dep = v[:, 1] - v[:, 0]
+    arr = v[:, -1] - v[:, -2]
+    rows["departure_dir"] = dep / np.linalg.norm(dep, axis=1, keepdims=True)
+    rows["arrival_dir"] = arr / np.linalg.norm(arr, axis=1, keepdims=True)
+    m = min(k, MAX_INTERACTIONS)
+    rows["object_ids"][:, :m] = chains.surface[keep][:, :m]
+    rows["points_m"][:, :m] = v[:, 1:1 + m]
+    return rows
+
+
+def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+    """Every unblocked specular path of order 1..``max_order`` to every receiver.
+
+    Parameters
+    ----------
+    context : SolveContext
+    prepared : PreparedScene
+        Mirrors and curved reflectors of ``context.scene``.
+    max_order : int
+        Most reflections per path (>= 1).
+
+    Returns
+    -------
+    structured ndarray of PATH_DTYPE
+        ``path_id`` = ``context.first_path_id`` + a chain number shared by the receivers.
+    """
+    mirrors = prepared.mirrors
+    groups: list[_Chains] = []
+    chain_base = 0
+    for order in range(1, max_order + 1):
+        chains, chain_base = _planar_chains(context, mirrors, order, chain_base)
+        groups.append(chains)
+    for i, reflector in enumerate(prepared.curved):
+        for n_before in range(max_order):
+            for n_after in range(max_order - n_before):
+                chains, chain_base = _mixed_chains(context, mirrors, reflector, n_before, n_after, i, chain_base)
+                groups.append(chains)
+    # one batched occlusion query over every leg of every candidate
+    origins, targets, excludes, owner = [], [], [], []
+    for g, chains in enumerate(groups):
+        n, legs = chains.vertices.shape[0], chains.vertices.shape[1] - 1
+        if n == 0:
+            continue
+        origins.append(chains.vertices[:, :-1].reshape(-1, 3))
+        targets.append(chains.vertices[:, 1:].reshape(-1, 3))
+        pad = np.full((n, 1), -1, dtype=np.int64)
+        start_patch = np.concatenate([pad, chains.patch], axis=1)  # patch at each leg's start
+        end_patch = np.concatenate([chains.patch, pad], axis=1)
+        excludes.append(np.stack([start_patch, end_patch], axis=2).reshape(-1, 2))
+        owner.append(np.full(n * legs, g))
+    if origins:
+        blocked_legs = prepared.raycaster.occluded(
+            np.concatenate(origins), np.concatenate(targets), exclude_patches=np.concatenate(excludes))
+    out = [empty_paths_array(0)]
+    offset = 0
+    for chains in groups:
+        n, legs = chains.vertices.shape[0], chains.vertices.shape[1] - 1
+        if n == 0:
+            continue
+        blocked = blocked_legs[offset:offset + n * legs].reshape(n, legs).any(axis=1)
+        offset += n * legs
+        reflection = _reflection_product(chains, mirrors, prepared.curved, context)
+        out.append(_rows_from_chains(chains, blocked, reflection, context.first_path_id))
+    return np.concatenate(out)
+
+
+__all__ = ["direct_rows", "specular_rows"]
