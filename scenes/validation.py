@@ -105,8 +105,12 @@ def _check_in_water(scene: Scene, source: str) -> None:
         )
         vertical_ok = lo[2] >= -VERTICAL_TOLERANCE_M and hi[2] <= hi_water[2] + VERTICAL_TOLERANCE_M
         if not (lateral_ok and vertical_ok):
+            where = _placement(index, obj)
+            if lateral_ok and obj.parameter("top_m") is not None:  # a post or edge too tall or too low
+                key = "top_m" if hi[2] > hi_water[2] + VERTICAL_TOLERANCE_M else "bottom_m"
+                where = f"objects[{index}].{key} = {obj.parameter(key)!r}"
             raise SceneFileError(
-                f"{source}: {_placement(index, obj)}: object {obj.name!r} spans {_fmt_point(lo)}..{_fmt_point(hi)} m,"
+                f"{source}: {where}: object {obj.name!r} spans {_fmt_point(lo)}..{_fmt_point(hi)} m,"
                 f" outside the water or into a wall (water {_fmt_point(lo_water)}..{_fmt_point(hi_water)} m,"
                 f" {WALL_CLEARANCE_M * 1e3:g} mm from the walls)"
             )
