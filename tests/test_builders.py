@@ -199,3 +199,12 @@ def test_user_mesh_missing_file(tmp_path):
 def test_bad_arguments_raise_input_error(call):
     with pytest.raises(InputError):
         call()
+
+
+@pytest.mark.parametrize("suffix", ["stl", "obj", "ply"])
+def test_user_mesh_formats(tmp_path, suffix):
+    path = tmp_path / f"box.{suffix}"
+    _write_box(path)
+    obj = builders.user_mesh("b", path, (1.0, 1.0, 0.5))
+    assert_convex_outward(obj.mesh)
+    assert obj.mesh.volume == pytest.approx(0.2 * 0.1 * 0.05, rel=1e-6)  # float32 in STL: see above
