@@ -1,0 +1,167 @@
+"""First-order edge diffraction of a scene: the Biot-Tolstoy-Medwin rows of every sharp edge.
+
+For each sharp edge (:mod:`acoustisim.propagation.edge_extraction`) and each receiver, the
+edge is discretised about its least-time point (:mod:`acoustisim.propagation.btm`) and every
+element visible from the transmitter and from the receiver becomes one ``PATH_DTYPE`` row:
+``kind = EDGE``, ``order = 1``, delay ``(m + l) / c``, ``geometric_gain`` the element's
+integral of ``-(nu / 4 pi) beta / (m l) dz`` (signed), so that the sum of the rows of one edge
+and receiver is its band-limited impulse response relative to the source's pressure at 1 m.
+All elements of one (polygonal) edge and one receiver share a ``path_id``.
+
+Discretisation: neighbouring elements differ in path length by ``c / (16 f0)`` (a delay of
+1/(16 f0): 22.5 degrees of phase at 2 f0, the top of the pulse's band, well under the quarter
+period the integral needs) and are at most ``config.edge_segment_m`` long.
+
+Edges left out, each for a physical reason:
+
+* wedges whose index nu = pi / theta_w is an integer (the tank's 90-degree corners, nu = 2):
+  beta vanishes identically there (the four terms cancel in pairs), the image-source field
+  being exact;
+* object edges lying in a tank boundary plane (a prism's or a post's rim standing on the floor
+  or touching the free surface): they are not wedges in the water;
+* pairs whose transmitter or receiver lies within 1 um of the edge line or inside the wedge's
+  solid angular range (behind both faces).
+
+Elements whose gain is below 1e-6 of the strongest element (-120 dB, far below a 12-bit
+ADC's 72 dB) are dropped.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.propagation.btm import discretise_edges, element_gains
+from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
+from acoustisim.propagation.paths import PathKind, empty_paths_array
+
+DELAY_STEPS_PER_PERIOD = 16
+"""Element delay step = 1 / (DELAY_STEPS_PER_PERIOD f0)."""
+
+ELEMENT_FLOOR = 1e-6
+"""Elements weaker than this fraction of the strongest element are dropped."""
+
+VISIBILITY_OFFSET_M = 2e-4
+"""Element points are moved this far into the water along the wedge bisector before the
+visibility tests, so that the wedge's own faces never block a leg (float32 Embree round-off is
+about 5e-7 m in the tank)."""
+
+_MIN_DISTANCE_M = 1e-6
+_ON_PLANE_M = 1e-6
+
+
+def diffracting_edges(edges: SharpEdges, context: SolveContext) -> SharpEdges:
+    """The edges that diffract (see the module docstring for what is left out)."""
+    nu = edges.nu
+    integer_nu = np.abs(nu - np.round(nu)) < 1e-9
+    embedded = np.zeros(len(edges), dtype=bool)
+    n_boundaries = len(context.scene.boundaries)
+    for boundary in context.scene.boundaries:  # a loop over the six tank planes
+        p = np.asarray(boundary.plane.point_m, dtype=float)
+        n = np.asarray(boundary.plane.normal, dtype=float)
+        on = (np.abs((edges.start_m - p) @ n) < _ON_PLANE_M) & (np.abs((edges.end_m - p) @ n) < _ON_PLANE_M)
+        embedded |= on & (edges.surface >= n_boundaries)
+    return edges.select(~integer_nu & ~embedded & (edges.length_m > 0.0))
+
+
+def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | None = None) -> NDArray[Any]:
+    """Edge-diffraction rows for one sonar pose.
+
+    Parameters
+    ----------
+    context : SolveContext
+    config : SolverConfig
+        ``edge_segment_m`` caps the element length.
+    edges : SharpEdges, optional
+        The scene's sharp edges (extracted from ``context`` when None; pass them to reuse the
+        extraction across poses).
+
+    Returns
+    -------
+    structured ndarray of PATH_DTYPE, shape (n,)
+        Rows with every column filled (:func:`~acoustisim.propagation.columns.complete_columns`);
+        ``path_id`` from ``context.first_path_id`` upwards, one per (edge chain, receiver).
+    """
+    if edges is None:
+        edges = sharp_edges(context.raycaster, context.scene)
+    edges = diffracting_edges(edges, context)
+    n_edges = len(edges)
+    if n_edges == 0:
+        return empty_paths_array(0)
+    c = context.sound_speed_m_s
+    tx = np.asarray(context.transmitter_m, dtype=float)
+    rx = np.asarray(context.receivers_m, dtype=float)
+    n_rx = rx.shape[0]
+
+    r_s, th_s, z_s = edges.local_coordinates(np.broadcast_to(tx, (n_edges, 3)))
+    # pairs (edge, receiver), edge-major
+    pair_edge = np.repeat(np.arange(n_edges), n_rx)
+    pair_rx = np.tile(np.arange(n_rx), n_edges)
+    sel = edges.select(pair_edge)
+    r_r, th_r, z_r = sel.local_coordinates(rx[pair_rx])
+    theta_w = edges.wedge_angle_rad[pair_edge]
+    ok = (
+        (r_s[pair_edge] > _MIN_DISTANCE_M)
+        & (r_r > _MIN_DISTANCE_M)
+        & (th_s[pair_edge] <= theta_w + 1e-12)
+        & (th_r <= theta_w + 1e-12)
+    )
+    pair_edge, pair_rx, r_r, th_r, z_r = pair_edge[ok], pair_rx[ok], r_r[ok], th_r[ok], z_r[ok]
+    if pair_edge.size == 0:
+        return empty_paths_array(0)
+    rs, ts, zs = r_s[pair_edge], th_s[pair_edge], z_s[pair_edge]
+
+    step = c / (DELAY_STEPS_PER_PERIOD * context.centre_frequency_hz)
+    elements = discretise_edges(edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m)
+    gains = element_gains(
+        elements, edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge]
+    )
+    if gains.size == 0:
+        return empty_paths_array(0)
+    keep = np.abs(gains) > ELEMENT_FLOOR * np.max(np.abs(gains))
+    pair = elements.pair[keep]
+    gains = gains[keep]
+    path_length = elements.path_length_m[keep]
+    e = pair_edge[pair]
+    points = edges.start_m[e] + elements.z_mid_m[keep][:, None] * edges.direction[e]
+
+    # visibility of each element from the transmitter and from its receiver, one batch
+    half = 0.5 * edges.wedge_angle_rad[e]
+    bisector = np.cos(half)[:, None] * edges.face_dir[e] + np.sin(half)[:, None] * edges.face_normal[e]
+    probe = points + VISIBILITY_OFFSET_M * bisector
+    receivers = rx[pair_rx[pair]]
+    n = points.shape[0]
+    blocked = context.raycaster.occluded(
+        np.concatenate([probe, probe]), np.concatenate([np.broadcast_to(tx, (n, 3)), receivers])
+    )
+    visible = ~(blocked[:n] | blocked[n:])
+    pair, gains, path_length, e, points, receivers = (
+        pair[visible], gains[visible], path_length[visible], e[visible], points[visible], receivers[visible]
+    )
+    channel = pair_rx[pair]
+
+    rows = empty_paths_array(points.shape[0])
+    chain_key = edges.chain[e] * n_rx + channel
+    _, group = np.unique(chain_key, return_inverse=True)
+    rows["path_id"] = context.first_path_id + group.reshape(-1)
+    rows["channel"] = channel
+    rows["kind"] = int(PathKind.EDGE)
+    rows["order"] = 1
+    rows["path_length_m"] = path_length
+    rows["geometric_gain"] = gains
+    rows["phase_rad"] = 0.0
+    leg1 = points - tx
+    leg2 = receivers - points
+    rows["departure_dir"] = leg1 / np.linalg.norm(leg1, axis=1, keepdims=True)
+    rows["arrival_dir"] = leg2 / np.linalg.norm(leg2, axis=1, keepdims=True)
+    rows["object_ids"][:, 0] = edges.surface[e]
+    rows["points_m"][:, 0, :] = points
+    return complete_columns(rows, context)
+
+
+__all__ = ["DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR", "diffracting_edges", "edge_paths"]
