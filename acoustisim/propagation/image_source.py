@@ -26,6 +26,9 @@ MAX_OBJECT_MIRRORS = 256
 mirrors: they are smooth or finely detailed meshes, not polyhedra, and order-3 chains over
 their facets would explode combinatorially."""
 
+_ON_PLANE_TOL_M = 1e-12
+"""A point this close (m) to a mirror's plane counts as on it (float64 round-off at tank scale)."""
+
 _INSIDE_TOL = 1e-9
 """Barycentric tolerance of the point-in-polygon test (dimensionless): points on a shared
 edge of two facets' triangles, or on the tank's corner lines, count as inside."""
@@ -285,10 +288,12 @@ def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: ND
         source = images[:, j + 1]
         d_cur = mirrors.signed_distance(current, m)
         d_src = mirrors.signed_distance(source, m)
-        # the segment current -> image must cross the plane: current in front, image behind
-        valid &= (d_cur > 0.0) & (d_src < 0.0)
+        # the segment current -> image must cross the plane: current in front (or on the plane,
+        # within round-off: a path through a right-angle corner line, where the two reflection
+        # points coincide), image behind
+        valid &= (d_cur > -_ON_PLANE_TOL_M) & (d_src < 0.0)
         denom = np.where(valid, d_cur - d_src, 1.0)
-        t = d_cur / denom
+        t = np.maximum(d_cur, 0.0) / denom
         x = current + t[:, None] * (source - current)
         valid &= mirrors.contains(x, m)
         points[:, j] = x

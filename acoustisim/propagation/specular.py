@@ -53,6 +53,30 @@ class _Chains:
     spreading: NDArray[np.float64]  # (n,) gain without reflection coefficients
     channel: NDArray[np.int64]  # (n,)
     chain: NDArray[np.int64]  # (n,) chain id (shared across channels)
+    key: NDArray[np.float64]  # (n, q) the unfolded end points: equal keys are the same physical path
+
+
+def _deduplicate(chains: _Chains) -> _Chains:
+    """Keep one chain per (channel, unfolded end points).
+
+    Reflections on perpendicular planes commute: [wall, floor] and [floor, wall] have the same
+    image, and generically only one order is a real path; through the corner line itself (a
+    monostatic corner return) both orders pass, and they are one path (the image method is exact
+    in a right-angle wedge, whose edge does not diffract).
+    """
+    n = chains.length.shape[0]
+    if n < 2:
+        return chains
+    key = np.column_stack([chains.channel, np.round(chains.key / 1e-9)]).astype(np.int64)
+    _, first = np.unique(key, axis=0, return_index=True)
+    if first.size == n:
+        return chains
+    keep = np.sort(first)
+    return _Chains(
+        chains.vertices[keep], chains.surface[keep], chains.patch[keep], chains.normal[keep],
+        [(source, index[keep]) for source, index in chains.material], chains.length[keep],
+        chains.spreading[keep], chains.channel[keep], chains.chain[keep], chains.key[keep],
+    )
 
 
 def direct_rows(context: SolveContext) -> NDArray[Any]:
@@ -116,8 +140,9 @@ def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, ch
         spreading=1.0 / length,
         channel=channel,
         chain=chain_base + np.tile(chain_ids, n_rx)[valid],
+        key=images_all[:, -1],
     )
-    return chains, chain_base + len(ok)
+    return _deduplicate(chains), chain_base + len(ok)
 
 
 def _mixed_chains(context: SolveContext, mirrors: PlanarMirrors, reflector: CurvedReflector, n_before: int,
@@ -164,8 +189,9 @@ def _mixed_chains(context: SolveContext, mirrors: PlanarMirrors, reflector: Curv
     material = ([("mirror", mirrors.material[sb_v[:, j]]) for j in range(n_before)]
                 + [("curved", np.full(n, reflector_index))]
                 + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
-    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, gr[idx], chain[idx])
-    return chains, chain_base + n_chain
+    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, gr[idx], chain[idx],
+                     np.column_stack([a_v, b_v]))
+    return _deduplicate(chains), chain_base + n_chain
 
 
 def _reflection_product(chains: _Chains, mirrors: PlanarMirrors, reflectors: tuple[CurvedReflector, ...],
@@ -174,9 +200,18 @@ def _reflection_product(chains: _Chains, mirrors: PlanarMirrors, reflectors: tup
     n = chains.length.shape[0]
     total = np.ones(n, dtype=complex)
     rho, c = context.density_kg_m3, context.sound_speed_m_s
+    previous = np.zeros((n, 3))
     for j, (source, index) in enumerate(chains.material):
-        incoming = chains.vertices[:, j + 1] - chains.vertices[:, j]
-        incoming /= np.linalg.norm(incoming, axis=1, keepdims=True)
+        leg = chains.vertices[:, j + 1] - chains.vertices[:, j]
+        norm = np.linalg.norm(leg, axis=1, keepdims=True)
+        incoming = leg / np.where(norm > 0, norm, 1.0)
+        if j > 0:
+            # a zero-length leg (two reflections on a corner line): the wave arrives along the
+            # previous direction mirrored by the previous surface
+            n_prev = chains.normal[:, j - 1]
+            mirrored = previous - 2.0 * np.einsum("ij,ij->i", previous, n_prev)[:, None] * n_prev
+            incoming = np.where(norm > 1e-12, incoming, mirrored)
+        previous = incoming
         cos_i = np.abs(np.einsum("ij,ij->i", incoming, chains.normal[:, j]))
         table = mirrors.materials if source == "mirror" else tuple(r.material for r in reflectors)
         r = np.ones(n, dtype=complex)
