@@ -1,0 +1,120 @@
+"""``acoustisim view``: look at a scene, its echo paths and localisation results in 3-D.
+
+``acoustisim view FILE_OR_NAME [--ping PING.h5 [--ping-index I]] [--results RESULTS.json]
+[--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective] [--echo N]
+[--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--edge-elements] [--no-beam]
+[--size WxH] [--title TEXT]``
+
+Paths: the ping's true arrivals with ``--ping``, else traced now (``acoustisim.propagation``),
+unless ``--no-paths``. Rendering is off-screen when ``--png`` or ``--html`` is given; without
+them a window opens, which needs a display (else exit code 2 with a one-line message).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from acoustisim.errors import InputError
+
+
+def _nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, e.g. 1200x800, got {text!r}") from None
+    if not (16 <= width <= 8192 and 16 <= height <= 8192):
+        raise argparse.ArgumentTypeError(f"window size must be 16..8192 pixels per side, got {text!r}")
+    return width, height
+
+
+def _channels(text: str) -> tuple[int, ...]:
+    names = {"left": 0, "centre": 1, "center": 1, "right": 2, "0": 0, "1": 1, "2": 2}
+    parts = [p.strip().lower() for p in text.split(",") if p.strip()]
+    if not parts or any(p not in names for p in parts):
+        raise argparse.ArgumentTypeError(f"expected channels among left,centre,right, got {text!r}")
+    return tuple(sorted({names[p] for p in parts}))
+
+
+def _run(args: argparse.Namespace) -> int:
+    from acoustisim.viz.cameras import CAMERA_NAMES
+    from acoustisim.viz.render import ViewOptions, export_html, has_display, render_png, show_scene
+    from scenes.scene_file import load_scene
+
+    if args.camera not in CAMERA_NAMES:  # argparse already restricts it; kept for API callers
+        raise InputError(f"--camera: unknown preset {args.camera!r}")
+    if args.png is None and args.html is None and not has_display():
+        raise InputError("view: no display here; write an image with --png OUT.png or a page with --html OUT.html")
+    scene = load_scene(args.scene)
+    sonar = scene.sonar
+    paths = None
+    truths = None
+    if args.ping is not None:
+        from acoustisim.viz.ping_file import load_ping
+
+        ping = load_ping(args.ping, sonar, args.ping_index)
+        sonar, paths = ping.sonar, ping.paths
+        truths = list(ping.truths) or None
+    if paths is None and not args.no_paths:
+        from acoustisim.propagation import SolverConfig, solve
+
+        config = SolverConfig() if args.max_order is None else SolverConfig(max_order=args.max_order)
+        paths = solve(scene, sonar, config)
+    options = ViewOptions(channels=args.channels, max_paths=args.max_paths or None, edge_elements=args.edge_elements,
+                          echo=args.echo, show_beam=not args.no_beam)
+    common = dict(sonar=sonar, truths=truths, options=options, camera=args.camera, title=args.title,
+                  window_size=args.size)
+    written = []
+    if args.png is not None:
+        written.append(render_png(args.png, scene, paths, args.results, **common))
+    if args.html is not None:
+        written.append(export_html(args.html, scene, paths, args.results, **common))
+    if written:
+        for path in written:
+            print(path)
+        return 0
+    plotter = show_scene(scene, paths, args.results, off_screen=False, **common)
+    plotter.show()
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``view`` verb."""
+    parser = subparsers.add_parser(
+        "view",
+        help="3-D view of a scene, its echo paths and localisation results (window, PNG or HTML)",
+        description=__doc__.split("\n\n")[-1] if __doc__ else None,
+    )
+    parser.add_argument("scene", metavar="FILE_OR_NAME", help="scene file (.toml) or built-in scene name")
+    parser.add_argument("--ping", metavar="PING.h5", help="recording file: pose and, if simulated, true paths")
+    parser.add_argument("--ping-index", type=_nonnegative_int, default=0, metavar="I",
+                        help="which ping of the file (default 0)")
+    parser.add_argument("--results", metavar="RESULTS.json", help="localisation results (binsonar localize --json)")
+    parser.add_argument("--png", metavar="OUT.png", help="render off-screen to this PNG file")
+    parser.add_argument("--html", metavar="OUT.html", help="write a self-contained interactive HTML page")
+    parser.add_argument("--camera", choices=("top", "side", "sonar", "perspective"), default="perspective",
+                        help="camera preset (default perspective)")
+    parser.add_argument("--echo", type=_nonnegative_int, metavar="N",
+                        help="draw the time-of-flight ellipsoids of echo N (by delay on the centre channel)")
+    parser.add_argument("--no-paths", action="store_true", help="do not trace or draw paths")
+    parser.add_argument("--max-order", type=_nonnegative_int, metavar="N", help="reflection order when tracing")
+    parser.add_argument("--channels", type=_channels, default=(0, 1, 2), metavar="LIST",
+                        help="receiver channels whose paths are drawn, e.g. centre or left,right (default all)")
+    parser.add_argument("--max-paths", type=_nonnegative_int, default=10_000, metavar="N",
+                        help="draw only the N strongest paths (0: all; default 10000)")
+    parser.add_argument("--edge-elements", action="store_true",
+                        help="draw every edge-diffraction element instead of one line per edge arrival")
+    parser.add_argument("--no-beam", action="store_true", help="hide the transmit beam cones")
+    parser.add_argument("--size", type=_size, default=(1200, 800), metavar="WxH",
+                        help="image or window size in pixels (default 1200x800)")
+    parser.add_argument("--title", help="title text (default: the scene's name)")
+    parser.set_defaults(run=_run)

@@ -1,0 +1,558 @@
+"""Layers for the 3-D view: tank, objects, sonar head and beam, paths, time-of-flight
+ellipsoids, localisation estimates against the truth.
+
+Every builder returns a list of :class:`~acoustisim.viz.layers.Layer` in the tank frame (m).
+Paths are drawn as ONE merged line mesh per kind (direct, specular, edge, diffuse) with a
+per-segment colour whose opacity fades with the path's amplitude, so tens of thousands of
+paths make four actors, not tens of thousands.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pyvista as pv
+from numpy.typing import NDArray
+
+from acoustisim.propagation.paths import PathKind, Paths
+from acoustisim.scene import Scene
+from acoustisim.sonar import CHANNEL_NAMES, SonarHead
+from acoustisim.viz.beam import piston_beam_angles
+from acoustisim.viz.layers import RGBA_ARRAY, Layer
+
+RGB = tuple[float, float, float]
+
+KIND_COLORS: dict[PathKind, RGB] = {
+    PathKind.DIRECT: (0.17, 0.63, 0.17),
+    PathKind.SPECULAR: (0.12, 0.47, 0.71),
+    PathKind.EDGE: (1.0, 0.5, 0.05),
+    PathKind.DIFFUSE: (0.58, 0.40, 0.74),
+}
+"""Colour of each path kind (matplotlib's tab10 green, blue, orange, purple)."""
+
+CHANNEL_COLORS: tuple[RGB, RGB, RGB] = ((0.84, 0.15, 0.16), (0.85, 0.65, 0.0), (0.17, 0.63, 0.17))
+"""Left (port red), centre (gold, the transmitter), right (starboard green)."""
+
+MATERIAL_COLORS: dict[str, RGB] = {
+    "concrete": (0.74, 0.74, 0.70),
+    "glass": (0.55, 0.82, 0.88),
+    "pvc": (0.80, 0.30, 0.12),
+    "pvc-pipe-air": (0.86, 0.40, 0.18),
+    "pvc-pipe-water": (0.70, 0.25, 0.10),
+    "steel": (0.40, 0.45, 0.52),
+    "aluminium": (0.68, 0.70, 0.74),
+    "rubber": (0.15, 0.15, 0.15),
+    "sand": (0.84, 0.74, 0.50),
+    "rigid": (0.30, 0.30, 0.30),
+    "pressure-release": (0.60, 0.80, 1.00),
+    "air": (0.60, 0.80, 1.00),
+}
+
+ESTIMATE_COLOR: RGB = (0.89, 0.10, 0.76)
+TRUTH_COLOR: RGB = (0.09, 0.75, 0.81)
+BEAM_COLOR: RGB = (0.95, 0.75, 0.10)
+WALL_COLOR: RGB = (0.45, 0.62, 0.82)
+SURFACE_COLOR: RGB = (0.55, 0.85, 1.00)
+OUTLINE_COLOR: RGB = (0.15, 0.25, 0.40)
+
+
+def material_color(name: str) -> RGB:
+    """A fixed colour per material; unknown materials get a stable colour from their name."""
+    if name in MATERIAL_COLORS:
+        return MATERIAL_COLORS[name]
+    hue = (zlib.crc32(name.encode()) % 360) / 360.0
+    import colorsys
+
+    r, g, b = colorsys.hsv_to_rgb(hue, 0.55, 0.75)
+    return (r, g, b)
+
+
+# ------------------------------------------------------------------------------ geometry helpers
+def scene_bounds(scene: Scene, sonar: SonarHead | None = None, pad_m: float = 0.25) -> NDArray[np.float64]:
+    """The region to show (2, 3) (m): the tank's water, or in free field the objects and the sonar
+    padded by ``pad_m``."""
+    if scene.tank is not None:
+        return scene.tank.bounds_m
+    sonar = scene.sonar if sonar is None else sonar
+    points = [sonar.receiver_positions]
+    points += [obj.bounds_m for obj in scene.objects]
+    allp = np.vstack(points)
+    return np.array([allp.min(axis=0) - pad_m, allp.max(axis=0) + pad_m])
+
+
+def _ray_box_exit(origin: NDArray[np.float64], direction: NDArray[np.float64], bounds: NDArray[np.float64]) -> float:
+    """Distance (m) from ``origin`` (inside ``bounds``) along unit ``direction`` to the box's boundary."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_hi = (bounds[1] - origin) / direction
+        t_lo = (bounds[0] - origin) / direction
+    t = np.where(direction > 0, t_hi, np.where(direction < 0, t_lo, np.inf))
+    return float(np.min(t))
+
+
+def _clip_to_box(mesh: pv.PolyData, bounds: NDArray[np.float64]) -> pv.PolyData:
+    """The part of a mesh inside the axis-aligned box ``bounds`` (2, 3)."""
+    lo, hi = bounds
+    inside = mesh.points
+    if np.all((inside >= lo - 1e-9) & (inside <= hi + 1e-9)):
+        return mesh
+    clipped = mesh.clip_box([lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]], invert=False)
+    return clipped.extract_surface(algorithm=None) if clipped.n_points else pv.PolyData()
+
+
+def _orthonormal_frame(axis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit vectors orthogonal to unit ``axis`` and to each other."""
+    helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e2 = np.cross(axis, helper)
+    e2 /= np.linalg.norm(e2)
+    return e2, np.cross(axis, e2)
+
+
+def cone_mesh(apex_m: NDArray[np.float64], axis: NDArray[np.float64], half_angle_deg: float, length_m: float,
+              resolution: int = 72) -> pv.PolyData:
+    """An open cone surface: apex at ``apex_m``, opening along unit ``axis``, slant to the plane at
+    ``length_m`` along the axis.
+
+    Returns
+    -------
+    pyvista.PolyData
+        ``resolution`` triangles sharing the apex.
+    """
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    e2, e3 = _orthonormal_frame(axis)
+    phi = np.linspace(0.0, 2.0 * math.pi, resolution, endpoint=False)
+    radius = length_m * math.tan(math.radians(half_angle_deg))
+    ring = (np.asarray(apex_m) + length_m * axis)[None, :] + radius * (
+        np.cos(phi)[:, None] * e2[None, :] + np.sin(phi)[:, None] * e3[None, :]
+    )
+    points = np.vstack([np.asarray(apex_m, dtype=float)[None, :], ring])
+    i = np.arange(resolution)
+    faces = np.column_stack([np.full(resolution, 3), np.zeros(resolution, int), 1 + i, 1 + (i + 1) % resolution])
+    return pv.PolyData(points, faces.ravel())
+
+
+def ellipsoid_mesh(center_m: NDArray[np.float64], axes: NDArray[np.float64], resolution: int = 48) -> pv.PolyData:
+    """An ellipsoid x = center + axes @ u over the unit sphere u.
+
+    Parameters
+    ----------
+    center_m : ndarray, shape (3,)
+    axes : ndarray, shape (3, 3)
+        Columns are the semi-axis vectors (m).
+    """
+    sphere = pv.Sphere(radius=1.0, theta_resolution=resolution, phi_resolution=max(8, resolution // 2))
+    points = np.asarray(sphere.points, dtype=float) @ np.asarray(axes, dtype=float).T + np.asarray(center_m)
+    out = sphere.copy()
+    out.points = points
+    return out
+
+
+def _cylinder(center: NDArray[np.float64], direction: NDArray[np.float64], radius: float, height: float) -> pv.PolyData:
+    return pv.Cylinder(center=center, direction=direction, radius=radius, height=height, resolution=32).triangulate()
+
+
+# ------------------------------------------------------------------------------------ the tank
+def tank_layers(scene: Scene) -> list[Layer]:
+    """Translucent walls and floor, their outline, and the free surface (nothing in free field)."""
+    if scene.tank is None:
+        return []
+    walls = [b.mesh for b in scene.boundaries if b.kind != "surface"]
+    surface = [b.mesh for b in scene.boundaries if b.kind == "surface"]
+    wall_mesh = pv.merge([pv.wrap(m) for m in walls]) if walls else pv.PolyData()
+    lo, hi = scene.tank.bounds_m
+    outline = pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])).extract_feature_edges(
+        boundary_edges=False, non_manifold_edges=False, feature_angle=60, manifold_edges=False
+    )
+    layers = [
+        Layer("tank-walls", wall_mesh, WALL_COLOR, 0.12, "surface", label=f"walls, floor ({scene.tank.wall_material})",
+              group="tank"),
+        Layer("tank-outline", outline, OUTLINE_COLOR, 1.0, "lines", line_width=2.0, group="tank"),
+    ]
+    if surface:
+        layers.append(Layer("free-surface", pv.wrap(surface[0]), SURFACE_COLOR, 0.10, "surface",
+                            label="free surface", group="tank"))
+    return layers
+
+
+def object_layers(scene: Scene) -> list[Layer]:
+    """One opaque layer per object ("object:<name>"), coloured by material; the legend names each
+    material once."""
+    layers = []
+    seen: set[str] = set()
+    for obj in scene.objects:
+        material = obj.material.name
+        label = "" if material in seen else f"{material}"
+        seen.add(material)
+        layers.append(Layer(f"object:{obj.name}", pv.wrap(obj.mesh), material_color(material), 1.0, "surface",
+                            label=label, group="object"))
+    return layers
+
+
+# ------------------------------------------------------------------------------------ the sonar
+def sonar_layers(sonar: SonarHead) -> list[Layer]:
+    """The head's body, its three transducers (short cylinders along their axes, the centre one
+    the transmitter) and a marker of fixed pixel size so the sonar shows at tank scale."""
+    boresight = sonar.boresight
+    a = sonar.piston_radius_m
+    depth = 4.0 * a
+    positions = sonar.receiver_positions
+    layers = []
+    for channel, name in enumerate(CHANNEL_NAMES):
+        cyl = _cylinder(positions[channel] - 0.5 * depth * boresight, boresight, a, depth)
+        role = "transmitter/receiver" if channel == 1 else "receiver"
+        layers.append(Layer(f"transducer-{name}", cyl, CHANNEL_COLORS[channel], 1.0, "surface",
+                            label=f"{name} {role}", group="sonar"))
+    head = sonar.channel_positions_head
+    lo = head.min(axis=0) + np.array([-2.0 * a, -depth - 8.0 * a, -1.5 * a])
+    hi = head.max(axis=0) + np.array([2.0 * a, 0.0, 1.5 * a])
+    lo[1] = min(lo[1], -depth - 8.0 * a)
+    hi[1] = lo[1] + 8.0 * a
+    body = pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])).triangulate()
+    body.points = sonar.head_to_tank(np.asarray(body.points, dtype=float))
+    layers.append(Layer("sonar-head", body, (0.25, 0.25, 0.28), 1.0, "surface", group="sonar"))
+    marker = pv.PolyData(positions)
+    marker.point_data["channel"] = np.arange(3)
+    layers.append(Layer("sonar-marker", marker, (0.1, 0.1, 0.1), 1.0, "points", point_size=9.0, group="sonar"))
+    return layers
+
+
+def beam_layers(sonar: SonarHead, sound_speed_m_s: float, bounds: NDArray[np.float64]) -> list[Layer]:
+    """The transmit beam's -3 dB cone and first side-lobe cone, from the piston formula, clipped
+    to ``bounds`` (2, 3) (m)."""
+    angles = piston_beam_angles(sonar.piston_radius_m, sonar.centre_frequency_hz, sound_speed_m_s)
+    apex = sonar.transmitter_position
+    axis = sonar.boresight
+    length = _ray_box_exit(apex, axis, bounds)
+    if not math.isfinite(length) or length <= 0:
+        return []
+    layers = [
+        Layer("beam-3db", _clip_to_box(cone_mesh(apex, axis, angles.half_power_deg, length), bounds), BEAM_COLOR,
+              0.35, "surface", label=f"beam -3 dB ({angles.half_power_deg:.1f} deg)", group="beam"),
+    ]
+    if angles.side_lobe_deg is not None and angles.side_lobe_db is not None:
+        layers.append(
+            Layer("beam-side-lobe", _clip_to_box(cone_mesh(apex, axis, angles.side_lobe_deg, length), bounds),
+                  (0.85, 0.55, 0.10), 0.06, "surface",
+                  label=f"1st side lobe ({angles.side_lobe_deg:.1f} deg, {angles.side_lobe_db:.1f} dB)", group="beam")
+        )
+    return layers
+
+
+# ------------------------------------------------------------------------------------- the paths
+def path_amplitudes(paths: Paths) -> NDArray[np.float64]:
+    """The amplitude drawn for each row: the ``amplitude`` column, or |geometric_gain| when the
+    amplitude column is all zero (paths built without directivity)."""
+    amplitude = np.abs(np.asarray(paths["amplitude"], dtype=float))
+    if not np.any(amplitude > 0):
+        amplitude = np.abs(np.asarray(paths["geometric_gain"], dtype=float))
+    return amplitude
+
+
+def path_opacity(amplitude: NDArray[np.float64], reference: float, dynamic_range_db: float = 40.0,
+                 min_opacity: float = 0.04) -> NDArray[np.float64]:
+    """Opacity in [min_opacity, 1] rising linearly with level in dB over ``dynamic_range_db`` below
+    ``reference`` (rows at or above the reference are opaque)."""
+    with np.errstate(divide="ignore"):
+        level_db = 20.0 * np.log10(np.maximum(amplitude, 1e-300) / reference)
+    t = np.clip(1.0 + level_db / dynamic_range_db, 0.0, 1.0)
+    return min_opacity + (1.0 - min_opacity) * t
+
+
+def path_polylines(paths: Paths, sonar: SonarHead) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
+    """Every row as a polyline transmitter -> interaction points -> its receiver.
+
+    Returns
+    -------
+    points : ndarray, shape (m, 3)
+        Vertices (m).
+    segments : ndarray, shape (k, 2)
+        Vertex indices of each straight segment.
+    segment_row : ndarray, shape (k,)
+        The row of ``paths`` each segment belongs to.
+    """
+    rows = paths.rows
+    n = rows.size
+    chain = np.empty((n, 6, 3))
+    chain[:, 0] = sonar.transmitter_position
+    chain[:, 1:5] = rows["points_m"]
+    chain[:, 5] = sonar.receiver_positions[np.clip(rows["channel"].astype(int), 0, 2)]
+    valid = np.all(np.isfinite(chain), axis=2)
+    row_of_vertex = np.nonzero(valid)[0]
+    points = chain[valid]
+    same = row_of_vertex[1:] == row_of_vertex[:-1]
+    start = np.flatnonzero(same)
+    segments = np.column_stack([start, start + 1]).astype(np.int64)
+    return points, segments, row_of_vertex[start]
+
+
+def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0, 1, 2), max_paths: int | None = 10_000,
+                dynamic_range_db: float = 40.0, edge_elements: bool = False) -> list[Layer]:
+    """One merged line layer per path kind ("paths-direct", "paths-specular", "paths-edge",
+    "paths-diffuse"), opacity fading with amplitude.
+
+    Parameters
+    ----------
+    paths : Paths
+    sonar : SonarHead
+        The sonar the paths were traced for (its transmitter and receivers close each path).
+    channels : sequence of int
+        Receiver channels to draw (0 left, 1 centre, 2 right).
+    max_paths : int or None
+        Draw only the strongest rows (None: all).
+    dynamic_range_db : float
+        Rows this far below the strongest echo are drawn at the minimum opacity. The reference is
+        the strongest non-direct row (the direct transmitter-receiver coupling would otherwise
+        fade every echo).
+    edge_elements : bool
+        Draw every discretised element of an edge diffraction (a fan along the edge) instead of
+        one polyline per arrival through its least-time point, with the group's amplitude
+        (:meth:`Paths.arrivals`).
+    """
+    if len(paths) == 0:
+        return []
+    if not edge_elements:
+        paths = Paths(paths.arrivals(), paths.surface_names, paths.centre_frequency_hz, paths.sound_speed_m_s)
+    rows_mask = np.isin(paths["channel"], np.asarray(channels, dtype=int))
+    selected = paths.select(rows_mask)
+    amplitude = path_amplitudes(selected)
+    if max_paths is not None and len(selected) > max_paths:
+        keep = np.sort(np.argpartition(-amplitude, max_paths - 1)[:max_paths])
+        mask = np.zeros(len(selected), dtype=bool)
+        mask[keep] = True
+        selected = selected.select(mask)
+        amplitude = amplitude[mask]
+    if len(selected) == 0:
+        return []
+    kinds = np.asarray(selected["kind"], dtype=int)
+    echoes = amplitude[kinds != PathKind.DIRECT]
+    reference = float(echoes.max()) if echoes.size and echoes.max() > 0 else float(max(amplitude.max(), 1e-300))
+    alpha = path_opacity(amplitude, reference, dynamic_range_db)
+    points, segments, segment_row = path_polylines(selected, sonar)
+    layers = []
+    for kind in PathKind:
+        seg_mask = kinds[segment_row] == kind
+        if not np.any(seg_mask):
+            continue
+        seg = segments[seg_mask]
+        used, inverse = np.unique(seg.ravel(), return_inverse=True)
+        local = inverse.reshape(-1, 2)
+        lines = np.column_stack([np.full(len(local), 2), local]).ravel()
+        mesh = pv.PolyData(points[used], lines=lines)
+        rgba = np.empty((len(local), 4), dtype=np.uint8)
+        rgba[:, :3] = np.round(np.asarray(KIND_COLORS[kind]) * 255).astype(np.uint8)
+        rgba[:, 3] = np.round(alpha[segment_row[seg_mask]] * 255).astype(np.uint8)
+        mesh.cell_data[RGBA_ARRAY] = rgba
+        n_rows = int(np.count_nonzero(kinds == kind))
+        layers.append(Layer(f"paths-{kind.label}", mesh, KIND_COLORS[kind], 1.0, "lines", line_width=1.2,
+                            label=f"{kind.label} paths ({n_rows})", group="paths"))
+    return layers
+
+
+# ---------------------------------------------------------------------- time-of-flight ellipsoids
+@dataclass(frozen=True)
+class EchoChoice:
+    """One echo seen on the receivers: its total path length per channel.
+
+    Attributes
+    ----------
+    index : int
+        Rank of the echo on the centre channel, by delay, direct coupling excluded.
+    path_length_m : ndarray, shape (3,)
+        Transmitter-to-receiver path length (m) per channel (NaN where the echo was not found).
+    points_m : ndarray, shape (k, 3)
+        The echo's interaction points on the centre channel (m).
+    label : str
+        Kind and surfaces, e.g. "specular: post-1".
+    """
+
+    index: int
+    path_length_m: NDArray[np.float64]
+    points_m: NDArray[np.float64]
+    label: str
+
+
+def choose_echo(paths: Paths, index: int) -> EchoChoice:
+    """The ``index``-th echo (by delay) on the centre channel and the same arrival on the others.
+
+    The same arrival on another channel is the row with the same ``path_id``; when the solver
+    numbers channels separately, the row of the same kind and surfaces with the nearest delay.
+
+    Raises
+    ------
+    IndexError
+        When there are fewer echoes than ``index + 1``.
+    """
+    arrivals = paths.arrivals()
+    centre = arrivals[(arrivals["channel"] == 1) & (arrivals["kind"] != PathKind.DIRECT)]
+    centre = centre[np.argsort(centre["delay_s"], kind="stable")]
+    if not 0 <= index < centre.size:
+        raise IndexError(f"echo {index} does not exist: the centre channel has {centre.size} echoes")
+    row = centre[index]
+    lengths = np.full(3, np.nan)
+    for channel in range(3):
+        on_channel = arrivals[arrivals["channel"] == channel]
+        match = on_channel[on_channel["path_id"] == row["path_id"]]
+        if match.size == 0:
+            same = (on_channel["kind"] == row["kind"]) & np.all(on_channel["object_ids"] == row["object_ids"], axis=1)
+            match = on_channel[same]
+        if match.size:
+            best = match[np.argmin(np.abs(match["delay_s"] - row["delay_s"]))]
+            lengths[channel] = float(best["delay_s"]) * paths.sound_speed_m_s
+    points = row["points_m"][np.all(np.isfinite(row["points_m"]), axis=1)]
+    names = [paths.surface_names[i] for i in row["object_ids"] if 0 <= i < len(paths.surface_names)]
+    label = f"{PathKind(int(row['kind'])).label}: {'>'.join(names) if names else '?'}"
+    return EchoChoice(index, lengths, points, label)
+
+
+def tof_ellipsoid(transmitter_m: NDArray[np.float64], receiver_m: NDArray[np.float64], path_length_m: float,
+                  resolution: int = 96) -> pv.PolyData:
+    """The locus of points P with |P - transmitter| + |P - receiver| = path_length_m.
+
+    A prolate spheroid with foci at the transmitter and the receiver: semi-major axis L/2 along
+    the focal axis, semi-minor sqrt((L/2)^2 - (f/2)^2), f the focal distance; a sphere of radius
+    L/2 when the receiver is the transmitter.
+
+    Raises
+    ------
+    ValueError
+        When ``path_length_m`` is shorter than the focal distance.
+    """
+    tx = np.asarray(transmitter_m, dtype=float)
+    rx = np.asarray(receiver_m, dtype=float)
+    focal = float(np.linalg.norm(rx - tx))
+    if not path_length_m > focal:
+        raise ValueError(f"path length {path_length_m!r} m is not longer than the focal distance {focal:.4g} m")
+    semi_major = 0.5 * path_length_m
+    semi_minor = math.sqrt(semi_major**2 - (0.5 * focal) ** 2)
+    axis = (rx - tx) / focal if focal > 0 else np.array([1.0, 0.0, 0.0])
+    e2, e3 = _orthonormal_frame(axis)
+    axes = np.column_stack([semi_major * axis, semi_minor * e2, semi_minor * e3])
+    return ellipsoid_mesh(0.5 * (tx + rx), axes, resolution)
+
+
+def tof_layers(paths: Paths, sonar: SonarHead, echo: int, bounds: NDArray[np.float64]) -> list[Layer]:
+    """For echo ``echo`` (see :func:`choose_echo`): each receiver's time-of-flight ellipsoid,
+    clipped to ``bounds``, its ellipse in the horizontal plane of the transmitter, and the echo's
+    interaction points."""
+    choice = choose_echo(paths, echo)
+    tx = sonar.transmitter_position
+    layers = []
+    for channel, name in enumerate(CHANNEL_NAMES):
+        length = choice.path_length_m[channel]
+        if not np.isfinite(length):
+            continue
+        ellipsoid = tof_ellipsoid(tx, sonar.receiver_positions[channel], float(length))
+        color = CHANNEL_COLORS[channel]
+        layers.append(Layer(f"tof-{name}", _clip_to_box(ellipsoid, bounds), color, 0.12, "surface",
+                            label=f"TOF ellipsoid {name}" if channel != 1 else "", group="tof"))
+        ellipse = ellipsoid.slice(normal=(0.0, 0.0, 1.0), origin=tuple(tx))
+        if ellipse.n_points:
+            layers.append(Layer(f"tof-ellipse-{name}", _clip_to_box(ellipse, bounds), color, 1.0, "lines",
+                                line_width=2.0, label=f"TOF ellipse {name}", group="tof"))
+    if choice.points_m.size:
+        layers.append(Layer("echo-point", pv.PolyData(choice.points_m), (0.0, 0.0, 0.0), 1.0, "points",
+                            point_size=12.0, label=f"echo {echo} ({choice.label})", group="tof"))
+    return layers
+
+
+# ------------------------------------------------------------------------- estimates and truth
+@dataclass(frozen=True)
+class EstimateMarker:
+    """One localised target in the tank frame.
+
+    Attributes
+    ----------
+    position_m : ndarray, shape (3,)
+    covariance_m2 : ndarray, shape (3, 3), or None
+        Position covariance in the tank frame (m^2).
+    cls : str
+        "point", "cylinder", "plane" or "unknown".
+    label : str
+    """
+
+    position_m: NDArray[np.float64]
+    covariance_m2: NDArray[np.float64] | None = None
+    cls: str = "unknown"
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class TruthMarker:
+    """A true target position (tank frame, m) and its name."""
+
+    position_m: NDArray[np.float64]
+    name: str = ""
+
+
+def _nice_magnification(factor: float) -> float:
+    """The smallest of 1, 2, 5 x 10^n not below ``factor`` (1 when factor <= 1)."""
+    if factor <= 1.0:
+        return 1.0
+    exponent = math.floor(math.log10(factor))
+    for step in (1.0, 2.0, 5.0, 10.0):
+        if step * 10.0**exponent >= factor:
+            return step * 10.0**exponent
+    return 10.0 ** (exponent + 1)
+
+
+def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthMarker], *, n_sigma: float = 2.0,
+                    magnification: float | None = None, view_size_m: float = 1.0) -> list[Layer]:
+    """Estimated targets (markers and ``n_sigma`` error ellipsoids) against the truth (markers),
+    each estimate joined to its nearest true target by a line.
+
+    Parameters
+    ----------
+    estimates, truths : sequences of EstimateMarker, TruthMarker
+    n_sigma : float
+        Ellipsoid semi-axes are ``n_sigma`` standard deviations along the covariance's principal
+        axes.
+    magnification : float or None
+        Scale of the drawn ellipsoids (stated in the legend). None picks the smallest of
+        1, 2, 5 x 10^n that makes the largest ellipsoid at least 2 % of ``view_size_m``:
+        millimetre errors are invisible at tank scale otherwise.
+    view_size_m : float
+        Size of the shown region (m), for the automatic magnification.
+    """
+    layers: list[Layer] = []
+    if estimates:
+        positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
+        layers.append(Layer("estimates", pv.PolyData(positions), ESTIMATE_COLOR, 1.0, "points", point_size=14.0,
+                            label=f"estimates ({len(estimates)})", group="estimate"))
+        axes_list = []
+        for est in estimates:
+            if est.covariance_m2 is None:
+                continue
+            cov = 0.5 * (np.asarray(est.covariance_m2, dtype=float) + np.asarray(est.covariance_m2, dtype=float).T)
+            values, vectors = np.linalg.eigh(cov)
+            axes_list.append((est.position_m, vectors * (n_sigma * np.sqrt(np.clip(values, 0.0, None)))[None, :]))
+        if axes_list:
+            largest = max(float(np.max(np.linalg.norm(ax, axis=0))) for _, ax in axes_list)
+            mag = magnification if magnification is not None else (
+                _nice_magnification(0.02 * view_size_m / largest) if largest > 0 else 1.0)
+            # A zero variance (a 2-D estimate's z) would make a flat disc: give it a floor so the
+            # mesh stays a closed surface (1e-4 of the largest axis, invisible).
+            meshes = []
+            for center, ax in axes_list:
+                norms = np.linalg.norm(ax, axis=0)
+                floor = 1e-4 * largest
+                ax = np.where(norms[None, :] < floor, np.eye(3) * floor, ax)
+                meshes.append(ellipsoid_mesh(np.asarray(center, dtype=float), mag * ax, 32))
+            scale = "" if mag == 1.0 else f" x{mag:g}"
+            layers.append(Layer("estimate-ellipsoids", pv.merge(meshes), ESTIMATE_COLOR, 0.35, "surface",
+                                label=f"{n_sigma:g}-sigma error ellipsoids{scale}", group="estimate"))
+    if truths:
+        truth_positions = np.array([t.position_m for t in truths], dtype=float).reshape(-1, 3)
+        layers.append(Layer("truth", pv.PolyData(truth_positions), TRUTH_COLOR, 1.0, "points", point_size=14.0,
+                            label=f"truth ({len(truths)})", group="truth"))
+        if estimates:
+            positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
+            nearest = np.argmin(np.linalg.norm(positions[:, None, :] - truth_positions[None, :, :], axis=2), axis=1)
+            points = np.vstack([positions, truth_positions[nearest]])
+            n = len(positions)
+            lines = np.column_stack([np.full(n, 2), np.arange(n), n + np.arange(n)]).ravel()
+            layers.append(Layer("estimate-errors", pv.PolyData(points, lines=lines), (0.2, 0.2, 0.2), 1.0, "lines",
+                                line_width=2.0, group="estimate"))
+    return layers

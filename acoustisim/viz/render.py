@@ -1,0 +1,300 @@
+"""The viewer's Python API, for notebooks and the ``acoustisim view`` command.
+
+>>> from scenes.builtin import builtin_scene                       # doctest: +SKIP
+>>> from acoustisim.propagation import solve                      # doctest: +SKIP
+>>> scene = builtin_scene("thesis-tank")                          # doctest: +SKIP
+>>> plotter = show_scene(scene, solve(scene), camera="top")       # doctest: +SKIP
+>>> plotter.show()                                                # doctest: +SKIP
+>>> render_png("tank.png", scene, solve(scene))                   # doctest: +SKIP
+>>> export_html("tank.html", scene, solve(scene))                 # doctest: +SKIP
+
+Without a display (``DISPLAY``/``WAYLAND_DISPLAY`` unset on Linux) rendering is off-screen
+through EGL (Mesa's software rasteriser is enough); with one, ``show_scene(...).show()`` opens
+an interactive window.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from acoustisim.errors import InputError
+from acoustisim.propagation.paths import Paths
+from acoustisim.scene import Scene
+from acoustisim.sonar import SonarHead
+from acoustisim.viz.actors import (
+    EstimateMarker,
+    TruthMarker,
+    beam_layers,
+    estimate_layers,
+    object_layers,
+    path_layers,
+    scene_bounds,
+    sonar_layers,
+    tank_layers,
+    tof_layers,
+)
+from acoustisim.viz.cameras import CameraPreset, apply_camera, camera_preset
+from acoustisim.viz.layers import RGBA_ARRAY, Layer
+
+if TYPE_CHECKING:
+    import pyvista as pv
+
+ResultsInput = Sequence[EstimateMarker] | str | os.PathLike[str] | None
+
+
+@dataclass(frozen=True)
+class ViewOptions:
+    """What to draw and how.
+
+    Attributes
+    ----------
+    channels : tuple of int
+        Receiver channels whose paths are drawn (0 left, 1 centre, 2 right).
+    max_paths : int or None
+        Draw only this many strongest path rows (None: all).
+    edge_elements : bool
+        Draw each edge-diffraction element instead of one polyline per edge arrival.
+    dynamic_range_db : float
+        Paths this far below the strongest echo are drawn at the minimum opacity (dB).
+    echo : int or None
+        Draw the time-of-flight ellipsoids of this echo (rank by delay on the centre channel).
+    show_beam : bool
+        Draw the transmit beam's -3 dB and side-lobe cones.
+    n_sigma : float
+        Error ellipsoids' size in standard deviations.
+    magnification : float or None
+        Error ellipsoids' drawing scale (None: automatic, stated in the legend).
+    """
+
+    channels: tuple[int, ...] = (0, 1, 2)
+    max_paths: int | None = 10_000
+    edge_elements: bool = False
+    dynamic_range_db: float = 40.0
+    echo: int | None = None
+    show_beam: bool = True
+    n_sigma: float = 2.0
+    magnification: float | None = None
+
+
+def has_display() -> bool:
+    """Whether an interactive window can open (always assumed on Windows and macOS)."""
+    if sys.platform.startswith(("win", "darwin")):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _prefer_egl_without_display() -> None:
+    """Make VTK open an EGL (headless) window directly instead of failing on X first.
+
+    Sets ``VTK_DEFAULT_OPENGL_WINDOW`` for this process only when there is no display and the
+    user has not chosen a window class.
+    """
+    if not has_display():
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+def default_truths(scene: Scene) -> list[TruthMarker]:
+    """True target positions from the scene: each object's bounding-box centre (m)."""
+    return [TruthMarker(obj.bounds_m.mean(axis=0), obj.name) for obj in scene.objects]
+
+
+def build_layers(scene: Scene, paths: Paths | None = None, results: ResultsInput = None, *,
+                 sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
+                 options: ViewOptions = ViewOptions()) -> list[Layer]:
+    """Every layer of the view, in drawing order (opaque things first).
+
+    Parameters
+    ----------
+    scene : Scene
+    paths : Paths, optional
+        Traced paths (``acoustisim.propagation.solve``) or a ping's true arrivals.
+    results : sequence of EstimateMarker, or path of a results JSON, optional
+        Localisation estimates (see :mod:`acoustisim.viz.results_file`).
+    sonar : SonarHead, optional
+        The sonar and pose to draw (default ``scene.sonar``); paths are closed at its transducers.
+    truths : sequence of TruthMarker, optional
+        True targets; with results and no truths, the objects' centres.
+    options : ViewOptions
+
+    Raises
+    ------
+    InputError
+        A bad results file, or an echo number beyond the paths' echoes.
+    """
+    from acoustisim.viz.results_file import load_results
+
+    sonar = scene.sonar if sonar is None else sonar
+    bounds = scene_bounds(scene, sonar)
+    layers: list[Layer] = []
+    layers += object_layers(scene)
+    layers += sonar_layers(sonar)
+    if paths is not None:
+        layers += path_layers(paths, sonar, channels=options.channels, max_paths=options.max_paths,
+                              dynamic_range_db=options.dynamic_range_db, edge_elements=options.edge_elements)
+    if results is not None:
+        markers = list(results) if not isinstance(results, (str, os.PathLike)) else load_results(results, sonar)
+        true_targets = list(truths) if truths is not None else default_truths(scene)
+        layers += estimate_layers(markers, true_targets, n_sigma=options.n_sigma,
+                                  magnification=options.magnification,
+                                  view_size_m=float(np.linalg.norm(bounds[1] - bounds[0])))
+    elif truths:
+        layers += estimate_layers([], list(truths))
+    if options.echo is not None:
+        if paths is None:
+            raise InputError("echo: time-of-flight ellipsoids need paths (a ping file or traced paths)")
+        try:
+            layers += tof_layers(paths, sonar, options.echo, bounds)
+        except IndexError as exc:
+            raise InputError(f"echo: {exc}") from None
+    layers += tank_layers(scene)
+    if options.show_beam:
+        layers += beam_layers(sonar, scene.medium.sound_speed, bounds)
+    return layers
+
+
+def legend_entries(layers: Sequence[Layer]) -> list[tuple[str, tuple[float, float, float]]]:
+    """(label, colour) of every labelled layer, in order."""
+    return [(layer.label, layer.color) for layer in layers if layer.label]
+
+
+def add_layers(plotter: "pv.Plotter", layers: Sequence[Layer]) -> None:
+    """Add each layer to ``plotter`` as one actor named after it."""
+    for layer in layers:
+        if layer.mesh.n_points == 0:
+            continue
+        common = dict(name=layer.name, reset_camera=False, show_scalar_bar=False)
+        if layer.has_rgba:
+            colour = dict(scalars=RGBA_ARRAY, rgba=True, preference="cell")
+        else:
+            colour = dict(color=layer.color, opacity=layer.opacity)
+        if layer.style == "points":
+            plotter.add_mesh(layer.mesh, style="points", point_size=layer.point_size, render_points_as_spheres=True,
+                             **colour, **common)
+        elif layer.style in ("lines", "wireframe"):
+            plotter.add_mesh(layer.mesh, style="wireframe", line_width=layer.line_width, lighting=False,
+                             **colour, **common)
+        else:
+            plotter.add_mesh(layer.mesh, style="surface", smooth_shading=False, **colour, **common)
+
+
+def _black_legend_text(actor: object, colors: Sequence[tuple[float, float, float]]) -> None:
+    """Black legend text with coloured swatches: VTK draws an entry's text in the entry colour
+    unless the swatch carries its own colour scalars, so give each swatch its colour as scalars
+    and make the entry colour black (light colours are unreadable on white otherwise)."""
+    import pyvista as pv
+
+    for i, color in enumerate(colors):
+        symbol = pv.wrap(actor.GetEntrySymbol(i)).copy()  # type: ignore[attr-defined]
+        rgb = np.tile(np.round(np.asarray(color) * 255.0).astype(np.uint8), (symbol.n_points, 1))
+        symbol.point_data.set_array(rgb, "swatch")
+        symbol.point_data.active_scalars_name = "swatch"
+        actor.SetEntrySymbol(i, symbol)  # type: ignore[attr-defined]
+        actor.SetEntryColor(i, 0.0, 0.0, 0.0)  # type: ignore[attr-defined]
+    actor.SetScalarVisibility(True)  # type: ignore[attr-defined]
+
+
+def _title(scene: Scene, title: str | None) -> str:
+    return scene.name if title is None else title
+
+
+def show_scene(scene: Scene, paths: Paths | None = None, results: ResultsInput = None, *,
+               sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
+               options: ViewOptions = ViewOptions(), camera: str | CameraPreset = "perspective",
+               off_screen: bool | None = None, window_size: tuple[int, int] = (1200, 800),
+               title: str | None = None, legend: bool = True, background: str = "white") -> "pv.Plotter":
+    """A pyvista plotter holding the view (call ``.show()`` for a window, ``.screenshot()`` off-screen).
+
+    Parameters
+    ----------
+    scene, paths, results, sonar, truths, options
+        See :func:`build_layers`.
+    camera : {"top", "side", "sonar", "perspective"} or CameraPreset
+    off_screen : bool or None
+        None: off-screen exactly when there is no display.
+    window_size : (int, int)
+        Pixels (width, height).
+    title : str, optional
+        Text in the upper-left corner (default: the scene's name and the number of paths).
+    legend : bool
+        Draw the legend (labelled layers).
+    background : str
+        Background colour.
+
+    Returns
+    -------
+    pyvista.Plotter
+        Actors are named after the layers ("tank-walls", "paths-specular", ...).
+    """
+    import pyvista as pv
+
+    if off_screen is None:
+        off_screen = not has_display()
+    if off_screen:
+        _prefer_egl_without_display()
+    sonar = scene.sonar if sonar is None else sonar
+    layers = build_layers(scene, paths, results, sonar=sonar, truths=truths, options=options)
+    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
+    plotter.set_background(background)
+    add_layers(plotter, layers)
+    preset = camera if isinstance(camera, CameraPreset) else camera_preset(
+        camera, scene_bounds(scene, sonar), aspect=window_size[0] / window_size[1], sonar=sonar)
+    apply_camera(plotter, preset)
+    entries = legend_entries(layers)
+    if legend and entries:
+        height = min(0.6, (20.0 * len(entries) + 10.0) / window_size[1])
+        width = min(0.4, 320.0 / window_size[0])
+        actor = plotter.add_legend(labels=[[label, color] for label, color in entries], bcolor=(1.0, 1.0, 1.0),
+                                   border=True, size=(width, height), loc="lower right", face="rectangle",
+                                   background_opacity=0.85)
+        _black_legend_text(actor, [color for _, color in entries])
+    plotter.add_text(_title(scene, title), position="lower_left", font_size=11, color="black",
+                     name="title")
+    return plotter
+
+
+def render_png(path: str | os.PathLike[str], scene: Scene, paths: Paths | None = None, results: ResultsInput = None,
+               **kwargs: object) -> Path:
+    """Render the view off-screen to a PNG file (keyword arguments as :func:`show_scene`).
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    kwargs["off_screen"] = True
+    plotter = show_scene(scene, paths, results, **kwargs)  # type: ignore[arg-type]
+    try:
+        plotter.screenshot(str(path))
+    finally:
+        plotter.close()
+    return path
+
+
+def export_html(path: str | os.PathLike[str], scene: Scene, paths: Paths | None = None, results: ResultsInput = None,
+                *, sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
+                options: ViewOptions = ViewOptions(), camera: str | CameraPreset = "perspective",
+                title: str | None = None, window_size: tuple[int, int] = (1200, 800)) -> Path:
+    """Write the view as one self-contained HTML page with an embedded WebGL viewer (no network,
+    no extra package): drag to rotate, right-drag or shift-drag to pan, wheel to zoom.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    from acoustisim.viz.webgl import write_webgl_html
+
+    sonar = scene.sonar if sonar is None else sonar
+    layers = build_layers(scene, paths, results, sonar=sonar, truths=truths, options=options)
+    preset = camera if isinstance(camera, CameraPreset) else camera_preset(
+        camera, scene_bounds(scene, sonar), aspect=window_size[0] / window_size[1], sonar=sonar)
+    return write_webgl_html(path, layers, preset, title=_title(scene, title))
