@@ -1,0 +1,138 @@
+"""Dataset generation on Dask: worker-count independence, SIGKILL then resume.
+
+One ``LocalCluster`` (2 worker processes) is started for the whole module; the killed run
+uses it through ``--scheduler ADDRESS``, as a run on a real cluster would.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from acoustisim.datasets.generate import generate
+from acoustisim.datasets.spec import loads_spec
+from acoustisim.datasets.store import SAMPLE_ARRAYS, DatasetStore
+
+SPEC = """
+[dataset]
+name = "tiny-dask"
+n_samples = 16
+seed = 5
+max_arrivals = 48
+[sonar]
+x_m = [0.8, 1.2]
+y_m = [1.2, 1.8]
+yaw_deg = [-10.0, 10.0]
+record_length_s = 0.002
+[snr]
+snr_db = [10.0, 30.0]
+[solver]
+max_order = 1
+mechanisms = ["direct", "specular"]
+diffuse_rays = 0
+amplitude_floor_db = -60.0
+[placement]
+min_range_m = 0.3
+max_range_m = 1.2
+half_angle_deg = 15.0
+[[objects]]
+kind = "sphere"
+count = [1, 2]
+radius_m = [0.02, 0.05]
+[[objects]]
+kind = "post"
+count = [0, 1]
+radius_m = [0.01, 0.03]
+"""
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    import logging
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    with Client(cluster) as c:
+        yield c
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An uninterrupted run, in this process (one worker, in order)."""
+    out = tmp_path_factory.mktemp("ref") / "ref.zarr"
+    generate(loads_spec(SPEC), out, workers=0, progress=False)
+    return out
+
+
+def assert_same_samples(a: Path, b: Path) -> None:
+    sa, sb = DatasetStore(a), DatasetStore(b)
+    assert sa.complete_mask().all() and sb.complete_mask().all()
+    np.testing.assert_array_equal(sa.checksums(), sb.checksums())
+    for k in range(sa.n_samples):
+        va, vb = sa.read_sample(k), sb.read_sample(k)
+        for name in SAMPLE_ARRAYS:
+            np.testing.assert_array_equal(vb[name], va[name], err_msg=f"sample {k} {name}")
+
+
+def test_two_workers_give_the_same_arrays_as_one(client, reference: Path, tmp_path: Path) -> None:
+    out = tmp_path / "two.zarr"
+    report = generate(loads_spec(SPEC), out, client=client, progress=False)
+    assert report.workers == 2 and report.n_generated == 16
+    assert_same_samples(reference, out)
+
+
+def test_sigkill_mid_run_then_resume_equals_an_uninterrupted_run(client, reference: Path, tmp_path: Path) -> None:
+    import zarr
+
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(SPEC)
+    out = tmp_path / "killed.zarr"
+    command = [sys.executable, "-m", "acoustisim.cli.main", "dataset", "generate", str(spec_file), "--out", str(out),
+               "--scheduler", client.scheduler.address, "--no-progress"]
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    n_done = 0
+    deadline = time.monotonic() + 120.0
+    try:
+        while time.monotonic() < deadline and process.poll() is None:
+            if (out / "complete" / "zarr.json").exists():
+                n_done = int(np.asarray(zarr.open_array(str(out / "complete"), mode="r")[:]).sum())
+                if n_done >= 1:
+                    break
+            time.sleep(0.05)
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert process.returncode == -signal.SIGKILL, process.stderr.read().decode()
+    killed = DatasetStore(out)
+    n_killed = int(killed.complete_mask().sum())
+    assert 1 <= n_killed < 16, "the kill must land mid-run"
+
+    report = generate(loads_spec(SPEC), out, client=client, progress=False)
+    assert report.n_skipped == n_killed and report.n_generated == 16 - n_killed
+    assert_same_samples(reference, out)
+    from acoustisim.datasets.verify import verify
+
+    assert verify(out).ok
+
+
+@pytest.mark.slow
+def test_cli_local_cluster_one_and_two_workers_identical(reference: Path, tmp_path: Path) -> None:
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(SPEC)
+    for n in (1, 2):
+        out = tmp_path / f"w{n}.zarr"
+        result = subprocess.run([sys.executable, "-m", "acoustisim.cli.main", "dataset", "generate", str(spec_file),
+                                 "--out", str(out), "--workers", str(n), "--json", "--no-progress"],
+                                capture_output=True, text=True, check=True)
+        assert f'"workers": {n}' in result.stdout
+        assert_same_samples(reference, out)
