@@ -67,6 +67,7 @@ class PingSynthesiser:
     _transfer: NDArray[np.complex128] = field(repr=False)  # (3, bins): V per Pa, gain x H(f)
     _thermal_psd: NDArray[np.float64] | None = field(repr=False)
     _tvg: NDArray[np.float64] | None = field(repr=False)
+    _bang: NDArray[np.complex128] | None = field(repr=False)  # (3, bins) main bang at the ADC, or None
 
     @classmethod
     def create(cls, sonar: SonarHead, medium: Medium, chain: ReceiverChain | None = None) -> "PingSynthesiser":
@@ -96,7 +97,11 @@ class PingSynthesiser:
             else None
         )
         tvg = None if chain.tvg is None else chain.tvg.gain(paths.grid.times_s)
-        return cls(sonar, medium, chain, paths, transfer, thermal, tvg)
+        bang = None
+        if chain.main_bang_peak_v > 0:
+            spectrum = chain.main_bang_spectrum(f, sonar.centre_frequency_hz) * fs * response
+            bang = (chain.main_bang_amplitudes_v / chain.main_bang_peak_v)[:, None] * spectrum[None, :]
+        return cls(sonar, medium, chain, paths, transfer, thermal, tvg, bang)
 
     @property
     def n_samples(self) -> int:
@@ -115,10 +120,9 @@ class PingSynthesiser:
 
     def main_bang_spectrum(self) -> NDArray[np.complex128]:
         """rfft (3, M//2+1) of the main bang and cross-talk at the ADC input before TVG."""
-        f = self.paths.grid.frequencies_hz
-        bang = self.chain.main_bang_spectrum(f, self.sonar.centre_frequency_hz) * self.sample_rate_hz
-        amplitude = self.chain.main_bang_amplitudes_v / max(self.chain.main_bang_peak_v, 1e-300)
-        return amplitude[:, None] * (bang * self.chain.bandpass_response(f))[None, :]
+        if self._bang is None:
+            return np.zeros((3, self.paths.grid.n_fft // 2 + 1), dtype=complex)
+        return self._bang
 
     def to_volts(self, spectrum: NDArray[np.complex128]) -> NDArray[np.float64]:
         """Inverse FFT, cut to the record, time-varying gain: (3, n_samples) volts at the ADC."""
@@ -188,8 +192,8 @@ class PingSynthesiser:
         sequence = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(_check_seed(seed))
         generators = [np.random.Generator(np.random.PCG64(child)) for child in sequence.spawn(int(n_pings))]
         deterministic = self.echo_spectrum(rows)
-        if self.chain.main_bang_peak_v > 0:
-            deterministic = deterministic + self.main_bang_spectrum()
+        if self._bang is not None:
+            deterministic = deterministic + self._bang
         clean = self.to_volts(deterministic)
         sigma = None
         if snr_db is not None:

@@ -5,7 +5,8 @@ Every path row is the impulse ``geometric_gain * delta(t - delay_s)`` with the c
 
     P(f) = g Q(f) D(theta_tx, f) D(theta_rx, f) 10^(-alpha(f) L / 20) exp(j phi) exp(-j 2 pi f tau),
 
-Q the pulse's spectrum, D the piston directivity (``directivity.py``), alpha the medium's
+Q the pulse's spectrum, D the piston directivity 2 J1(x)/x (``propagation/directivity.py``; 0 at
+and beyond 90 deg: nothing radiates behind the baffle), alpha the medium's
 absorption (dB/m) over the path length L. Edge elements sharing a ``path_id`` are summed like
 any row, so the band-limited Biot-Tolstoy-Medwin response (the half-integrated pulse) comes
 out of the sum by itself.
@@ -95,6 +96,34 @@ def make_record_grid(sample_rate_hz: float, n_samples: int, decimation: int, pad
 
 
 @dataclass(frozen=True, eq=False)
+class KernelPlan:
+    """One kernel size: rows whose echo spans fewer than ``length`` samples at fs / q use it.
+
+    Attributes
+    ----------
+    length : int
+        Lk, kernel samples at fs / q (a power of two).
+    centre : int
+        Index of the pulse's reference instant in a kernel, before the fractional shift.
+    max_spread : float
+        Largest |sin theta_tx| + |sin theta_rx| the kernel holds without wrap-around.
+    base : ndarray (n_bins,) complex64
+        fs_dec Q(f_k) exp(-j 2 pi k centre / Lk) on the synthesised bins.
+    alpha : ndarray (n_bins,) float32
+        Absorption (Np/m) at the bins.
+    kappa : ndarray (n_bins,) float32
+        2 pi f a / c: the directivity's argument per unit sin(theta).
+    """
+
+    length: int
+    centre: int
+    max_spread: float
+    base: NDArray[np.complex64] = field(repr=False)
+    alpha: NDArray[np.float32] = field(repr=False)
+    kappa: NDArray[np.float32] = field(repr=False)
+
+
+@dataclass(frozen=True, eq=False)
 class PathSynthesiser:
     """Turns path rows into the full-rate spectra of the pressure at the three receivers.
 
@@ -108,10 +137,9 @@ class PathSynthesiser:
     sound_speed_m_s : float
         Used for the directivity's wavenumber.
     grid : RecordGrid
-    kernel_length : int
-        Lk, samples of a kernel at fs / q.
-    kernel_centre : int
-        Index of the pulse's reference instant in a kernel (before the fractional shift).
+    plans : tuple of KernelPlan
+        Kernel sizes, shortest first; each row takes the shortest that holds its echo (near-axis
+        rows need about half the samples of rows at 90 deg).
     """
 
     pulse: Pulse
@@ -119,11 +147,7 @@ class PathSynthesiser:
     piston_radius_m: float
     sound_speed_m_s: float
     grid: RecordGrid
-    kernel_length: int
-    kernel_centre: int
-    _bins: NDArray[np.float64] = field(repr=False)
-    _base: NDArray[np.complex128] = field(repr=False)
-    _alpha_np_per_m: NDArray[np.float64] = field(repr=False)
+    plans: tuple[KernelPlan, ...]
     _jinc: JincTable = field(repr=False)
 
     @classmethod
@@ -157,44 +181,56 @@ class PathSynthesiser:
         c = float(medium.sound_speed)
         radius = float(sonar.piston_radius_m)
         start, stop = pulse_support_s(pulse)
-        spread = 2.0 * radius / c  # directivity kernels: half-width a sin(theta)/c each, tx and rx
-        span = (stop - start) + 2.0 * spread
-        kernel_length = 1 << int(math.ceil(math.log2(span * fs_dec + 8)))
-        kernel_centre = int(math.ceil((-start + spread) * fs_dec)) + 2
-        padding = padding_s + (kernel_length + 2) / fs_dec
-        n_samples = int(sonar.n_samples)
-        grid = make_record_grid(fs, n_samples, decimation, padding)
-        n_bins = int(math.floor(synth_top / (fs_dec / kernel_length))) + 1
-        n_bins = min(n_bins, kernel_length // 2)  # never the kernel's own Nyquist bin
-        bins = np.arange(n_bins) * (fs_dec / kernel_length)
-        # Base kernel spectrum: fs_dec Q(f) exp(-j 2 pi k c0 / Lk) (sampled echo, reference at c0).
-        base = fs_dec * pulse_spectrum(pulse, bins) * np.exp(-2j * np.pi * np.arange(n_bins) * kernel_centre / kernel_length)
-        alpha = medium.absorption_db_per_m(bins) * (math.log(10.0) / 20.0)
-        x_max = 2.0 * np.pi * bins[-1] / c * radius if n_bins else 1.0
-        return cls(
-            pulse, medium, radius, c, grid, kernel_length, kernel_centre, bins, base, alpha, JincTable(x_max + 1.0)
-        )
+        per_spread = radius / c  # directivity kernel half-width per unit sin(theta), each side
+        pulse_span = (stop - start) * fs_dec + 6.0
+        longest = 1 << int(math.ceil(math.log2(pulse_span + 4.0 * per_spread * fs_dec)))
+        lengths = [n for n in (longest // 2, longest) if n >= pulse_span + 2]
+        plans = []
+        for length in lengths:
+            max_spread = min(2.0, (length - pulse_span) / (2.0 * per_spread * fs_dec))
+            centre = int(math.ceil(-start * fs_dec + max_spread * per_spread * fs_dec)) + 3
+            n_bins = min(int(math.floor(synth_top / (fs_dec / length))) + 1, length // 2)
+            bins = np.arange(n_bins) * (fs_dec / length)
+            # Sampled echo with its reference instant at `centre`: fs_dec Q(f) exp(-j 2 pi k centre / Lk).
+            base = fs_dec * pulse_spectrum(pulse, bins) * np.exp(-2j * np.pi * np.arange(n_bins) * centre / length)
+            alpha = medium.absorption_db_per_m(bins) * (math.log(10.0) / 20.0)
+            kappa = 2.0 * np.pi * bins * radius / c
+            plans.append(
+                KernelPlan(length, centre, max_spread, base.astype(np.complex64), alpha.astype(np.float32),
+                           kappa.astype(np.float32))
+            )
+        padding = padding_s + (longest + 2) / fs_dec
+        grid = make_record_grid(fs, int(sonar.n_samples), decimation, padding)
+        x_max = float(plans[-1].kappa[-1]) if plans[-1].kappa.size else 1.0
+        return cls(pulse, medium, radius, c, grid, tuple(plans), JincTable(x_max + 1.0))
 
-    @property
-    def bins_hz(self) -> NDArray[np.float64]:
-        """Frequencies (Hz) of the synthesised kernel bins."""
-        return self._bins
+    def _kernels(self, rows: NDArray[Any], plan: KernelPlan, frac: NDArray[np.float64]) -> NDArray[np.float32]:
+        """(rows, Lk) kernels at fs / q; row i's reference instant at plan.centre + frac_i."""
+        n_bins = plan.base.size
+        # A baffled piston radiates (and receives) only in front of its face: D = 0 at and
+        # beyond 90 deg off axis (the housing), not the mirror of the front lobe.
+        s_tx = np.where(np.abs(rows["angle_tx_rad"]) < 0.5 * np.pi, np.abs(np.sin(rows["angle_tx_rad"])), -1.0)
+        s_rx = np.where(np.abs(rows["angle_rx_rad"]) < 0.5 * np.pi, np.abs(np.sin(rows["angle_rx_rad"])), -1.0)
+        spectra = self._jinc(np.multiply.outer(np.abs(s_tx).astype(np.float32), plan.kappa))
+        spectra *= self._jinc(np.multiply.outer(np.abs(s_rx).astype(np.float32), plan.kappa))
+        spectra *= np.exp(np.multiply.outer(-rows["path_length_m"].astype(np.float32), plan.alpha))
+        weight = rows["geometric_gain"] * np.exp(1j * rows["phase_rad"]) * ((s_tx >= 0) & (s_rx >= 0))
+        # Fractional delay exp(-j 2 pi k frac / Lk) by a running product over the bins.
+        step = np.exp(-2j * np.pi * frac / plan.length).astype(np.complex64)
+        ramp = np.empty((rows.size, n_bins), dtype=np.complex64)
+        ramp[:, 0] = weight
+        ramp[:, 1:] = step[:, None]
+        np.cumprod(ramp, axis=1, out=ramp)
+        full = np.zeros((rows.size, plan.length // 2 + 1), dtype=np.complex64)
+        np.multiply(ramp * plan.base, spectra, out=full[:, :n_bins])
+        from scipy.fft import irfft
 
-    def _kernels(self, rows: NDArray[Any]) -> NDArray[np.float64]:
-        """(rows, Lk) kernels at fs / q; row i's reference instant at kernel_centre + frac_i."""
-        fs_dec = self.grid.sample_rate_hz / self.grid.decimation
-        position = rows["delay_s"] * fs_dec
-        frac = position - np.floor(position)
-        k = np.arange(self._bins.size)
-        kappa = 2.0 * np.pi * self._bins * self.piston_radius_m / self.sound_speed_m_s  # (bins,)
-        d_tx = self._jinc(np.abs(np.sin(rows["angle_tx_rad"]))[:, None] * kappa)
-        d_rx = self._jinc(np.abs(np.sin(rows["angle_rx_rad"]))[:, None] * kappa)
-        exponent = (-rows["path_length_m"])[:, None] * self._alpha_np_per_m + 1j * (
-            rows["phase_rad"][:, None] - (2.0 * np.pi / self.kernel_length) * np.multiply.outer(frac, k)
-        )
-        spectra = np.zeros((rows.size, self.kernel_length // 2 + 1), dtype=complex)
-        spectra[:, : k.size] = (rows["geometric_gain"][:, None] * self._base) * d_tx * d_rx * np.exp(exponent)
-        return np.fft.irfft(spectra, n=self.kernel_length, axis=1)
+        return irfft(full, n=plan.length, axis=1)
+
+    def _plan_index(self, rows: NDArray[Any]) -> NDArray[np.intp]:
+        spread = np.abs(np.sin(rows["angle_tx_rad"])) + np.abs(np.sin(rows["angle_rx_rad"]))
+        limits = np.array([plan.max_spread for plan in self.plans])
+        return np.minimum(np.searchsorted(limits, spread, side="left"), len(self.plans) - 1)
 
     def decimated_record(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.float64]:
         """The pressure at the three receivers (Pa), (3, M / q), sampled at fs / q.
@@ -206,29 +242,37 @@ class PathSynthesiser:
         m_dec = self.grid.n_fft_decimated
         keep = int(math.ceil(self.grid.n_samples / self.grid.decimation)) + 1
         fs_dec = self.grid.sample_rate_hz / self.grid.decimation
-        lk = self.kernel_length
         out = np.zeros(3 * m_dec)
-        if rows.size:
-            first = np.floor(rows["delay_s"] * fs_dec).astype(np.int64) - self.kernel_centre
-            late = first >= keep
-            if warn and np.any(late):
-                lost = np.unique(rows["path_id"][late]).size
-                warnings.warn(
-                    f"record_length_s = {self.grid.n_samples / self.grid.sample_rate_hz:g} s is too short for "
-                    f"{lost} arrival(s) (latest delay {rows['delay_s'].max():.6g} s): they are left out",
-                    UserWarning,
-                    stacklevel=3,
-                )
-            rows = rows[~late & (first + lk > 0)]
-            offsets = np.arange(lk)
-            for lo in range(0, rows.size, CHUNK_ROWS):
-                chunk = rows[lo : lo + CHUNK_ROWS]
-                kernels = self._kernels(chunk)
-                start = np.floor(chunk["delay_s"] * fs_dec).astype(np.int64) - self.kernel_centre
-                index = start[:, None] + offsets
-                valid = (index >= 0) & (index < keep)
-                flat = (chunk["channel"].astype(np.int64) * m_dec)[:, None] + index
-                out += np.bincount(flat[valid], weights=kernels[valid], minlength=3 * m_dec)
+        if rows.size == 0:
+            return out.reshape(3, m_dec)
+        position = rows["delay_s"] * fs_dec
+        whole = np.floor(position)
+        late = whole - self.plans[-1].centre >= keep
+        if warn and np.any(late):
+            lost = np.unique(rows["path_id"][late]).size
+            warnings.warn(
+                f"record_length_s = {self.grid.n_samples / self.grid.sample_rate_hz:g} s is too short for "
+                f"{lost} arrival(s) (latest delay {rows['delay_s'].max():.6g} s): they are left out",
+                UserWarning,
+                stacklevel=3,
+            )
+        which = self._plan_index(rows)
+        for plan_number, plan in enumerate(self.plans):
+            selected = np.flatnonzero((which == plan_number) & ~late & (whole - plan.centre + plan.length > 0))
+            offsets = np.arange(plan.length)
+            for lo in range(0, selected.size, CHUNK_ROWS):
+                index_rows = selected[lo : lo + CHUNK_ROWS]
+                chunk = rows[index_rows]
+                kernels = self._kernels(chunk, plan, position[index_rows] - whole[index_rows])
+                start = whole[index_rows].astype(np.int64) - plan.centre
+                flat = (chunk["channel"].astype(np.int64) * m_dec + start)[:, None] + offsets
+                inside = (start >= 0) & (start + plan.length <= keep)
+                if np.all(inside):
+                    out += np.bincount(flat.ravel(), weights=kernels.ravel(), minlength=3 * m_dec)
+                else:
+                    index = start[:, None] + offsets
+                    valid = (index >= 0) & (index < keep)
+                    out += np.bincount(flat[valid], weights=kernels[valid], minlength=3 * m_dec)
         return out.reshape(3, m_dec)
 
     def spectrum(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.complex128]:

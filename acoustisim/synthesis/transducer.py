@@ -64,11 +64,10 @@ def pulse_support_s(pulse: Pulse) -> tuple[float, float]:
 
 @dataclass(frozen=True, eq=False)
 class JincTable:
-    """2 J1(x)/x tabulated on [0, x_max] for fast linear interpolation over (rows, bins) arrays.
+    """2 J1(x)/x tabulated on [0, x_max] (float32) for fast nearest-point lookup over (rows, bins).
 
-    The interpolation error is below h^2/8 max|f''| = h^2/32 (|f''| <= 1/4), h the step: with
-    the default 32 points per unit of x it is 3e-5 absolute (-90 dB re the on-axis value),
-    well below every tolerance that uses it.
+    With 1024 points per unit of x the lookup error is below h/2 max|f'| = 0.58 / 2048 = 2.8e-4
+    absolute (0.0025 dB on axis, 0.025 dB where D = 0.1): far below every tolerance that uses it.
 
     Attributes
     ----------
@@ -79,24 +78,22 @@ class JincTable:
     """
 
     x_max: float
-    points_per_unit: int = 32
-    values: NDArray[np.float64] = field(init=False, repr=False)
+    points_per_unit: int = 1024
+    values: NDArray[np.float32] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = int(math.ceil(self.x_max * self.points_per_unit)) + 2
         x = np.arange(n) / self.points_per_unit
         # 2 J1(x)/x through the shared piston model: k a sin(theta) = x for f = x / (2 pi),
         # a = c = 1 and theta = 90 deg.
-        values = piston_directivity(np.pi / 2.0, x / (2.0 * np.pi), 1.0, 1.0)
+        values = piston_directivity(np.pi / 2.0, x / (2.0 * np.pi), 1.0, 1.0).astype(np.float32)
         values.setflags(write=False)
         object.__setattr__(self, "values", values)
 
-    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """2 J1(x)/x for x >= 0 (any shape), by linear interpolation."""
-        position = np.minimum(np.asarray(x, dtype=float) * self.points_per_unit, self.values.size - 1.000001)
-        index = position.astype(np.intp)
-        weight = position - index
-        return self.values[index] * (1.0 - weight) + self.values[index + 1] * weight
+    def __call__(self, x: NDArray[np.floating]) -> NDArray[np.float32]:
+        """2 J1(x)/x for x >= 0 (any shape), nearest tabulated point."""
+        index = np.minimum(np.asarray(x) * np.float32(self.points_per_unit) + np.float32(0.5), self.values.size - 1)
+        return self.values[index.astype(np.intp)]
 
 
 def piston_directivity_factor(frequency_hz: ArrayLike, radius_m: float, sound_speed_m_s: float) -> NDArray[np.float64]:
