@@ -147,7 +147,7 @@ class PlanarMirrors:
         point_arr = np.array(points, dtype=float).reshape(m, 3)
         normal_arr = np.array(normals, dtype=float).reshape(m, 3)
         disc_arr = np.array(discs, dtype=float)
-        corners = triangles.reshape(m, -1, 3).copy()
+        corners = triangles.reshape(m, 3 * t, 3).copy()
         for i in np.flatnonzero(np.isfinite(disc_arr)):  # 8 rim points stand for a disc
             helper = np.array([1.0, 0.0, 0.0]) if abs(normal_arr[i, 0]) < 0.9 else np.array([0.0, 1.0, 0.0])
             u = np.cross(normal_arr[i], helper)
