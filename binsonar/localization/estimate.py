@@ -94,9 +94,9 @@ def target_from_path_lengths(
     L = np.asarray(lengths_m, dtype=float).reshape(3)
     s = np.asarray(sigma_m, dtype=float).reshape(3)
     d = geometry.half_baseline_m
-    if not (np.isfinite(L[0]) and np.isfinite(L[2])):
+    if np.any(np.isinf(L)) or not (np.isfinite(L[0]) and np.isfinite(L[2])):
         return _invalid_target(ping, L, s, echoes, tg.STATUS_INVALID_PATH_LENGTHS,
-                               "need the left and right path lengths (finite)")
+                               f"need finite left and right path lengths (NaN only for a missing centre), got {L.tolist()}")
     if not np.all(np.isfinite(s[np.isfinite(L)]) & (s[np.isfinite(L)] > 0)):
         return _invalid_target(ping, L, s, echoes, tg.STATUS_INVALID_PATH_LENGTHS,
                                f"path-length stds must be finite and > 0, got {s.tolist()}")

@@ -179,11 +179,19 @@ def weighted_least_squares(
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return evaluate(x)[1] / s[:, None]
 
-    bounds = (lo, hi)
     try:
         with np.errstate(all="ignore"):
-            res = least_squares(fun, x0, jac=jac, bounds=bounds, method="trf", x_scale=x_scale,
-                                xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev)
+            res = None
+            if m >= k:
+                # Levenberg-Marquardt (MINPACK) first: fast; kept when it lands inside the bounds.
+                res = least_squares(fun, x0, jac=jac, method="lm", x_scale=x_scale,
+                                    xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev)
+                if not (np.all(np.isfinite(res.x)) and np.all(res.x >= lo) and np.all(res.x <= hi)
+                        and np.all(np.isfinite(res.fun)) and res.status > 0):
+                    res = None
+            if res is None:
+                res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=x_scale,
+                                    xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError) as exc:
         return ModelFit.failed(model, names, m, FIT_FAILED, f"{model} fit failed: {exc}")
     x = res.x

@@ -46,12 +46,12 @@ def seed_path_lengths(range_m: ArrayLike, bearing_rad: ArrayLike, separation_m: 
         Distance from the transmitter (m).
     bearing_rad : array_like
         Bearing (rad), positive toward the right receiver; broadcast with ``range_m``.
-    separation_m : float
-        d, the transmitter-to-side-receiver distance (m).
+    separation_m : float or array_like
+        d, the transmitter-to-side-receiver distance (m), broadcast with the others.
     """
     r = np.asarray(range_m, dtype=float)
     s = np.sin(np.asarray(bearing_rad, dtype=float))
-    d = float(separation_m)
+    d = np.asarray(separation_m, dtype=float)
     return r + np.sqrt(r * r + d * d + 2 * r * d * s), r + np.sqrt(r * r + d * d - 2 * r * d * s)
 
 
@@ -63,7 +63,7 @@ def seed_point_status(left_m: ArrayLike, right_m: ArrayLike, separation_m: float
     """
     r1 = np.asarray(left_m, dtype=float)
     r2 = np.asarray(right_m, dtype=float)
-    d = float(separation_m)
+    d = np.asarray(separation_m, dtype=float)
     shape = np.broadcast(r1, r2).shape
     status = np.full(shape, POINT_OK, dtype="<U40")
     finite = np.isfinite(r1) & np.isfinite(r2)
@@ -78,7 +78,7 @@ def seed_point_status(left_m: ArrayLike, right_m: ArrayLike, separation_m: float
     return status
 
 
-def _raw_range_sine(r1: NDArray[np.float64], r2: NDArray[np.float64], d: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _raw_range_sine(r1: NDArray[np.float64], r2: NDArray[np.float64], d: NDArray[np.float64] | float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     q = r1 * r1 + r2 * r2 - 2 * d * d
     with np.errstate(invalid="ignore", divide="ignore"):
         return q / (2 * (r1 + r2)), (r1 - r2) * (r1 * r2 + d * d) / (d * q)
@@ -91,8 +91,8 @@ def point_from_path_lengths(left_m: ArrayLike, right_m: ArrayLike, separation_m:
     ----------
     left_m, right_m : array_like
         R1 (left) and R2 (right) bistatic path lengths, c x TOF (m); broadcast together.
-    separation_m : float
-        d (m).
+    separation_m : float or array_like
+        d (m), broadcast with the path lengths.
 
     Returns
     -------
@@ -101,7 +101,7 @@ def point_from_path_lengths(left_m: ArrayLike, right_m: ArrayLike, separation_m:
     """
     r1 = np.asarray(left_m, dtype=float)
     r2 = np.asarray(right_m, dtype=float)
-    d = float(separation_m)
+    d = np.asarray(separation_m, dtype=float)
     r, s = _raw_range_sine(r1, r2, d)
     good = seed_point_status(r1, r2, d) == POINT_OK
     with np.errstate(invalid="ignore"):
@@ -113,7 +113,7 @@ def seed_bearing_eq_4_31(left_m: ArrayLike, right_m: ArrayLike, separation_m: fl
     """The seed's PRINTED eq. 4.31 (wrong; documentation and tests only): bearing (rad), NaN if |sin| > 1."""
     r1 = np.asarray(left_m, dtype=float)
     r2 = np.asarray(right_m, dtype=float)
-    d = float(separation_m)
+    d = np.asarray(separation_m, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
         s = (r1 * r2 + d * d) * (r1 - r2) / (d * (r1 * r2 - 2 * d * d))
         return np.where(np.abs(s) <= 1, np.arcsin(np.clip(s, -1, 1)), np.nan)
@@ -127,7 +127,7 @@ def seed_point_covariance(range_m: ArrayLike, bearing_rad: ArrayLike, separation
     """
     r = np.asarray(range_m, dtype=float)
     th = np.asarray(bearing_rad, dtype=float)
-    d = float(separation_m)
+    d = np.asarray(separation_m, dtype=float)
     s, c = np.sin(th), np.cos(th)
     rho1 = np.sqrt(r * r + d * d + 2 * r * d * s)
     rho2 = np.sqrt(r * r + d * d - 2 * r * d * s)
@@ -253,6 +253,9 @@ def fit_point(
     k = len(names)
     if L.shape != (3,) or s.shape != (3,):
         return ModelFit.failed("point", names, int(L.size), INVALID_INPUT, "need three path lengths and three stds")
+    if np.any(np.isinf(L)) or np.any(np.isnan(s[use])):
+        return ModelFit.failed("point", names, int(use.sum()), INVALID_INPUT,
+                               f"path lengths must be finite (NaN marks a missing channel), got {L.tolist()}")
     if use.sum() < k:
         return ModelFit.failed("point", names, int(use.sum()), INVALID_INPUT,
                                f"point fit needs at least {k} path lengths, got {int(use.sum())}")
