@@ -261,8 +261,12 @@ class ReceiverChain:
     def main_bang_spectrum(self, frequency_hz: ArrayLike, centre_frequency_hz: float) -> NDArray[np.complex128]:
         """Fourier transform (V s) of the centre channel's main bang m(t) = A exp(-t/tau) sin(w0 t), t >= 0.
 
-        M(f) = A w0 / ((1/tau + j w)^2 + w0^2), w = 2 pi f; any shape.
+        M(f) = A w0 / ((1/tau + j w)^2 + w0^2), w = 2 pi f; any shape. A is set so that the peak
+        of m(t) (at t* = atan(w0 tau) / w0) is ``main_bang_peak_v``.
         """
         w = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float)
         w0 = 2.0 * np.pi * centre_frequency_hz
-        return self.main_bang_peak_v * w0 / ((1.0 / self.main_bang_decay_s + 1j * w) ** 2 + w0**2)
+        tau = self.main_bang_decay_s
+        t_peak = math.atan(w0 * tau) / w0
+        amplitude = self.main_bang_peak_v / (math.exp(-t_peak / tau) * math.sin(w0 * t_peak))
+        return amplitude * w0 / ((1.0 / tau + 1j * w) ** 2 + w0**2)
