@@ -28,6 +28,8 @@ class Echo:
     tof_std_s : float
         Estimated standard deviation of ``tof_s`` (s): the CRLB at the estimated SNR, or the
         detector's own bias/std model; NaN when unknown.
+    clipped : bool
+        The channel clipped in this ping: the echo is unreliable.
     """
 
     channel: int
@@ -37,6 +39,7 @@ class Echo:
     score: float
     ping: int = 0
     tof_std_s: float = float("nan")
+    clipped: bool = False
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,256 @@
+"""``detect``: one entry point for every detection method, on recordings or arrays."""
+
+from __future__ import annotations
+
+import inspect
+import time
+from typing import Any, Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from binsonar.detection.echo import DetectionResult, Echo
+from binsonar.detection.inputs import Signals, as_signals, resolve_template
+from binsonar.detection.seed import SEED_COMBINATIONS, seed_combination
+from binsonar.recording import Recording, RecordingError, Template
+
+BASE_METHODS: tuple[str, ...] = (
+    "threshold",
+    "energy",
+    "matched",
+    "whitened-matched",
+    "local-matched",
+    "dwt",
+    "ca-cfar",
+    "os-cfar",
+)
+METHODS: tuple[str, ...] = BASE_METHODS + tuple(c.name for c in SEED_COMBINATIONS)
+CLIPPED_POLICIES: tuple[str, ...] = ("flag", "drop", "error")
+
+RawEchoes = list[list[tuple[float, float, float, float, float]]]
+
+# Parameters of the method functions that ``detect`` supplies itself (not user options).
+_SUPPLIED = {"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind"}
+
+
+def _method_function(base: str) -> Callable[..., RawEchoes]:
+    """The function implementing a base method (imported on use: keeps ``import`` light)."""
+    if base == "threshold":
+        from binsonar.detection.threshold import detect_threshold
+
+        return detect_threshold
+    if base == "energy":
+        from binsonar.detection.energy import detect_energy
+
+        return detect_energy
+    if base == "matched":
+        from binsonar.detection.matched import detect_matched
+
+        return detect_matched
+    if base == "whitened-matched":
+        from binsonar.detection.whitened import detect_whitened_matched
+
+        return detect_whitened_matched
+    if base == "local-matched":
+        from binsonar.detection.local import detect_local_matched
+
+        return detect_local_matched
+    if base == "dwt":
+        from binsonar.detection.wavelet import detect_dwt
+
+        return detect_dwt
+    from binsonar.detection.cfar import detect_cfar
+
+    return detect_cfar
+
+
+def method_options(method: str) -> dict[str, Any]:
+    """The options a method accepts, with their defaults.
+
+    Besides these, every method accepts ``average``, ``bandpass_hz``, ``bandpass_order``,
+    ``full_scale_v`` and ``on_clipped`` (see ``detect``).
+    """
+    base = _base(method)[0]
+    parameters = inspect.signature(_method_function(base)).parameters
+    return {
+        name: p.default for name, p in parameters.items()
+        if name not in _SUPPLIED and p.kind == inspect.Parameter.KEYWORD_ONLY
+    }
+
+
+def _base(method: str) -> tuple[str, bool, bool]:
+    """(base method, average, band-pass) for a method name."""
+    if method in BASE_METHODS:
+        return method, False, False
+    try:
+        combination = seed_combination(method)
+    except KeyError:
+        raise RecordingError(f"unknown detection method {method!r}; choose one of: {', '.join(METHODS)}") from None
+    return combination.base, combination.average, combination.bandpass
+
+
+def _preprocess(
+    signals: Signals,
+    template: Template | None,
+    average: bool,
+    bandpass_hz: tuple[float, float] | str | None,
+    bandpass_order: int,
+) -> Signals:
+    from binsonar.preprocess import average_pings, bandpass, template_band_hz
+
+    waveforms = signals.waveforms
+    clipped = signals.clipped
+    if average:
+        waveforms = average_pings(waveforms)
+        clipped = clipped.any(axis=0, keepdims=True)
+    if bandpass_hz is not None:
+        if isinstance(bandpass_hz, str):
+            if bandpass_hz != "template":
+                raise RecordingError(f"bandpass_hz must be (low_hz, high_hz) or 'template', got {bandpass_hz!r}")
+            if template is None:
+                raise RecordingError(f"{signals.source}: bandpass_hz='template' needs a template")
+            low, high = template_band_hz(template.samples, signals.sample_rate_hz)
+        else:
+            try:
+                low, high = (float(v) for v in bandpass_hz)
+            except (TypeError, ValueError):
+                raise RecordingError(f"bandpass_hz must be (low_hz, high_hz), got {bandpass_hz!r}") from None
+        waveforms = bandpass(waveforms, signals.sample_rate_hz, low, high, bandpass_order)
+    if waveforms is signals.waveforms:
+        return signals
+    return signals.with_waveforms(waveforms, clipped)
+
+
+def detect(
+    data: Recording | NDArray[np.floating],
+    method: str,
+    *,
+    sample_rate_hz: float | None = None,
+    t0_s: float = 0.0,
+    template: Template | NDArray[np.floating] | None = None,
+    average: bool | None = None,
+    bandpass_hz: tuple[float, float] | str | None = None,
+    bandpass_order: int = 4,
+    full_scale_v: float | None = None,
+    on_clipped: str = "flag",
+    **options: Any,
+) -> DetectionResult:
+    """Detect echoes and estimate their times of flight.
+
+    Parameters
+    ----------
+    data : Recording or array_like
+        Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples).
+    method : str
+        One of ``METHODS``: "threshold", "energy", "matched", "whitened-matched",
+        "local-matched", "dwt", "ca-cfar", "os-cfar", or the seed's "seed-1" ... "seed-9"
+        (see ``binsonar.detection.seed``).
+    sample_rate_hz : float, optional
+        Required for arrays.
+    t0_s : float
+        Time of sample 0 after the transmit trigger (s), arrays only.
+    template : Template or array_like, optional
+        The matched-filter template (the transmitted pulse, a calibration echo or a user array;
+        an array is at the data's sample rate with t0_s = 0). Default: the recording's. Its
+        ``t0_s`` defines the reference instant a TOF refers to.
+    average : bool, optional
+        Average all pings first (eq. 4.33; the result has one ping). Set by the seed methods.
+    bandpass_hz : (low_hz, high_hz) or "template", optional
+        Zero-phase band-pass first ("template": the template's -20 dB band). Set by the seed
+        methods (to "template").
+    bandpass_order : int
+        Butterworth order of the band-pass.
+    full_scale_v : float, optional
+        ADC full scale (V): channels reaching it are flagged as clipped (recordings stored as
+        ADC codes are checked against their code full scale anyway).
+    on_clipped : {"flag", "drop", "error"}
+        Clipped channels: keep their echoes marked ``clipped`` ("flag"), drop them, or raise.
+    **options
+        Method options; ``method_options(method)`` lists them with their defaults.
+
+    Returns
+    -------
+    DetectionResult
+        ``elapsed_s`` covers validation, pre-processing and detection (not file reading).
+
+    Raises
+    ------
+    RecordingError
+        Bad data, template or option (one-line message naming the field and value).
+    """
+    start = time.perf_counter()
+    base, seed_average, seed_bandpass = _base(method)
+    if on_clipped not in CLIPPED_POLICIES:
+        raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
+    function = _method_function(base)
+    allowed = method_options(method)
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise RecordingError(
+            f"method {method!r}: unknown option(s) {', '.join(unknown)}; it accepts: {', '.join(sorted(allowed)) or 'none'}"
+        )
+    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v)
+    if on_clipped == "error" and signals.clipped.any():
+        ping, channel = (int(v) for v in np.argwhere(signals.clipped)[0])
+        raise RecordingError(
+            f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped channel(s))"
+        )
+    needs_template = base != "threshold" or seed_bandpass or bandpass_hz == "template"
+    resolved: Template | None = None
+    if needs_template:
+        resolved = resolve_template(template, signals, method)
+    elif template is not None or signals.template is not None:
+        resolved = resolve_template(template, signals, method)
+    do_average = seed_average if average is None else bool(average)
+    band = ("template" if seed_bandpass else None) if bandpass_hz is None else bandpass_hz
+    signals = _preprocess(signals, resolved, do_average, band, bandpass_order)
+    n_pings, n_channels, n = signals.waveforms.shape
+    rows = signals.waveforms.reshape(n_pings * n_channels, n)
+    raw = _run(base, function, rows, signals, resolved, options)
+    clipped = signals.clipped
+    echoes = tuple(
+        tuple(
+            tuple(
+                Echo(channel=c, tof_s=e[0], amplitude=e[1], snr_db=e[2], score=e[3], ping=p, tof_std_s=e[4],
+                     clipped=bool(clipped[p, c]))
+                for e in raw[p * n_channels + c]
+            ) if not (on_clipped == "drop" and clipped[p, c]) else ()
+            for c in range(n_channels)
+        )
+        for p in range(n_pings)
+    )
+    elapsed = time.perf_counter() - start
+    used = {"average": do_average, "bandpass_hz": band, **options}
+    return DetectionResult(
+        method=method,
+        echoes=echoes,
+        elapsed_s=elapsed,
+        clipped=tuple(tuple(bool(v) for v in row) for row in clipped),
+        options=tuple(sorted((k, v) for k, v in used.items() if v is not None)),
+    )
+
+
+def _run(
+    base: str,
+    function: Callable[..., RawEchoes],
+    rows: NDArray[np.float64],
+    signals: Signals,
+    template: Template | None,
+    options: dict[str, Any],
+) -> RawEchoes:
+    """Call a base method with what it needs."""
+    fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
+    if base == "threshold":
+        return function(rows, sample_rate_hz=fs, t0_s=t0, template=template, where=where, **options)
+    if template is None:
+        raise RecordingError(f"{where}: method {base!r} needs a template")
+    if base in ("energy", "whitened-matched", "dwt"):
+        return function(rows, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)
+    from binsonar.detection.matched import plan_matched
+
+    plan = plan_matched(template, rows.shape[1], fs, full=base != "local-matched")
+    if base == "matched":
+        return function(rows, plan, t0_s=t0, **options)
+    if base == "local-matched":
+        return function(rows, plan, t0_s=t0, where=where, **options)
+    return function(rows, plan, t0_s=t0, kind="ca" if base == "ca-cfar" else "os", **options)

@@ -1,0 +1,214 @@
+"""Validated detector inputs: waveforms as (n_pings, n_channels, n_samples), and the template.
+
+Everything a user can get wrong (shapes, NaN/inf, missing sample rate, a template longer than
+the record, a template at another sample rate) is checked here, once, and reported as a
+``RecordingError`` naming the source, the field and the value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from binsonar.recording import Recording, RecordingError, Template
+
+
+@dataclass(frozen=True, eq=False)
+class Signals:
+    """Waveforms ready for a detector.
+
+    Attributes
+    ----------
+    waveforms : ndarray, shape (n_pings, n_channels, n_samples), float64
+        Volts.
+    sample_rate_hz : float
+    t0_s : float
+        Time of sample 0 after the transmit trigger (s).
+    clipped : ndarray of bool, shape (n_pings, n_channels)
+        Channels whose samples reached the ADC full scale.
+    template : Template or None
+        The recording's template (None for arrays).
+    source : str
+        File the waveforms came from, or "array".
+    """
+
+    waveforms: NDArray[np.float64] = field(repr=False)
+    sample_rate_hz: float
+    t0_s: float
+    clipped: NDArray[np.bool_] = field(repr=False)
+    template: Template | None
+    source: str
+
+    @property
+    def n_pings(self) -> int:
+        """Number of pings."""
+        return int(self.waveforms.shape[0])
+
+    @property
+    def n_channels(self) -> int:
+        """Channels per ping."""
+        return int(self.waveforms.shape[1])
+
+    @property
+    def n_samples(self) -> int:
+        """Samples per channel."""
+        return int(self.waveforms.shape[2])
+
+    def with_waveforms(self, waveforms: NDArray[np.float64], clipped: NDArray[np.bool_] | None = None) -> "Signals":
+        """A copy with other waveforms (same sample rate and time origin)."""
+        return Signals(
+            waveforms=waveforms,
+            sample_rate_hz=self.sample_rate_hz,
+            t0_s=self.t0_s,
+            clipped=self.clipped if clipped is None else clipped,
+            template=self.template,
+            source=self.source,
+        )
+
+
+def _clipped_by_full_scale(waveforms: NDArray[np.float64], full_scale_v: float) -> NDArray[np.bool_]:
+    # A sample at (or beyond) the full scale, within a part in 1e9 for the int16 -> volts rounding.
+    return np.any(np.abs(waveforms) >= full_scale_v * (1.0 - 1e-9), axis=-1)
+
+
+def as_signals(
+    data: Recording | NDArray[np.floating],
+    sample_rate_hz: float | None = None,
+    t0_s: float = 0.0,
+    full_scale_v: float | None = None,
+) -> Signals:
+    """Validate a recording or an array and return it as ``Signals``.
+
+    Parameters
+    ----------
+    data : Recording or array_like
+        Shapes (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), volts.
+    sample_rate_hz : float, optional
+        Required for arrays; for a recording it must agree with the file if given.
+    t0_s : float
+        Time of sample 0 after the trigger (s), arrays only.
+    full_scale_v : float, optional
+        ADC full scale (V): channels with a sample at or beyond it are flagged as clipped. For a
+        recording stored as ADC codes, the code full scale is used as well.
+
+    Raises
+    ------
+    RecordingError
+        Wrong shape, non-finite samples, missing or invalid sample rate.
+    """
+    if full_scale_v is not None and not (math.isfinite(full_scale_v) and full_scale_v > 0):
+        raise RecordingError(f"full_scale_v must be a finite number > 0, got {full_scale_v!r}")
+    if isinstance(data, Recording):
+        where = data.source or "recording"
+        if sample_rate_hz is not None and not math.isclose(sample_rate_hz, data.sample_rate_hz, rel_tol=1e-12):
+            raise RecordingError(
+                f"{where}: sample_rate_hz={sample_rate_hz!r} disagrees with the recording's {data.sample_rate_hz!r}"
+            )
+        waveforms = np.asarray(data.waveforms, dtype=float)
+        clipped = np.array(data.clipped, dtype=bool)
+        if data.volts_per_code is not None and data.adc_bits is not None:
+            code_full_scale = (2 ** (int(data.adc_bits) - 1) - 1) * data.volts_per_code
+            clipped |= _clipped_by_full_scale(waveforms, code_full_scale)
+        if full_scale_v is not None:
+            clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
+        return Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where)
+
+    where = "array"
+    try:
+        waveforms = np.array(data, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"{where}: waveforms are not a numeric array: {exc}") from None
+    if waveforms.ndim == 1:
+        waveforms = waveforms[np.newaxis, np.newaxis, :]
+    elif waveforms.ndim == 2 and waveforms.shape[0] == 3:
+        waveforms = waveforms[np.newaxis]
+    if waveforms.ndim != 3 or waveforms.shape[1] != 3 and not (waveforms.shape[1] == 1 and np.ndim(data) == 1):
+        raise RecordingError(
+            f"{where}: waveforms must have shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), "
+            f"got {np.shape(data)}"
+        )
+    if waveforms.shape[0] < 1 or waveforms.shape[2] < 2:
+        raise RecordingError(f"{where}: waveforms are empty (shape {np.shape(data)})")
+    finite = np.isfinite(waveforms)
+    if not finite.all():
+        bad = np.argwhere(~finite)[0]
+        raise RecordingError(
+            f"{where}: waveforms contain NaN or infinite samples (first at ping {bad[0]}, channel {bad[1]}, "
+            f"sample {bad[2]})"
+        )
+    if sample_rate_hz is None:
+        raise RecordingError(f"{where}: sample_rate_hz is required for array input")
+    if not (isinstance(sample_rate_hz, (int, float)) and math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+        raise RecordingError(f"{where}: sample_rate_hz must be a finite number > 0, got {sample_rate_hz!r}")
+    if not math.isfinite(t0_s):
+        raise RecordingError(f"{where}: t0_s must be finite, got {t0_s!r}")
+    clipped = np.zeros(waveforms.shape[:2], dtype=bool)
+    if full_scale_v is not None:
+        clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
+    return Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where)
+
+
+def _resample_template(template: Template, sample_rate_hz: float) -> Template:
+    """The template at another sample rate (band-limited Fourier interpolation, t0 preserved)."""
+    from scipy.signal import resample
+
+    s = template.samples
+    pad = s.size  # zero padding on both sides so the periodic interpolation does not wrap
+    padded = np.concatenate([np.zeros(pad), s, np.zeros(pad)])
+    ratio = sample_rate_hz / template.sample_rate_hz
+    n_new = int(round(padded.size * ratio))
+    resampled = resample(padded, n_new) * 1.0
+    # Keep the span that held the original samples (plus a sample of margin).
+    start = max(int(math.floor(pad * ratio)) - 1, 0)
+    stop = min(int(math.ceil((pad + s.size) * ratio)) + 1, n_new)
+    # Time of resampled sample i: template.t0_s - pad / fs_old + i / fs_new.
+    t0 = template.t0_s - pad / template.sample_rate_hz + start / sample_rate_hz
+    return Template(resampled[start:stop], sample_rate_hz, t0, template.kind)
+
+
+def resolve_template(
+    template: Template | NDArray[np.floating] | None,
+    signals: Signals,
+    method: str,
+) -> Template:
+    """The template a method uses, at the signals' sample rate.
+
+    Parameters
+    ----------
+    template : Template, array_like or None
+        An explicit template (an array is taken at the signals' sample rate with t0_s = 0, i.e.
+        a TOF refers to its first sample); None takes the recording's.
+    signals : Signals
+    method : str
+        For the error message.
+
+    Raises
+    ------
+    RecordingError
+        No template available, an invalid one, or one longer than the record.
+    """
+    where = signals.source
+    if template is None:
+        template = signals.template
+        if template is None:
+            raise RecordingError(
+                f"{where}: method {method!r} needs a template: the recording has none; pass template=..."
+            )
+    elif not isinstance(template, Template):
+        try:
+            template = Template(np.asarray(template, dtype=float), signals.sample_rate_hz, 0.0, "user")
+        except (TypeError, ValueError) as exc:
+            raise RecordingError(f"{where}: template: {exc}") from None
+    if not math.isclose(template.sample_rate_hz, signals.sample_rate_hz, rel_tol=1e-9):
+        template = _resample_template(template, signals.sample_rate_hz)
+    if not np.any(template.samples != 0.0):
+        raise RecordingError(f"{where}: template has no energy (all samples are zero)")
+    if template.samples.size > signals.n_samples:
+        raise RecordingError(
+            f"{where}: template ({template.samples.size} samples) is longer than the record "
+            f"({signals.n_samples} samples)"
+        )
+    return template

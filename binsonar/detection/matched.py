@@ -1,0 +1,506 @@
+"""The matched filter: FFT correlation with the template, analytic envelope, sub-sample peak.
+
+How it is computed (one real FFT of the record per channel, nothing else at full size):
+
+1. ``X = rfft(x, n_fft)`` with ``n_fft = next_fast_len(n + m - 1)`` (linear, not circular,
+   correlation for every lag of a template of m samples).
+2. The analytic correlation z(l) = sum_n x[n + l] s_a*[n] (s_a the template's analytic signal;
+   Re z is the ordinary correlation, |z| its envelope) has the spectrum ``2 X conj(S)`` on
+   f > 0 and nothing below. The template's energy lies below ``f_hi`` (bin ``k_hi``), so an
+   inverse FFT of only those bins, of length ``n_env >= k_hi``, samples z exactly (it is band
+   limited) every ``n_fft / n_env`` samples. This decimated envelope is what detection, the
+   noise floor and CFAR use.
+3. The peak is refined at full rate: z at the integer lags around the coarse peak is computed
+   directly in the time domain (a few dot products with the analytic template), and the
+   parabola through log|z|^2 at the three samples around the maximum gives the sub-sample lag.
+   For a Gaussian pulse log|z|^2 is exactly a parabola, so the interpolation adds no bias; for
+   other smooth pulses the 50 ns spacing is much finer than the envelope width and the vertex
+   converges to the continuous maximum, the maximum-likelihood TOF for an unknown carrier
+   phase (its error reaches the envelope Cramer-Rao bound above threshold SNR).
+
+A TOF is ``t0_s + lag / fs - template.t0_s``: sample 0 of the template is ``template.t0_s``
+after its reference instant.
+
+Noise floor: for Gaussian noise z is complex Gaussian, |z|^2 exponential with mean
+``2 sigma^2 E_s``; its median over the record (robust to the few samples echoes occupy) divided
+by ln 2 gives that mean, hence 2E/N0 = 2 |z_peak|^2 / mean - 2 (the -2 removes the noise's own
+contribution to the peak) and a detection threshold for a design false-alarm probability.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
+from binsonar.detection.peaks import SidelobeModel, log_parabolic_offset
+from binsonar.recording import RecordingError, Template
+
+# Fraction of the template's energy allowed above the band edge f_hi: the decimated envelope
+# is then exact to about sqrt(1e-12) = 1e-6 of its peak.
+BAND_ENERGY_TAIL = 1e-12
+# Fraction of the analytic template's peak below which its (Hilbert) tails are truncated for
+# the time-domain refinement. The tails decay like 1/t from the template's truncation; cutting
+# them at 1e-5 of the peak changes z near its peak by ~1e-5 relative, smoothly in lag, which
+# moves the vertex by ~1e-5 of the envelope width (~10 ps here), far below any TOF effect.
+ANALYTIC_TAIL = 1e-5
+LN2 = math.log(2.0)
+
+
+@dataclass(frozen=True, eq=False)
+class MatchedPlan:
+    """Everything the matched filter precomputes for one template and record length.
+
+    Attributes
+    ----------
+    n_samples : int
+        Record length the plan is for.
+    n_fft : int
+        Real FFT size (>= n_samples + template length - 1).
+    k_hi : int
+        Number of rfft bins [0, k_hi) kept (the template's band).
+    n_env : int
+        Length of the decimated analytic envelope; its sample j is lag j * n_fft / n_env.
+    weights : ndarray, shape (k_hi,), complex
+        Frequency response applied to X: 2 conj(S) / P (P = 1 for white noise, the noise PSD for
+        the whitened filter; DC weighted once).
+    sample_rate_hz : float
+    template : Template
+    template_length : int
+    peak_response : float
+        |z| at zero lag when the input is the template itself (sum s^2 for white noise).
+    analytic_template_conj : ndarray, shape (m_a,), complex
+        conj of the template's analytic signal (plain matched filter only, else empty).
+    analytic_offset : int
+        Index in ``analytic_template_conj`` of template sample 0.
+    rms_bandwidth_hz : float
+        Envelope RMS bandwidth of the (weighted) template spectrum (Hz).
+    response_power : ndarray, shape (n,)
+        |response to one echo|^2, normalised, at delays 0, 1, 2, ... times
+        ``response_spacing_s``; also the squared correlation coefficient of |z|^2 for white
+        input noise.
+    response_spacing_s : float
+    correlation_time_s : float
+        Integral of response_power: time over which |z|^2 of noise stays correlated (s).
+    mainlobe_fwhm_s : float
+        Full width at half maximum of the response's envelope |z| (s).
+    """
+
+    n_samples: int
+    n_fft: int
+    k_hi: int
+    n_env: int
+    weights: NDArray[np.complex128] = field(repr=False)
+    sample_rate_hz: float
+    template: Template = field(repr=False)
+    template_length: int
+    peak_response: float
+    analytic_template_conj: NDArray[np.complex128] = field(repr=False)
+    analytic_offset: int
+    rms_bandwidth_hz: float
+    response_power: NDArray[np.float64] = field(repr=False)
+    response_spacing_s: float
+    correlation_time_s: float
+    mainlobe_fwhm_s: float
+
+    @property
+    def decimation(self) -> float:
+        """Full-rate samples per decimated envelope sample."""
+        return self.n_fft / self.n_env
+
+    @property
+    def n_valid(self) -> int:
+        """Decimated samples whose lag lies in [0, n_samples - template_length] (full overlap)."""
+        return int(math.floor((self.n_samples - self.template_length) / self.decimation)) + 1
+
+    def lag_to_tof(self, lag: NDArray[np.float64], t0_s: float) -> NDArray[np.float64]:
+        """TOF (s) of a (fractional) lag in full-rate samples."""
+        return t0_s + np.asarray(lag) / self.sample_rate_hz - self.template.t0_s
+
+    def sidelobes(self) -> SidelobeModel:
+        """Relative power of the response versus distance in seconds."""
+        return SidelobeModel(self.response_power, self.response_spacing_s)
+
+    def threshold_factor(self, pfa: float) -> float:
+        """|z|^2 / mean noise |z|^2 at which the record's maximum exceeds it with probability pfa.
+
+        The envelope of complex Gaussian noise crosses r upward at the mean rate (Rice)
+        2 sqrt(pi T) beta e^-T per second, with T = r^2 / mean |z|^2 and beta the RMS bandwidth
+        of the output spectrum; over a record of duration L, adding the chance e^-T of starting
+        above, pfa = e^-T (1 + 2 sqrt(pi T) beta L), solved for T by fixed-point iteration.
+        """
+        duration = max(self.n_samples - self.template_length, 1) / self.sample_rate_hz
+        c = 2.0 * math.sqrt(math.pi) * self.rms_bandwidth_hz * duration
+        factor = -math.log(pfa)
+        for _ in range(50):  # contraction: converges to 1e-12 in a few tens of steps
+            updated = math.log((1.0 + c * math.sqrt(factor)) / pfa)
+            if abs(updated - factor) < 1e-12:
+                break
+            factor = updated
+        return factor
+
+
+def _band_edge_bin(samples: NDArray[np.float64], n_fft: int) -> int:
+    """Number of rfft bins (of size n_fft) below which all but BAND_ENERGY_TAIL of the energy lies."""
+    import scipy.fft as sfft
+
+    n_small = sfft.next_fast_len(max(8 * samples.size, 4096), real=True)
+    power = np.abs(sfft.rfft(samples, n_small)) ** 2
+    tail = np.cumsum(power[::-1])[::-1] / power.sum()  # tail[k]: energy fraction at bins >= k
+    k_small = int(np.argmax(tail < BAND_ENERGY_TAIL)) if np.any(tail < BAND_ENERGY_TAIL) else power.size
+    f_hi = k_small / n_small  # cycles per sample
+    return int(min(n_fft // 2 + 1, math.ceil(f_hi * n_fft) + 2))
+
+
+def _analytic_template(samples: NDArray[np.float64]) -> tuple[NDArray[np.complex128], int]:
+    """conj of the analytic signal of the template, its Hilbert tails truncated; and the offset."""
+    import scipy.fft as sfft
+
+    m = samples.size
+    n = sfft.next_fast_len(5 * m)
+    padded = np.zeros(n)
+    padded[2 * m: 3 * m] = samples
+    spectrum = sfft.fft(padded)
+    gain = np.zeros(n)
+    gain[0] = 1.0
+    gain[1:(n + 1) // 2] = 2.0
+    if n % 2 == 0:
+        gain[n // 2] = 1.0
+    analytic = sfft.ifft(spectrum * gain)
+    magnitude = np.abs(analytic)
+    keep = np.flatnonzero(magnitude > ANALYTIC_TAIL * magnitude.max())
+    start, stop = int(keep[0]), int(keep[-1]) + 1
+    start = min(start, 2 * m)
+    stop = max(stop, 3 * m)
+    return np.conj(analytic[start:stop]), 2 * m - start
+
+
+def _response(
+    spectrum_power: NDArray[np.float64], n_fft: int, n_env: int, sample_rate_hz: float
+) -> tuple[NDArray[np.float64], float, float, float]:
+    """Normalised |response|^2 on a grid, its spacing (s), correlation time (s) and FWHM (s).
+
+    ``spectrum_power`` is |S|^2 / P on rfft bins [0, k) of an FFT of size n_fft (DC halved).
+    """
+    import scipy.fft as sfft
+
+    response = sfft.ifft(spectrum_power, n_env)
+    power = np.abs(response[: n_env // 2]) ** 2
+    power /= power[0]
+    spacing_s = n_fft / n_env / sample_rate_hz
+    correlation_time_s = float((2.0 * power.sum() - 1.0) * spacing_s)
+    below = np.flatnonzero(power < 0.25)  # |response| = 1/2
+    if below.size:
+        i = int(below[0])
+        p0, p1 = power[i - 1], power[i]
+        fwhm_s = 2.0 * (i - 1 + (p0 - 0.25) / (p0 - p1)) * spacing_s
+    else:
+        fwhm_s = float(n_env * spacing_s)
+    return power, spacing_s, correlation_time_s, fwhm_s
+
+
+def plan_matched(
+    template: Template,
+    n_samples: int,
+    sample_rate_hz: float,
+    noise_psd: "Callable[[NDArray[np.float64]], NDArray[np.float64]] | None" = None,
+    *,
+    full: bool = True,
+) -> MatchedPlan:
+    """Precompute the matched filter for a template and record length.
+
+    Parameters
+    ----------
+    template : Template
+        At ``sample_rate_hz`` (see ``inputs.resolve_template``).
+    n_samples : int
+        Record length (samples).
+    sample_rate_hz : float
+    noise_psd : callable or None
+        For the extended (whitened) matched filter: ``noise_psd(f_hz) -> PSD`` (any unit,
+        > 0); None for white noise.
+    full : bool
+        False skips the record-size spectrum (enough for the local matched filter).
+    """
+    import scipy.fft as sfft
+
+    s = np.asarray(template.samples, dtype=float)
+    m = s.size
+    if m > n_samples:
+        raise RecordingError(f"template ({m} samples) is longer than the record ({n_samples} samples)")
+    fs = sample_rate_hz
+    # Template properties on a small grid (the response lasts < 2 m samples; 8 m avoids wrap).
+    n_small = sfft.next_fast_len(max(8 * m, 4096), real=True)
+    k_small = _band_edge_bin(s, n_small)
+    spectrum_small = sfft.rfft(s, n_small)[:k_small]
+    freqs_small = np.arange(k_small) * fs / n_small
+    psd_small = np.ones(k_small) if noise_psd is None else np.asarray(noise_psd(freqs_small), dtype=float)
+    filtered_small = np.abs(spectrum_small) ** 2 / psd_small
+    filtered_small[0] *= 0.5
+    response_power, spacing_s, correlation_time_s, fwhm_s = _response(
+        filtered_small, n_small, sfft.next_fast_len(4 * k_small), fs
+    )
+    if noise_psd is None:
+        analytic_conj, offset = _analytic_template(s)
+        beta = rms_bandwidth_hz(s, fs)
+    else:
+        analytic_conj, offset = np.zeros(0, dtype=complex), 0
+        centroid = (freqs_small * filtered_small).sum() / filtered_small.sum()
+        beta = float(np.sqrt(((freqs_small - centroid) ** 2 * filtered_small).sum() / filtered_small.sum()))
+    n_fft = sfft.next_fast_len(n_samples + m - 1, real=True)
+    if full:
+        k_hi = _band_edge_bin(s, n_fft)
+        n_env = sfft.next_fast_len(k_hi)
+        spectrum = sfft.rfft(s, n_fft)[:k_hi]
+        psd = np.ones(k_hi) if noise_psd is None else np.asarray(noise_psd(np.arange(k_hi) * fs / n_fft), dtype=float)
+        weights = 2.0 * np.conj(spectrum) / psd
+        weights[0] *= 0.5
+        peak_response = float((np.abs(spectrum) ** 2 / psd * np.where(np.arange(k_hi) == 0, 1.0, 2.0)).sum() / n_fft)
+    else:
+        k_hi, n_env = 0, 1
+        weights = np.zeros(0, dtype=complex)
+        peak_response = float(np.sum(s * s)) if noise_psd is None else float("nan")
+    return MatchedPlan(
+        n_samples=int(n_samples),
+        n_fft=int(n_fft),
+        k_hi=int(k_hi),
+        n_env=int(n_env),
+        weights=weights,
+        sample_rate_hz=float(fs),
+        template=template,
+        template_length=int(m),
+        peak_response=peak_response,
+        analytic_template_conj=analytic_conj,
+        analytic_offset=int(offset),
+        rms_bandwidth_hz=float(beta),
+        response_power=response_power,
+        response_spacing_s=float(spacing_s),
+        correlation_time_s=correlation_time_s,
+        mainlobe_fwhm_s=float(fwhm_s),
+    )
+
+
+def filtered_spectrum(plan: MatchedPlan, rows: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """The filter output's analytic spectrum on the kept bins: X * weights, shape (n_rows, k_hi)."""
+    import scipy.fft as sfft
+
+    spectrum = sfft.rfft(rows, plan.n_fft, axis=-1)[:, : plan.k_hi]
+    spectrum *= plan.weights
+    return spectrum
+
+
+def envelope(plan: MatchedPlan, spectrum: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Decimated analytic filter output over the full-overlap lags, shape (n_rows, n_valid).
+
+    Sample j is z at lag j * plan.decimation (full-rate samples).
+    """
+    import scipy.fft as sfft
+
+    z = sfft.ifft(spectrum, plan.n_env, axis=-1)[:, : plan.n_valid]
+    z *= plan.n_env / plan.n_fft
+    return z
+
+
+def noise_mean_power(power: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean |z|^2 of the noise per row, from the median (exponential law), shape (n_rows,)."""
+    return np.maximum(np.median(power, axis=-1) / LN2, np.finfo(float).tiny)
+
+
+def lags_time_domain(
+    plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
+) -> NDArray[np.complex128]:
+    """Analytic correlation z at integer lags, computed directly (plain matched filter).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    row_index : ndarray of int, shape (k,)
+        Row of each peak.
+    lags : ndarray of int, shape (k, w)
+        Consecutive lags (full-rate samples) to evaluate for each peak.
+
+    Returns
+    -------
+    ndarray, shape (k, w), complex
+    """
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    taps = plan.analytic_template_conj
+    n = rows.shape[1]
+    w = lags.shape[1]
+    start = lags[:, 0] - plan.analytic_offset  # first record sample under the template at lag 0
+    index = start[:, np.newaxis] + np.arange(w + taps.size - 1)  # (k, w + m_a - 1)
+    inside = (index >= 0) & (index < n)
+    segment = np.where(inside, rows[row_index[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
+    windows = sliding_window_view(segment, taps.size, axis=-1)  # (k, w, m_a), no copy
+    return np.einsum("kwm,m->kw", windows, taps.real) + 1j * np.einsum("kwm,m->kw", windows, taps.imag)
+
+
+def lags_from_spectrum(plan: MatchedPlan, spectrum: NDArray[np.complex128], lags: NDArray[np.intp]) -> NDArray[np.complex128]:
+    """Analytic filter output at integer lags from its band spectrum (any weights).
+
+    Parameters
+    ----------
+    spectrum : ndarray, shape (k, k_hi)
+        ``filtered_spectrum`` rows of the peaks.
+    lags : ndarray of int, shape (k, w)
+        Consecutive lags for each peak.
+
+    Returns
+    -------
+    ndarray, shape (k, w), complex
+    """
+    bins = np.arange(plan.k_hi)
+    phasor = np.exp(2j * np.pi * np.outer(lags[:, 0], bins) / plan.n_fft)  # (k, k_hi)
+    step = np.exp(2j * np.pi * bins / plan.n_fft)
+    out = np.empty(lags.shape, dtype=complex)
+    for j in range(lags.shape[1]):  # a few lags around each peak, not samples of the record
+        out[:, j] = (spectrum * phasor).sum(axis=-1) / plan.n_fft
+        phasor *= step
+    return out
+
+
+def refine(values: NDArray[np.complex128], lags: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Sub-sample peak of |z| from z at consecutive integer lags (log-parabolic vertex).
+
+    Parameters
+    ----------
+    values : ndarray, shape (k, w), complex
+    lags : ndarray of int, shape (k, w)
+
+    Returns
+    -------
+    lag : ndarray, shape (k,)
+        Fractional lag of the envelope peak (full-rate samples).
+    power : ndarray, shape (k,)
+        |z|^2 at the vertex.
+    """
+    power = np.abs(values) ** 2
+    w = power.shape[1]
+    i = np.clip(np.argmax(power, axis=1), 1, w - 2)
+    k = np.arange(power.shape[0])
+    offset, peak = log_parabolic_offset(power[k, i - 1], power[k, i], power[k, i + 1])
+    return lags[k, i] + offset, peak
+
+
+def refine_window(plan: MatchedPlan) -> int:
+    """Half-width (full-rate samples) of the refinement window around a coarse decimated peak."""
+    return int(math.ceil(plan.decimation)) + 2
+
+
+@dataclass(frozen=True)
+class PeakEstimates:
+    """Refined peaks of the matched filter, one entry per peak.
+
+    Attributes
+    ----------
+    row : ndarray of int
+    lag : ndarray of float
+        Full-rate samples.
+    power : ndarray of float
+        |z|^2 at the peak.
+    noise_mean : ndarray of float
+        Mean noise |z|^2 of the peak's row.
+    """
+
+    row: NDArray[np.intp]
+    lag: NDArray[np.float64]
+    power: NDArray[np.float64]
+    noise_mean: NDArray[np.float64]
+
+
+def refine_peaks(
+    plan: MatchedPlan,
+    rows: NDArray[np.float64],
+    spectrum: NDArray[np.complex128] | None,
+    peak_rows: NDArray[np.intp],
+    coarse_lags: NDArray[np.float64],
+    half_width: int | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Refine coarse peaks (full-rate lags) to sub-sample lags and peak powers.
+
+    Uses the time-domain analytic template for the plain matched filter and the band spectrum
+    for a weighted (whitened) one.
+    """
+    if peak_rows.size == 0:
+        return np.zeros(0), np.zeros(0)
+    w = refine_window(plan) if half_width is None else int(half_width)
+    lags = np.rint(coarse_lags).astype(np.intp)[:, np.newaxis] + np.arange(-w, w + 1)
+    if plan.analytic_template_conj.size:
+        values = lags_time_domain(plan, rows, peak_rows, lags)
+    else:
+        if spectrum is None:
+            raise ValueError("refine_peaks: a weighted (whitened) plan needs its filtered spectrum")
+        values = lags_from_spectrum(plan, spectrum[peak_rows], lags)
+    return refine(values, lags)
+
+
+def echo_values(
+    plan: MatchedPlan,
+    lag: NDArray[np.float64],
+    power: NDArray[np.float64],
+    noise_mean: NDArray[np.float64],
+    threshold_factor: float,
+    t0_s: float,
+) -> tuple[NDArray[np.float64], ...]:
+    """TOF (s), amplitude (V), SNR (dB, 2E/N0), score and TOF std (s) of refined peaks.
+
+    Amplitude is the echo's peak in volts, taking the template's sample peak as its unit.
+    """
+    tof = plan.lag_to_tof(lag, t0_s)
+    amplitude = np.sqrt(power) / plan.peak_response * float(np.max(np.abs(plan.template.samples)))
+    snr = np.maximum(2.0 * power / noise_mean - 2.0, 1e-3)
+    score = power / (threshold_factor * noise_mean)
+    tof_std = tof_crlb_s(snr, plan.rms_bandwidth_hz)
+    return tof, amplitude, 10.0 * np.log10(snr), score, tof_std
+
+
+def check_pfa(pfa: float) -> float:
+    """Validate a false-alarm probability in (0, 1)."""
+    if not (isinstance(pfa, (int, float)) and 0.0 < pfa < 1.0):
+        raise RecordingError(f"pfa must be in (0, 1), got {pfa!r}")
+    return float(pfa)
+
+
+def detect_matched(
+    rows: NDArray[np.float64],
+    plan: MatchedPlan,
+    *,
+    t0_s: float,
+    pfa: float = 1e-3,
+) -> list[list[tuple[float, float, float, float, float]]]:
+    """Strongest matched-filter echo of each row (the seed's global-maximum peak detection).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    plan : MatchedPlan
+    t0_s : float
+        Time of sample 0 (s).
+    pfa : float
+        Design false-alarm probability per record: a row whose peak is below the threshold for
+        it reports no echo.
+
+    Returns
+    -------
+    list (n_rows) of list of (tof_s, amplitude, snr_db, score, tof_std_s)
+    """
+    pfa = check_pfa(pfa)
+    spectrum = filtered_spectrum(plan, rows)
+    z = envelope(plan, spectrum)
+    power = z.real ** 2 + z.imag ** 2
+    noise = noise_mean_power(power)
+    coarse = np.argmax(power, axis=1)
+    row_index = np.arange(rows.shape[0])
+    lag, peak = refine_peaks(plan, rows, spectrum, row_index, coarse * plan.decimation)
+    factor = plan.threshold_factor(pfa)
+    values = echo_values(plan, lag, peak, noise, factor, t0_s)
+    out: list[list[tuple[float, float, float, float, float]]] = []
+    for r in range(rows.shape[0]):
+        echo = tuple(float(v[r]) for v in values)
+        out.append([echo] if echo[3] >= 1.0 else [])  # type: ignore[list-item]
+    return out

@@ -1,0 +1,135 @@
+"""Sub-sample peak interpolation and peak picking shared by the detectors."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+# Smallest power used before a logarithm (avoids log(0) on an exactly zero envelope).
+_TINY = np.finfo(float).tiny
+
+
+def log_parabolic_offset(
+    left: NDArray[np.float64], centre: NDArray[np.float64], right: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Vertex of the parabola through the logarithms of three equally spaced powers.
+
+    Exact for a Gaussian peak (whose logarithm is a parabola), e.g. the matched-filter envelope
+    of a Gaussian pulse; for any smooth peak sampled finely it converges to the continuous
+    maximum.
+
+    Parameters
+    ----------
+    left, centre, right : ndarray, shape (k,)
+        Powers (e.g. |z|^2) at offsets -1, 0, +1, with ``centre`` the largest.
+
+    Returns
+    -------
+    offset : ndarray, shape (k,)
+        Vertex position in units of the spacing, in [-0.5, 0.5].
+    peak : ndarray, shape (k,)
+        Interpolated power at the vertex.
+    """
+    y_l = np.log(np.maximum(left, _TINY))
+    y_c = np.log(np.maximum(centre, _TINY))
+    y_r = np.log(np.maximum(right, _TINY))
+    curvature = y_l - 2.0 * y_c + y_r
+    safe = np.where(curvature < 0.0, curvature, -1.0)
+    offset = np.where(curvature < 0.0, 0.5 * (y_l - y_r) / safe, 0.0)
+    offset = np.clip(offset, -0.5, 0.5)
+    log_peak = y_c - 0.25 * (y_l - y_r) * offset
+    return offset, np.exp(log_peak)
+
+
+def parabolic_offset(
+    left: NDArray[np.float64], centre: NDArray[np.float64], right: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Vertex of the parabola through three equally spaced values (no logarithm).
+
+    Returns
+    -------
+    offset : ndarray
+        In units of the spacing, clipped to [-0.5, 0.5].
+    peak : ndarray
+        Interpolated value at the vertex.
+    """
+    curvature = left - 2.0 * centre + right
+    safe = np.where(curvature < 0.0, curvature, -1.0)
+    offset = np.clip(np.where(curvature < 0.0, 0.5 * (left - right) / safe, 0.0), -0.5, 0.5)
+    return offset, centre - 0.25 * (left - right) * offset
+
+
+def local_maxima(values: NDArray[np.float64], mask: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """Indices of the local maxima of a 1-D array where ``mask`` is True (plateaus: first sample)."""
+    if values.size < 3:
+        return np.flatnonzero(mask & (values == values.max())) if values.size else np.zeros(0, dtype=np.intp)
+    inner = (values[1:-1] >= values[:-2]) & (values[1:-1] > values[2:])
+    is_max = np.concatenate([[values[0] > values[1]], inner, [values[-1] >= values[-2]]])
+    return np.flatnonzero(is_max & mask)
+
+
+def select_peaks(
+    positions: NDArray[np.float64],
+    powers: NDArray[np.float64],
+    min_separation: float,
+    sidelobe_power: "SidelobeModel | None" = None,
+    sidelobe_margin: float = 4.0,
+) -> NDArray[np.intp]:
+    """Greedy peak selection: strongest first, a minimum separation, and side-lobe suppression.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (k,)
+        Peak positions (any unit, the same as ``min_separation``).
+    powers : ndarray, shape (k,)
+        Peak powers.
+    min_separation : float
+        A weaker peak closer than this to an accepted one is dropped.
+    sidelobe_power : callable, optional
+        ``sidelobe_power(distance) -> relative power`` of the filter's response to one echo at
+        that distance from its peak (1 at 0). A weaker peak whose power is below
+        ``sidelobe_margin`` times the side-lobe power predicted from an accepted peak is taken
+        as that peak's side lobe and dropped.
+    sidelobe_margin : float
+        Power ratio (default 4, i.e. 6 dB of margin over the predicted side lobe).
+
+    Returns
+    -------
+    ndarray of int
+        Indices of the kept peaks, in increasing position.
+    """
+    order = np.argsort(powers)[::-1]
+    kept: list[int] = []
+    for i in order:  # loop over candidate peaks (few), not samples
+        if kept:
+            distance = np.abs(positions[kept] - positions[i])
+            if np.any(distance < min_separation):
+                continue
+            if sidelobe_power is not None:
+                predicted = powers[kept] * sidelobe_power(distance)
+                if np.any(powers[i] < sidelobe_margin * predicted):
+                    continue
+        kept.append(int(i))
+    kept_arr = np.array(kept, dtype=np.intp)
+    return kept_arr[np.argsort(positions[kept_arr])] if kept_arr.size else kept_arr
+
+
+class SidelobeModel:
+    """Relative power of a filter's response to one echo versus distance from its peak.
+
+    Parameters
+    ----------
+    response_power : ndarray, shape (n,)
+        |response|^2 / |response(0)|^2 at distances 0, spacing, 2 spacing, ...
+    spacing : float
+        Distance between entries (same unit as the distances queried).
+    """
+
+    def __init__(self, response_power: NDArray[np.float64], spacing: float) -> None:
+        self._power = np.asarray(response_power, dtype=float)
+        self._spacing = float(spacing)
+
+    def __call__(self, distance: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Relative power at these distances (0 beyond the tabulated range)."""
+        x = np.abs(np.asarray(distance, dtype=float)) / self._spacing
+        return np.interp(x, np.arange(self._power.size), self._power, right=0.0)

@@ -1,0 +1,146 @@
+"""Simple threshold detector (seed section 4.1.1): the first time |x| reaches a level.
+
+The TOF is the crossing time (linearly interpolated between the two samples around it) minus
+an optional calibrated offset. Because the echo needs its rise time to reach the level, the
+crossing comes later, relative to the echo's start, as the echo gets weaker: a constant offset
+calibrated at one amplitude cannot remove the bias at another (the seed's point). The offset can
+be calibrated on the template scaled to a reference amplitude (``calibrate_amplitude_v``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from binsonar.detection.noise import noise_sigma
+from binsonar.recording import RecordingError, Template
+
+# The search for the first crossing proceeds in blocks of this many samples (all channels at
+# once) and stops at the first block where every channel has crossed.
+_BLOCK = 16384
+
+
+def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> NDArray[np.intp]:
+    """Index of the first sample with |x| >= level in each row (-1 where none).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    level : ndarray, shape (n_rows,)
+    """
+    n_rows, n = rows.shape
+    found = np.full(n_rows, -1, dtype=np.intp)
+    pending = np.arange(n_rows)
+    for start in range(0, n, _BLOCK):  # blocks of samples, vectorised inside
+        block = rows[pending, start:start + _BLOCK]
+        above = np.abs(block) >= level[pending, np.newaxis]
+        hit = above.any(axis=1)
+        found[pending[hit]] = start + np.argmax(above[hit], axis=1)
+        pending = pending[~hit]
+        if pending.size == 0:
+            break
+    return found
+
+
+def crossing_time_offset(template: Template, amplitude_v: float, level_v: float) -> float:
+    """Crossing time minus reference instant (s) of the noise-free template scaled so that its
+    peak |sample| is ``amplitude_v``, for a threshold ``level_v``: the calibrated offset."""
+    s = template.samples / np.max(np.abs(template.samples)) * amplitude_v
+    if amplitude_v < level_v:
+        raise RecordingError(f"calibrate_amplitude_v={amplitude_v!r} is below the threshold level {level_v!r} V")
+    i = int(first_crossings(s[np.newaxis], np.array([level_v]))[0])
+    frac = _fraction(np.abs(s[i - 1]) if i > 0 else 0.0, np.abs(s[i]), level_v)
+    return template.t0_s + (i - 1 + frac) / template.sample_rate_hz
+
+
+def _fraction(before: NDArray[np.float64] | float, after: NDArray[np.float64] | float, level: NDArray[np.float64] | float) -> NDArray[np.float64]:
+    """Linear-interpolation fraction in [0, 1] of the level between two samples."""
+    before = np.asarray(before, dtype=float)
+    after = np.asarray(after, dtype=float)
+    rise = after - before
+    return np.clip(np.where(rise > 0, (level - before) / np.where(rise > 0, rise, 1.0), 1.0), 0.0, 1.0)
+
+
+def detect_threshold(
+    rows: NDArray[np.float64],
+    *,
+    sample_rate_hz: float,
+    t0_s: float,
+    template: Template | None = None,
+    level_v: float | None = None,
+    level_sigma: float = 6.0,
+    noise_window_s: tuple[float, float] | None = None,
+    offset_s: float = 0.0,
+    calibrate_amplitude_v: float | None = None,
+    where: str = "record",
+) -> list[list[tuple[float, float, float, float, float]]]:
+    """First threshold crossing of each row.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+        Volts.
+    sample_rate_hz, t0_s : float
+    template : Template, optional
+        Sets the window (its length) over which amplitude and energy are measured, and is needed
+        for ``calibrate_amplitude_v``.
+    level_v : float, optional
+        Absolute level (V). None: ``level_sigma`` times the noise standard deviation.
+    level_sigma : float
+        Level relative to the noise floor (default 6: a per-sample false-alarm probability of
+        2e-9 for Gaussian noise).
+    noise_window_s : (start_s, stop_s), optional
+        Noise-only window for the noise floor; None uses a robust estimate over the record.
+    offset_s : float
+        Calibrated offset subtracted from the crossing time (s).
+    calibrate_amplitude_v : float, optional
+        Instead of ``offset_s``: the offset of the template scaled to this peak amplitude (V);
+        needs ``level_v``.
+
+    Returns
+    -------
+    list (n_rows) of list of (tof_s, amplitude, snr_db, score, tof_std_s)
+        amplitude: peak |x| within one template length after the crossing (V); snr_db: energy
+        there above the noise, over sigma^2 (2E/N0); score: amplitude / level; tof_std_s: the
+        noise's jitter of the crossing, sigma / slope.
+    """
+    fs = sample_rate_hz
+    sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where)
+    if level_v is not None:
+        if not (math.isfinite(level_v) and level_v > 0):
+            raise RecordingError(f"{where}: level_v must be > 0, got {level_v!r}")
+        level = np.full(rows.shape[0], float(level_v))
+    else:
+        if not (math.isfinite(level_sigma) and level_sigma > 0):
+            raise RecordingError(f"{where}: level_sigma must be > 0, got {level_sigma!r}")
+        level = level_sigma * sigma
+    if calibrate_amplitude_v is not None:
+        if template is None or level_v is None:
+            raise RecordingError(f"{where}: calibrate_amplitude_v needs a template and an absolute level_v")
+        offset_s = crossing_time_offset(template, float(calibrate_amplitude_v), float(level_v))
+    window = template.samples.size if template is not None else max(16, int(round(10e-6 * fs)))
+    found = first_crossings(rows, level)
+    n_rows, n = rows.shape
+    out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
+    hit = np.flatnonzero(found >= 0)
+    if hit.size == 0:
+        return out
+    i = found[hit]
+    before = np.abs(rows[hit, np.maximum(i - 1, 0)])
+    after = np.abs(rows[hit, i])
+    frac = np.where(i > 0, _fraction(before, after, level[hit]), 0.0)
+    crossing = t0_s + (i - 1 + frac) / fs
+    tof = crossing - offset_s
+    index = np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)
+    segment = rows[hit[:, np.newaxis], index]
+    amplitude = np.abs(segment).max(axis=1)
+    energy = (segment ** 2).sum(axis=1) - window * sigma[hit] ** 2
+    snr = np.maximum(energy / sigma[hit] ** 2, 1e-3)
+    slope = np.maximum((after - before) * fs, np.finfo(float).tiny)
+    tof_std = sigma[hit] / slope
+    score = amplitude / level[hit]
+    for k, r in enumerate(hit):
+        out[r].append((float(tof[k]), float(amplitude[k]), float(10 * np.log10(snr[k])), float(score[k]), float(tof_std[k])))
+    return out
