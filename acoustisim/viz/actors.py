@@ -144,10 +144,10 @@ def ellipsoid_mesh(center_m: NDArray[np.float64], axes: NDArray[np.float64], res
         Columns are the semi-axis vectors (m).
     """
     sphere = pv.Sphere(radius=1.0, theta_resolution=resolution, phi_resolution=max(8, resolution // 2))
-    points = np.asarray(sphere.points, dtype=float) @ np.asarray(axes, dtype=float).T + np.asarray(center_m)
-    out = sphere.copy()
-    out.points = points
-    return out
+    unit = np.asarray(sphere.points, dtype=float)
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)  # the sphere's float32 points, back on |u| = 1
+    points = unit @ np.asarray(axes, dtype=float).T + np.asarray(center_m, dtype=float)
+    return pv.PolyData(points, faces=np.asarray(sphere.faces))
 
 
 def _cylinder(center: NDArray[np.float64], direction: NDArray[np.float64], radius: float, height: float) -> pv.PolyData:
@@ -359,7 +359,7 @@ class EchoChoice:
     Attributes
     ----------
     index : int
-        Rank of the echo on the centre channel, by delay, direct coupling excluded.
+        Rank of the echo among the centre channel's specular and edge arrivals, by delay.
     path_length_m : ndarray, shape (3,)
         Transmitter-to-receiver path length (m) per channel (NaN where the echo was not found).
     points_m : ndarray, shape (k, 3)
@@ -375,7 +375,11 @@ class EchoChoice:
 
 
 def choose_echo(paths: Paths, index: int) -> EchoChoice:
-    """The ``index``-th echo (by delay) on the centre channel and the same arrival on the others.
+    """The ``index``-th discrete echo (by delay) on the centre channel and the same arrival on
+    the others.
+
+    Discrete echoes are the specular and edge arrivals: the direct coupling is no echo and the
+    diffuse rows are reverberation (thousands of weak scatterers).
 
     The same arrival on another channel is the row with the same ``path_id``; when the solver
     numbers channels separately, the row of the same kind and surfaces with the nearest delay.
@@ -386,10 +390,11 @@ def choose_echo(paths: Paths, index: int) -> EchoChoice:
         When there are fewer echoes than ``index + 1``.
     """
     arrivals = paths.arrivals()
-    centre = arrivals[(arrivals["channel"] == 1) & (arrivals["kind"] != PathKind.DIRECT)]
+    discrete = np.isin(arrivals["kind"], (PathKind.SPECULAR, PathKind.EDGE))
+    centre = arrivals[(arrivals["channel"] == 1) & discrete]
     centre = centre[np.argsort(centre["delay_s"], kind="stable")]
     if not 0 <= index < centre.size:
-        raise IndexError(f"echo {index} does not exist: the centre channel has {centre.size} echoes")
+        raise IndexError(f"echo {index} does not exist: the centre channel has {centre.size} specular or edge echoes")
     row = centre[index]
     lengths = np.full(3, np.nan)
     for channel in range(3):
@@ -447,11 +452,11 @@ def tof_layers(paths: Paths, sonar: SonarHead, echo: int, bounds: NDArray[np.flo
         ellipsoid = tof_ellipsoid(tx, sonar.receiver_positions[channel], float(length))
         color = CHANNEL_COLORS[channel]
         layers.append(Layer(f"tof-{name}", _clip_to_box(ellipsoid, bounds), color, 0.12, "surface",
-                            label=f"TOF ellipsoid {name}" if channel != 1 else "", group="tof"))
+                            group="tof"))
         ellipse = ellipsoid.slice(normal=(0.0, 0.0, 1.0), origin=tuple(tx))
         if ellipse.n_points:
             layers.append(Layer(f"tof-ellipse-{name}", _clip_to_box(ellipse, bounds), color, 1.0, "lines",
-                                line_width=2.0, label=f"TOF ellipse {name}", group="tof"))
+                                line_width=2.0, label=f"time-of-flight ellipse, {name}", group="tof"))
     if choice.points_m.size:
         layers.append(Layer("echo-point", pv.PolyData(choice.points_m), (0.0, 0.0, 0.0), 1.0, "points",
                             point_size=12.0, label=f"echo {echo} ({choice.label})", group="tof"))

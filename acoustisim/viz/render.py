@@ -184,20 +184,43 @@ def add_layers(plotter: "pv.Plotter", layers: Sequence[Layer]) -> None:
             plotter.add_mesh(layer.mesh, style="surface", smooth_shading=False, **colour, **common)
 
 
-def _black_legend_text(actor: object, colors: Sequence[tuple[float, float, float]]) -> None:
-    """Black legend text with coloured swatches: VTK draws an entry's text in the entry colour
-    unless the swatch carries its own colour scalars, so give each swatch its colour as scalars
-    and make the entry colour black (light colours are unreadable on white otherwise)."""
-    import pyvista as pv
+def add_legend(plotter: "pv.Plotter", entries: Sequence[tuple[str, tuple[float, float, float]]],
+               window_size: tuple[int, int]) -> object:
+    """A legend box (actor named "legend") in the lower-right corner: coloured squares, black text.
 
-    for i, color in enumerate(colors):
-        symbol = pv.wrap(actor.GetEntrySymbol(i)).copy()  # type: ignore[attr-defined]
-        rgb = np.tile(np.round(np.asarray(color) * 255.0).astype(np.uint8), (symbol.n_points, 1))
-        symbol.point_data.set_array(rgb, "swatch")
+    Returns
+    -------
+    vtkLegendBoxActor
+    """
+    import pyvista as pv
+    from vtkmodules.vtkRenderingAnnotation import vtkLegendBoxActor
+
+    legend = vtkLegendBoxActor()
+    legend.SetNumberOfEntries(len(entries))
+    square = pv.PolyData(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]),
+                         faces=np.array([4, 0, 1, 2, 3]))
+    for i, (label, color) in enumerate(entries):
+        # The swatch carries its colour as scalars so that the entry colour (black) only
+        # colours the text; light colours are unreadable on white otherwise.
+        symbol = square.copy()
+        symbol.point_data.set_array(np.tile(np.round(np.asarray(color) * 255.0).astype(np.uint8), (4, 1)), "swatch")
         symbol.point_data.active_scalars_name = "swatch"
-        actor.SetEntrySymbol(i, symbol)  # type: ignore[attr-defined]
-        actor.SetEntryColor(i, 0.0, 0.0, 0.0)  # type: ignore[attr-defined]
-    actor.SetScalarVisibility(True)  # type: ignore[attr-defined]
+        legend.SetEntry(i, symbol, label, (0.0, 0.0, 0.0))
+    legend.SetScalarVisibility(True)
+    width = min(0.45, 330.0 / window_size[0])
+    height = min(0.9, (16.0 * len(entries) + 8.0) / window_size[1])
+    legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+    legend.GetPositionCoordinate().SetValue(1.0 - width - 0.01, 0.01)
+    legend.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
+    legend.GetPosition2Coordinate().SetValue(width, height)
+    legend.UseBackgroundOn()
+    legend.SetBackgroundColor(1.0, 1.0, 1.0)
+    legend.SetBackgroundOpacity(0.85)
+    legend.BorderOn()
+    legend.GetEntryTextProperty().SetFontSize(14)
+    legend.GetEntryTextProperty().SetColor(0.0, 0.0, 0.0)
+    plotter.add_actor(legend, name="legend", reset_camera=False)
+    return legend
 
 
 def _title(scene: Scene, title: str | None) -> str:
@@ -248,12 +271,7 @@ def show_scene(scene: Scene, paths: Paths | None = None, results: ResultsInput =
     apply_camera(plotter, preset)
     entries = legend_entries(layers)
     if legend and entries:
-        height = min(0.6, (20.0 * len(entries) + 10.0) / window_size[1])
-        width = min(0.4, 320.0 / window_size[0])
-        actor = plotter.add_legend(labels=[[label, color] for label, color in entries], bcolor=(1.0, 1.0, 1.0),
-                                   border=True, size=(width, height), loc="lower right", face="rectangle",
-                                   background_opacity=0.85)
-        _black_legend_text(actor, [color for _, color in entries])
+        add_legend(plotter, entries, window_size)
     plotter.add_text(_title(scene, title), position="lower_left", font_size=11, color="black",
                      name="title")
     return plotter
