@@ -1,0 +1,328 @@
+"""Diffuse reverberation: Monte Carlo rays, Lambert scattering, next-event estimation.
+
+Rays leave the transmitter in directions drawn from a mixture of two densities over the
+whole sphere (``physics.md`` section 5)::
+
+    pdf(w) = a / (4 pi) + (1 - a) D(theta)^2 / Z,    Z = Int D^2 dOmega,
+
+half of them uniform (side lobes, the back, the floor under the head) and half importance
+sampled by the transmit power directivity D^2 = (2 J1(x)/x)^2 at the centre frequency (the
+main lobe). Each ray carries the solid angle ``dOmega = 1 / (N pdf)``; one batched Embree
+``intersect`` finds every first hit.
+
+Each hit is a point scatterer (next-event estimation): with Lambert's law
+``I_s / I_i = mu sin(g_i) sin(g_s) dA / r2^2``, the footprint ``dA = r1^2 dOmega / sin(g_i)``
+and the incident intensity 1 / r1^2 (unit pressure at 1 m), the pressure factor toward a
+receiver is ``|X| sqrt(mu sin(g_s) dOmega) / r2``, independent of r1, where X is a complex
+Gaussian speckle factor (E|X|^2 = 1) frozen to the hit's world position: its value is a hash
+of the position quantised to :data:`SPECKLE_CELL_M` and of ``config.seed``, so that it is the
+same for every receiver and every ping. |X| sqrt(...) is the row's ``geometric_gain`` and
+arg X its ``phase_rad``; directivities and absorption come from the common columns. A row is
+emitted when the receiver is in front of the scattering face and the leg hit -> receiver is
+not occluded (one batched Embree ``occluded`` for all hits and receivers).
+
+Further bounces (``config.diffuse_bounces`` > 1) continue each ray in a cosine-weighted
+direction about the hit's normal, which multiplies its weight by ``pi mu`` (the Lambert
+albedo), and scatter again to every receiver. Scattering is Lambertian only: a surface with
+mu = 0 (the free surface, ideal materials) ends the ray, and specular energy is the image
+source solver's business.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, PATH_DTYPE, empty_paths_array
+
+UNIFORM_FRACTION = 0.5
+"""Share a of the rays drawn uniformly over the sphere; the rest follow D^2."""
+
+SPECKLE_CELL_M = 1e-3
+"""Side of the cubes that share one speckle factor (m): a third of a wavelength at 500 kHz."""
+
+OFFSET_M = 2e-5
+"""A continuing ray starts this far off its surface (40 float32 ulps in the tank)."""
+
+_THETA_GRID = 4097
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+def _splitmix64(x: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """SplitMix64 finaliser, element-wise (wrapping uint64 arithmetic)."""
+    z = x + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    return z ^ (z >> np.uint64(31))
+
+
+def speckle(points_m: NDArray[np.float64], seed: int) -> NDArray[np.complex128]:
+    """Complex Gaussian speckle factors frozen to world positions.
+
+    Parameters
+    ----------
+    points_m : ndarray, shape (n, 3)
+        Scattering points (tank frame, m).
+    seed : int
+        The solver seed (>= 0).
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+        Circular complex Gaussian values with E|X|^2 = 1; equal for points in the same cube of
+        side :data:`SPECKLE_CELL_M`, whatever the receiver, ping or ray that found them.
+    """
+    cells = np.floor(np.asarray(points_m, dtype=float) / SPECKLE_CELL_M).astype(np.int64).view(np.uint64)
+    h = _splitmix64(np.full(cells.shape[0], np.uint64(seed), dtype=np.uint64))
+    for axis in range(3):
+        h = _splitmix64(h ^ cells[:, axis])
+    h2 = _splitmix64(h)
+    u1 = (h >> np.uint64(11)).astype(np.float64) * 2.0**-53
+    u2 = (h2 >> np.uint64(11)).astype(np.float64) * 2.0**-53
+    # |X|^2 ~ Exp(1), phase uniform
+    return np.sqrt(-np.log1p(-u1)) * np.exp(2j * np.pi * u2)
+
+
+def _basis(axis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit vectors completing ``axis`` to an orthonormal frame."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(axis, helper)
+    u /= np.linalg.norm(u)
+    return u, np.cross(axis, u)
+
+
+def _frames(normals: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-row orthonormal tangents (n, 3) x 2 of unit normals (n, 3)."""
+    helper = np.where(np.abs(normals[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    u = np.cross(normals, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return u, np.cross(normals, u)
+
+
+def sample_directions(
+    n: int, boresight: NDArray[np.float64], context: SolveContext, rng: np.random.Generator
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Ray directions from the transmitter and their solid angles.
+
+    Parameters
+    ----------
+    n : int
+        Number of rays.
+    boresight : ndarray, shape (3,)
+        Unit transmit axis.
+    context : SolveContext
+        For the piston radius, the centre frequency and c.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    directions : ndarray, shape (n, 3)
+        Unit vectors.
+    solid_angle : ndarray, shape (n,)
+        dOmega = 1 / (n pdf) (sr); sums to 4 pi in expectation.
+    """
+    theta = np.linspace(0.0, np.pi, _THETA_GRID)
+    power = piston_directivity(theta, context.centre_frequency_hz, context.piston_radius_m, context.sound_speed_m_s) ** 2
+    density = power * np.sin(theta)
+    cdf = np.r_[0.0, np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(theta))]
+    z = 2.0 * np.pi * cdf[-1]  # Int D^2 dOmega
+    u = rng.random((n, 3))
+    uniform = u[:, 0] < UNIFORM_FRACTION
+    cos_uniform = 1.0 - 2.0 * u[:, 1]
+    theta_lobe = np.interp(u[:, 1] * cdf[-1], cdf, theta)
+    cos_t = np.where(uniform, cos_uniform, np.cos(theta_lobe))
+    sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
+    phi = 2.0 * np.pi * u[:, 2]
+    e1, e2 = _basis(boresight)
+    directions = (
+        (sin_t * np.cos(phi))[:, None] * e1 + (sin_t * np.sin(phi))[:, None] * e2 + cos_t[:, None] * boresight
+    )
+    d_theta = np.arccos(np.clip(cos_t, -1.0, 1.0))
+    pdf = UNIFORM_FRACTION / (4.0 * np.pi) + (1.0 - UNIFORM_FRACTION) * np.interp(d_theta, theta, power) / z
+    return directions, 1.0 / (n * pdf)
+
+
+@dataclass(frozen=True)
+class DiffuseEvents:
+    """Scattering events seen by receivers: the diffuse tracer's output before row packing.
+
+    One entry per (scattering event, receiver) whose leg to the receiver is clear.
+
+    Attributes
+    ----------
+    event : ndarray of int64, shape (n,)
+        Index of the scattering event (shared by the receivers that see it).
+    channel : ndarray of int64, shape (n,)
+        Receiver index.
+    bounce : ndarray of int64, shape (n,)
+        Scattering order (1 = first hit).
+    path_length_m : ndarray, shape (n,)
+        Transmitter -> ... -> hit -> receiver (m).
+    gain : ndarray, shape (n,)
+        |X| sqrt(mu sin(g_s) dOmega_eff) / r2 (relative to 1 m), >= 0.
+    phase_rad : ndarray, shape (n,)
+        arg X (rad).
+    departure_dir, arrival_dir : ndarray, shape (n, 3)
+        Unit ray direction leaving the transmitter, unit direction hit -> receiver.
+    surfaces : ndarray of int16, shape (n, MAX_INTERACTIONS)
+        Surfaces hit along the chain (-1 padded).
+    points_m : ndarray, shape (n, MAX_INTERACTIONS, 3)
+        Hit points along the chain (NaN padded).
+    """
+
+    event: NDArray[np.int64]
+    channel: NDArray[np.int64]
+    bounce: NDArray[np.int64]
+    path_length_m: NDArray[np.float64]
+    gain: NDArray[np.float64]
+    phase_rad: NDArray[np.float64]
+    departure_dir: NDArray[np.float64]
+    arrival_dir: NDArray[np.float64]
+    surfaces: NDArray[np.int16]
+    points_m: NDArray[np.float64]
+
+
+def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
+    """Trace ``config.diffuse_rays`` rays through ``config.diffuse_bounces`` Lambert scatterings.
+
+    Parameters
+    ----------
+    context : SolveContext
+    config : SolverConfig
+        ``diffuse_rays``, ``diffuse_bounces``, ``seed``.
+
+    Returns
+    -------
+    DiffuseEvents
+    """
+    n_rays = int(config.diffuse_rays)
+    rng = np.random.default_rng(config.seed)
+    raycaster = context.raycaster
+    scene = context.scene
+    mu_of_surface = np.array(
+        [b.material.diffuse_mu for b in scene.boundaries] + [o.material.diffuse_mu for o in scene.objects]
+    )
+    tx = np.asarray(context.transmitter_m, dtype=float)
+    rx = np.asarray(context.receivers_m, dtype=float)
+    directions, weight = sample_directions(n_rays, np.asarray(context.boresight, dtype=float), context, rng)
+    departure = directions
+    origins = np.broadcast_to(tx, (n_rays, 3))
+    travelled = np.zeros(n_rays)
+    chain_surface = np.full((n_rays, MAX_INTERACTIONS), -1, dtype=np.int16)
+    chain_points = np.full((n_rays, MAX_INTERACTIONS, 3), np.nan)
+    parts: list[tuple[NDArray[Any], ...]] = []
+    next_event = 0
+    for bounce in range(int(config.diffuse_bounces)):  # a handful of bounces
+        hits = raycaster.intersect(origins, directions)
+        normal = np.nan_to_num(hits.normal)
+        cos_in = -np.einsum("ij,ij->i", directions, normal)
+        mu = mu_of_surface[np.maximum(hits.surface, 0)]
+        live = hits.hit & (cos_in > 0.0) & (mu > 0.0)
+        if not np.any(live):
+            break
+        distance = hits.distance_m[live]
+        directions, normal, mu = directions[live], normal[live], mu[live]
+        points = origins[live] + distance[:, None] * directions
+        weight, departure = weight[live], departure[live]
+        travelled = travelled[live] + distance
+        chain_surface, chain_points = chain_surface[live], chain_points[live]
+        if bounce < MAX_INTERACTIONS:
+            chain_surface[:, bounce] = hits.surface[live]
+            chain_points[:, bounce] = points
+        n_hits = points.shape[0]
+
+        # next-event estimation to every receiver
+        to_rx = rx[None, :, :] - points[:, None, :]  # (n_hits, n_rx, 3)
+        r2 = np.sqrt(np.einsum("ijk,ijk->ij", to_rx, to_rx))
+        sin_gs = np.einsum("ijk,ik->ij", to_rx, normal) / r2
+        hit_idx, rx_idx = np.nonzero(sin_gs > 0.0)
+        clear = ~raycaster.occluded(points[hit_idx], rx[rx_idx])
+        hit_idx, rx_idx = hit_idx[clear], rx_idx[clear]
+        x = speckle(points, config.seed)[hit_idx]
+        r2_sel = r2[hit_idx, rx_idx]
+        gain = np.abs(x) * np.sqrt(weight[hit_idx] * mu[hit_idx] * sin_gs[hit_idx, rx_idx]) / r2_sel
+        parts.append((
+            next_event + hit_idx, rx_idx, np.full(hit_idx.size, bounce + 1), travelled[hit_idx] + r2_sel, gain,
+            np.angle(x), departure[hit_idx], to_rx[hit_idx, rx_idx] / r2_sel[:, None], chain_surface[hit_idx],
+            chain_points[hit_idx],
+        ))
+        next_event += n_hits
+        if bounce + 1 >= int(config.diffuse_bounces):
+            break
+        # continue in a cosine-weighted direction about the normal: weight x (pi mu)
+        u = rng.random((n_hits, 2))
+        radius = np.sqrt(u[:, 0])
+        phi = 2.0 * np.pi * u[:, 1]
+        t1, t2 = _frames(normal)
+        directions = (
+            (radius * np.cos(phi))[:, None] * t1
+            + (radius * np.sin(phi))[:, None] * t2
+            + np.sqrt(np.maximum(1.0 - u[:, 0], 0.0))[:, None] * normal
+        )
+        weight = weight * math.pi * mu
+        origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
+    if not parts:
+        return DiffuseEvents(
+            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
+            np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, MAX_INTERACTIONS), np.int16),
+            np.zeros((0, MAX_INTERACTIONS, 3)),
+        )
+    columns = [np.concatenate(c) for c in zip(*parts)]
+    return DiffuseEvents(*columns)
+
+
+def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
+    """Diffuse reverberation rows for one sonar pose.
+
+    Parameters
+    ----------
+    context : SolveContext
+    config : SolverConfig
+        ``diffuse_rays`` (0 gives no rows), ``diffuse_bounces``, ``seed``.
+
+    Returns
+    -------
+    structured ndarray of PATH_DTYPE, shape (n,)
+        One row per (scattering event, receiver) with ``kind = DIFFUSE``, ``order`` the bounce
+        number, every column filled; ``path_id`` from ``context.first_path_id`` upwards, one per
+        scattering event (shared by the receivers that see it).
+    """
+    if int(config.diffuse_rays) <= 0:
+        return empty_paths_array(0)
+    events = trace_diffuse(context, config)
+    rows = np.zeros(events.event.size, dtype=PATH_DTYPE)
+    rows["path_id"] = context.first_path_id + events.event
+    rows["channel"] = events.channel
+    rows["kind"] = int(PathKind.DIFFUSE)
+    rows["order"] = events.bounce
+    rows["path_length_m"] = events.path_length_m
+    rows["geometric_gain"] = events.gain
+    rows["phase_rad"] = events.phase_rad
+    rows["departure_dir"] = events.departure_dir
+    rows["arrival_dir"] = events.arrival_dir
+    rows["object_ids"] = events.surfaces
+    rows["points_m"] = events.points_m
+    return complete_columns(rows, context)
+
+
+__all__ = [
+    "DiffuseEvents",
+    "OFFSET_M",
+    "SPECKLE_CELL_M",
+    "UNIFORM_FRACTION",
+    "diffuse_paths",
+    "sample_directions",
+    "speckle",
+    "trace_diffuse",
+]
