@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
+import warnings
 
 
 def _nonnegative_int(text: str) -> int:
@@ -51,15 +53,19 @@ def _run(args: argparse.Namespace) -> int:
         max_order=args.max_order if args.max_order is not None else SolverConfig().max_order,
         amplitude_floor_db=None if args.keep_all_paths else SolverConfig().amplitude_floor_db,
     )
-    sim = simulate(
-        scene,
-        solver_config=config,
-        seed=args.seed,
-        n_pings=args.pings,
-        snr_db=args.snr_db,
-        snr_echo=args.snr_echo,
-        average=args.average,
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        sim = simulate(
+            scene,
+            solver_config=config,
+            seed=args.seed,
+            n_pings=args.pings,
+            snr_db=args.snr_db,
+            snr_echo=args.snr_echo,
+            average=args.average,
+        )
+    for warning in caught:  # one line each on stderr, never on stdout
+        print(f"acoustisim: warning: {warning.message}", file=sys.stderr)
     path = write_simulation(args.output, sim)
     clipped = [
         [name for name, flag in zip(sim.recording.channel_names, row) if flag] for row in sim.recording.clipped
