@@ -22,6 +22,9 @@ Amplitude (``physics.md`` section 3, Kirchhoff stationary phase)
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -83,29 +86,47 @@ def circle_specular_point(a2: NDArray[np.float64], b2: NDArray[np.float64],
     return x, valid
 
 
-def sphere_specular_point(sphere: SpherePrimitive, a: NDArray[np.float64],
-                          b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-    """Specular points X (n, 3), outward normals (n, 3) and validity (n,) on a sphere.
+@dataclass(frozen=True, eq=False)
+class CurvedSet:
+    """The analytic primitives of a scene as arrays, for batched specular-point solves.
 
-    ``a``, ``b`` (n, 3) are the (image) source and receiver positions (m).
+    Attributes
+    ----------
+    is_sphere : ndarray of bool, shape (r,)
+    centre : ndarray, shape (r, 3)
+        Sphere centre or centre of the cylinder's axis segment (m).
+    frame : ndarray, shape (r, 3, 3)
+        Rows (p, q, axis) of an orthonormal frame (cylinders; identity for spheres).
+    radius, length : ndarray, shape (r,)
+        Radius (m); cylinder length (m, inf for spheres).
     """
-    c = np.asarray(sphere.center_m, dtype=float)
-    u = a - c
-    v = b - c
-    e1 = _unit(u)
-    w = v - np.einsum("ij,ij->i", v, e1)[:, None] * e1
-    wn = np.linalg.norm(w, axis=1)
-    # collinear centre, source and receiver: any plane through the line will do
-    helper = np.where(np.abs(e1[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    fallback = np.cross(e1, helper)
-    e2 = np.where(wn[:, None] > 1e-12 * np.linalg.norm(v, axis=1, keepdims=True), w, fallback)
-    e2 = _unit(e2)
-    a2 = np.stack([np.einsum("ij,ij->i", u, e1), np.einsum("ij,ij->i", u, e2)], axis=1)
-    b2 = np.stack([np.einsum("ij,ij->i", v, e1), np.einsum("ij,ij->i", v, e2)], axis=1)
-    x2, valid = circle_specular_point(a2, b2, sphere.radius_m)
-    normal = x2[:, :1] * e1 + x2[:, 1:] * e2
-    normal = _unit(normal)
-    return c + sphere.radius_m * normal, normal, valid
+
+    is_sphere: NDArray[np.bool_]
+    centre: NDArray[np.float64]
+    frame: NDArray[np.float64]
+    radius: NDArray[np.float64]
+    length: NDArray[np.float64]
+
+    @classmethod
+    def from_primitives(cls, primitives: Sequence[SpherePrimitive | CylinderPrimitive]) -> "CurvedSet":
+        """Stack the primitives (spheres and cylinders only)."""
+        r = len(primitives)
+        is_sphere = np.zeros(r, dtype=bool)
+        centre = np.zeros((r, 3))
+        frame = np.tile(np.eye(3), (r, 1, 1))
+        radius = np.zeros(r)
+        length = np.full(r, np.inf)
+        for i, prim in enumerate(primitives):
+            centre[i] = prim.center_m
+            radius[i] = prim.radius_m
+            if isinstance(prim, SpherePrimitive):
+                is_sphere[i] = True
+            elif isinstance(prim, CylinderPrimitive):
+                frame[i] = cylinder_frame(prim)
+                length[i] = prim.length_m
+            else:
+                raise TypeError(f"no specular solver for {type(prim).__name__}")
+        return cls(is_sphere, centre, frame, radius, length)
 
 
 def cylinder_frame(cylinder: CylinderPrimitive) -> NDArray[np.float64]:
@@ -118,25 +139,81 @@ def cylinder_frame(cylinder: CylinderPrimitive) -> NDArray[np.float64]:
     return np.stack([p, q, axis])
 
 
+def _dot(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.einsum("ij,ij->i", u, v)
+
+
+def specular_points(curved: CurvedSet, which: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], ...]:
+    """Specular points of (image) sources ``a`` and receivers ``b`` on primitives ``which``.
+
+    Parameters
+    ----------
+    curved : CurvedSet
+    which : ndarray of int64, shape (n,)
+        Index of the primitive of each candidate.
+    a, b : ndarray, shape (n, 3)
+        Source and receiver (m).
+
+    Returns
+    -------
+    point, normal : ndarray, shape (n, 3)
+        Specular point X (m) and unit outward normal.
+    valid : ndarray of bool, shape (n,)
+        Lit from both ends, both ends outside, and (cylinders) X within the finite length.
+    e1, e2 : ndarray, shape (n, 3)
+        Principal tangent directions (cylinders: around, along the axis).
+    k1, k2 : ndarray, shape (n,)
+        Principal curvatures (1/m): sphere (1/a, 1/a), cylinder (1/a, 0).
+    """
+    sph = curved.is_sphere[which]
+    c = curved.centre[which]
+    rad = curved.radius[which]
+    u = a - c
+    v = b - c
+    # in-plane basis: spheres, the plane of (centre, a, b); cylinders, the plane normal to the axis
+    frame = curved.frame[which]
+    e1_s = _unit(u)
+    w = v - _dot(v, e1_s)[:, None] * e1_s
+    helper = np.where(np.abs(e1_s[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    # collinear centre, source and receiver: any plane through the line will do
+    w = np.where(np.linalg.norm(w, axis=1, keepdims=True) > 1e-12 * np.linalg.norm(v, axis=1, keepdims=True),
+                 w, np.cross(e1_s, helper))
+    e2_s = _unit(w)
+    p_axis = np.where(sph[:, None], e1_s, frame[:, 0])
+    q_axis = np.where(sph[:, None], e2_s, frame[:, 1])
+    axis = frame[:, 2]
+    a2 = np.column_stack([_dot(u, p_axis), _dot(u, q_axis)])
+    b2 = np.column_stack([_dot(v, p_axis), _dot(v, q_axis)])
+    x2, valid = circle_specular_point(a2, b2, rad)
+    # cylinders: lift along the axis where the unrolled path is straight
+    za, zb = _dot(u, axis), _dot(v, axis)
+    rho_a = np.linalg.norm(a2 - x2, axis=1)
+    rho_b = np.linalg.norm(b2 - x2, axis=1)
+    z = np.where(sph, 0.0, za + (zb - za) * rho_a / np.where(rho_a + rho_b > 0, rho_a + rho_b, 1.0))
+    valid &= sph | (np.abs(z) < 0.5 * curved.length[which])
+    normal = _unit(x2[:, :1] * p_axis + x2[:, 1:] * q_axis)
+    point = c + rad[:, None] * normal + z[:, None] * np.where(sph[:, None], 0.0, axis)
+    # principal directions: cylinder (around, along); sphere any tangent pair
+    helper_n = np.where(np.abs(normal[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    e1 = _unit(np.where(sph[:, None], np.cross(normal, helper_n), np.cross(axis, normal)))
+    e2 = np.where(sph[:, None], np.cross(normal, e1), axis)
+    k1 = 1.0 / rad
+    k2 = np.where(sph, 1.0 / rad, 0.0)
+    return point, normal, valid, e1, e2, k1, k2
+
+
+def sphere_specular_point(sphere: SpherePrimitive, a: NDArray[np.float64],
+                          b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Specular points X (n, 3), outward normals (n, 3) and validity (n,) on one sphere."""
+    point, normal, valid, *_ = specular_points(CurvedSet.from_primitives([sphere]), np.zeros(len(a), np.int64), a, b)
+    return point, normal, valid
+
+
 def cylinder_specular_point(cylinder: CylinderPrimitive, a: NDArray[np.float64],
                             b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-    """Specular points X (n, 3), outward normals (n, 3) and validity (n,) on a finite cylinder's side.
-
-    Valid where both ends are outside the cylinder on the lit side and X lies within the
-    length (strictly inside the caps' planes).
-    """
-    c = np.asarray(cylinder.center_m, dtype=float)
-    frame = cylinder_frame(cylinder)
-    la = (a - c) @ frame.T
-    lb = (b - c) @ frame.T
-    x2, valid = circle_specular_point(la[:, :2], lb[:, :2], cylinder.radius_m)
-    rho_a = np.linalg.norm(la[:, :2] - x2, axis=1)
-    rho_b = np.linalg.norm(lb[:, :2] - x2, axis=1)
-    z = la[:, 2] + (lb[:, 2] - la[:, 2]) * rho_a / np.where(rho_a + rho_b > 0, rho_a + rho_b, 1.0)
-    valid &= np.abs(z) < 0.5 * cylinder.length_m
-    local = np.column_stack([x2, z])
-    point = c + local @ frame
-    normal = _unit(np.column_stack([x2, np.zeros_like(z)]) @ frame)
+    """Specular points X (n, 3), outward normals (n, 3) and validity (n,) on one finite cylinder's side."""
+    point, normal, valid, *_ = specular_points(CurvedSet.from_primitives([cylinder]), np.zeros(len(a), np.int64), a, b)
     return point, normal, valid
 
 
@@ -176,36 +253,12 @@ def go_amplitude(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.f
     return cos_i / (r1 * r2 * np.sqrt(np.abs(det)))
 
 
-def principal_directions(primitive: SpherePrimitive | CylinderPrimitive, normal: NDArray[np.float64]
-                         ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
-    """Tangent principal directions (n, 3) x 2 and curvatures (1/m) of a primitive at normals (n, 3)."""
-    if isinstance(primitive, CylinderPrimitive):
-        axis = np.broadcast_to(np.asarray(primitive.axis, dtype=float), normal.shape)
-        e1 = _unit(np.cross(axis, normal))
-        return e1, np.array(axis), 1.0 / primitive.radius_m, 0.0
-    helper = np.where(np.abs(normal[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    e1 = _unit(np.cross(normal, helper))
-    e2 = np.cross(normal, e1)
-    k = 1.0 / primitive.radius_m
-    return e1, e2, k, k
-
-
-def primitive_specular_point(primitive: SpherePrimitive | CylinderPrimitive, a: NDArray[np.float64],
-                             b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-    """Dispatch to :func:`sphere_specular_point` or :func:`cylinder_specular_point`."""
-    if isinstance(primitive, SpherePrimitive):
-        return sphere_specular_point(primitive, a, b)
-    if isinstance(primitive, CylinderPrimitive):
-        return cylinder_specular_point(primitive, a, b)
-    raise TypeError(f"no specular solver for {type(primitive).__name__}")
-
-
 __all__ = [
+    "CurvedSet",
     "circle_specular_point",
     "cylinder_frame",
     "cylinder_specular_point",
     "go_amplitude",
-    "primitive_specular_point",
-    "principal_directions",
+    "specular_points",
     "sphere_specular_point",
 ]

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
+from acoustisim.propagation.curved import CurvedSet
 from acoustisim.propagation.image_source import PlanarMirrors
 from acoustisim.propagation.raycast import RayCaster
 from acoustisim.scene import Scene, SceneObject
@@ -51,12 +52,18 @@ class CurvedReflector:
 
 @dataclass(frozen=True, eq=False)
 class PreparedScene:
-    """A scene with its validated geometry, Embree scene, mirrors and curved reflectors."""
+    """A scene with its validated geometry, Embree scene, mirrors and curved reflectors.
+
+    ``curved_set`` stacks the reflectors' primitives (same order as ``curved``) for batched
+    specular-point solves; ``curved_seen_by`` (r, m) stacks their ``seen_by`` rows.
+    """
 
     scene: Scene
     raycaster: RayCaster
     mirrors: PlanarMirrors
     curved: tuple[CurvedReflector, ...]
+    curved_set: CurvedSet = field(repr=False)
+    curved_seen_by: NDArray[np.bool_] = field(repr=False)
 
 
 def check_mesh(obj: SceneObject) -> None:
@@ -107,7 +114,9 @@ def prepare(scene: Scene) -> PreparedScene:
             seen_by = np.any(height > 1e-9, axis=0)
             curved.append(
                 CurvedReflector(s, int(raycaster.patch_index[faces[0]]), obj.primitive, obj.material, seen_by))
-    return PreparedScene(scene, raycaster, mirrors, tuple(curved))
+    seen_by = np.array([r.seen_by for r in curved], dtype=bool).reshape(len(curved), mirrors.count)
+    curved_set = CurvedSet.from_primitives([r.primitive for r in curved])
+    return PreparedScene(scene, raycaster, mirrors, tuple(curved), curved_set, seen_by)
 
 
 __all__ = ["CurvedReflector", "PreparedScene", "check_mesh", "prepare"]

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.curved import go_amplitude, primitive_specular_point, principal_directions
+from acoustisim.propagation.curved import go_amplitude, specular_points
 from acoustisim.propagation.image_source import PlanarMirrors, backtrace, mirror_sequences, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import CurvedReflector, PreparedScene
@@ -57,7 +57,7 @@ class _Chains:
 
 
 def _deduplicate(chains: _Chains) -> _Chains:
-    """Keep one chain per (channel, unfolded end points).
+    """Keep one chain per (channel, unfolded end points, set of surfaces touched).
 
     Reflections on perpendicular planes commute: [wall, floor] and [floor, wall] have the same
     image, and generically only one order is a real path; through the corner line itself (a
@@ -67,7 +67,7 @@ def _deduplicate(chains: _Chains) -> _Chains:
     n = chains.length.shape[0]
     if n < 2:
         return chains
-    key = np.column_stack([chains.channel, np.round(chains.key / 1e-9)]).astype(np.int64)
+    key = np.column_stack([chains.channel, np.round(chains.key / 1e-9), np.sort(chains.surface, axis=1)]).astype(np.int64)
     _, first = np.unique(key, axis=0, return_index=True)
     if first.size == n:
         return chains
@@ -145,51 +145,66 @@ def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, ch
     return _deduplicate(chains), chain_base + len(ok)
 
 
-def _mixed_chains(context: SolveContext, mirrors: PlanarMirrors, reflector: CurvedReflector, n_before: int,
-                  n_after: int, reflector_index: int, chain_base: int) -> tuple[_Chains, int]:
+def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
+                  chain_base: int) -> tuple[_Chains, int]:
+    """Chains [n_before mirrors, one curved reflector, n_after mirrors], every reflector at once."""
+    mirrors = prepared.mirrors
+    seen_by = prepared.curved_seen_by  # (r, m)
+    n_refl = seen_by.shape[0]
     tx = context.transmitter_m
     n_rx = context.receivers_m.shape[0]
-    first = mirrors.signed_distance(np.broadcast_to(tx, (mirrors.count, 3)), np.arange(mirrors.count)) > 0
-    seq_b = mirror_sequences(mirrors.sees, n_before, first, reflector.seen_by)
+    ids = np.arange(mirrors.count)
+    any_seen = np.any(seen_by, axis=0)
+    first = mirrors.signed_distance(np.broadcast_to(tx, (mirrors.count, 3)), ids) > 0
+    seq_b = mirror_sequences(mirrors.sees, n_before, first, any_seen)
     # in path order, from the object to the receiver
-    seq_a = mirror_sequences(mirrors.sees, n_after, reflector.seen_by, _receivers_in_front(context, mirrors))
+    seq_a = mirror_sequences(mirrors.sees, n_after, any_seen, _receivers_in_front(context, mirrors))
     images_b, ok_b = unfold(mirrors, np.broadcast_to(tx, (seq_b.shape[0], 3)), seq_b)
-    n_chain = seq_b.shape[0] * seq_a.shape[0]
+    # receiver-side images, once per (after sequence, receiver)
+    ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)
+    rr = np.tile(np.arange(n_rx), seq_a.shape[0])
+    images_a, ok_a = unfold(mirrors, context.receivers_m[rr], seq_a[ra][:, ::-1])
+    n_chain = seq_b.shape[0] * seq_a.shape[0] * n_refl
+    # candidates: (before, after x receiver, reflector), pruned by the visibility tables
     ib = np.flatnonzero(ok_b)
-    ia = np.arange(seq_a.shape[0])
-    # candidate index grid: (before, after, receiver)
-    gb, ga, gr = (g.ravel() for g in np.meshgrid(ib, ia, np.arange(n_rx), indexing="ij"))
-    chain = chain_base + gb * seq_a.shape[0] + ga
-    sb, sa = seq_b[gb], seq_a[ga]
-    sa_rev = sa[:, ::-1]
-    images_a, ok_a = unfold(mirrors, context.receivers_m[gr], sa_rev)
-    keep = ok_a
-    gb, gr, sb, sa, sa_rev, images_a, chain = gb[keep], gr[keep], sb[keep], sa[keep], sa_rev[keep], images_a[keep], chain[keep]
+    iar = np.flatnonzero(ok_a)
+    gb, gar, gr = (g.ravel() for g in np.meshgrid(ib, iar, np.arange(n_refl), indexing="ij"))
+    keep = np.ones(gb.size, dtype=bool)
+    if n_before:
+        keep &= seen_by[gr, seq_b[gb, -1]]
+    if n_after:
+        keep &= seen_by[gr, seq_a[ra[gar], 0]]
+    gb, gar, gr = gb[keep], gar[keep], gr[keep]
+    ga, channel = ra[gar], rr[gar]
+    chain = chain_base + (gb * seq_a.shape[0] + ga) * n_refl + gr
     img_b = images_b[gb]
+    img_a = images_a[gar]
     a_pt = img_b[:, -1]
-    b_pt = images_a[:, -1]
-    x, normal, valid = primitive_specular_point(reflector.primitive, a_pt, b_pt)
+    b_pt = img_a[:, -1]
+    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, gr, a_pt, b_pt)
+    sb, sa = seq_b[gb], seq_a[ga]
     pts_b, ok1 = backtrace(mirrors, img_b, sb, x)
-    pts_a_rev, ok2 = backtrace(mirrors, images_a, sa_rev, x)
+    pts_a_rev, ok2 = backtrace(mirrors, img_a, sa[:, ::-1], x)
     valid &= ok1 & ok2
     idx = np.flatnonzero(valid)
     n = idx.size
-    rx = context.receivers_m[gr[idx]]
-    pts_after = pts_a_rev[idx][:, ::-1]
+    rx = context.receivers_m[channel[idx]]
     vertices = np.concatenate(
-        [np.broadcast_to(tx, (n, 1, 3)), pts_b[idx], x[idx][:, None, :], pts_after, rx[:, None, :]], axis=1)
+        [np.broadcast_to(tx, (n, 1, 3)), pts_b[idx], x[idx][:, None, :], pts_a_rev[idx][:, ::-1], rx[:, None, :]],
+        axis=1)
     a_v, b_v, x_v, n_v = a_pt[idx], b_pt[idx], x[idx], normal[idx]
-    e1, e2, k11, k22 = principal_directions(reflector.primitive, n_v)
-    spreading = go_amplitude(a_v, b_v, x_v, n_v, e1, e2, k11, k22)
+    spreading = go_amplitude(a_v, b_v, x_v, n_v, e1[idx], e2[idx], k1[idx], k2[idx])
     length = np.linalg.norm(x_v - a_v, axis=1) + np.linalg.norm(x_v - b_v, axis=1)
-    sb_v, sa_v = sb[idx], sa[idx]
-    surface = np.concatenate([mirrors.surface[sb_v], np.full((n, 1), reflector.surface), mirrors.surface[sa_v]], axis=1)
-    patch = np.concatenate([mirrors.patch[sb_v], np.full((n, 1), reflector.patch), mirrors.patch[sa_v]], axis=1)
+    sb_v, sa_v, refl = sb[idx], sa[idx], gr[idx]
+    surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)
+    patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)
+    surface = np.concatenate([mirrors.surface[sb_v], surfaces[refl][:, None], mirrors.surface[sa_v]], axis=1)
+    patch = np.concatenate([mirrors.patch[sb_v], patches[refl][:, None], mirrors.patch[sa_v]], axis=1)
     normals = np.concatenate([mirrors.normal[sb_v], n_v[:, None, :], mirrors.normal[sa_v]], axis=1)
     material = ([("mirror", mirrors.material[sb_v[:, j]]) for j in range(n_before)]
-                + [("curved", np.full(n, reflector_index))]
+                + [("curved", refl)]
                 + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
-    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, gr[idx], chain[idx],
+    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, channel[idx], chain[idx],
                      np.column_stack([a_v, b_v]))
     return _deduplicate(chains), chain_base + n_chain
 
@@ -273,10 +288,10 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     for order in range(1, max_order + 1):
         chains, chain_base = _planar_chains(context, mirrors, order, chain_base)
         groups.append(chains)
-    for i, reflector in enumerate(prepared.curved):
+    if prepared.curved:
         for n_before in range(max_order):
             for n_after in range(max_order - n_before):
-                chains, chain_base = _mixed_chains(context, mirrors, reflector, n_before, n_after, i, chain_base)
+                chains, chain_base = _mixed_chains(context, prepared, n_before, n_after, chain_base)
                 groups.append(chains)
     # one batched occlusion query over every leg of every candidate
     origins, targets, excludes, owner = [], [], [], []

@@ -1,0 +1,92 @@
+"""Benchmark of the deterministic propagation solver (direct + specular to order 3 [+ edges]).
+
+Prints medians over repeats for one pose of the thesis tank, against a baseline measured in the
+same run (one raw Embree occlusion query over as many segments as the solver checks), and
+checks that a scene of over a million triangles loads and solves.
+
+Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import time
+
+import numpy as np
+
+
+def _median_time(function, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeats", type=int, default=21)
+    parser.add_argument("--skip-large", action="store_true", help="skip the 1.3-million-triangle scene")
+    args = parser.parse_args()
+
+    import trimesh
+
+    from acoustisim.geometry import SpherePrimitive
+    from acoustisim.materials import get_material
+    from acoustisim.propagation import SolverConfig, prepare, solve
+    from acoustisim.scene import SceneObject
+    from scenes.builtin import builtin_scene
+
+    scene = builtin_scene("thesis-tank")
+    start = time.perf_counter()
+    prepared = prepare(scene)
+    prepare_s = time.perf_counter() - start
+    specular = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None)
+    paths = solve(prepared, config=specular)
+    t_specular = _median_time(lambda: solve(prepared, config=specular), args.repeats)
+
+    # baseline: one raw Embree occlusion call over the same number of random segments in the tank
+    rng = np.random.default_rng(0)
+    n_legs = int(np.sum(paths["order"] + 1))
+    a = rng.uniform((0.1, 0.1, 0.1), (8.9, 2.9, 0.9), (n_legs, 3))
+    b = rng.uniform((0.1, 0.1, 0.1), (8.9, 2.9, 0.9), (n_legs, 3))
+    t_raw = _median_time(lambda: prepared.raycaster.occluded(a, b), args.repeats)
+
+    print(f"thesis tank: {prepared.raycaster.triangle_count} triangles, {prepared.mirrors.count} planar mirrors, "
+          f"{len(prepared.curved)} curved reflectors; prepare {prepare_s * 1e3:.1f} ms")
+    print(f"  solve direct+specular (order 3): median {t_specular * 1e3:.2f} ms over {args.repeats}, "
+          f"{len(paths)} paths")
+    print(f"  baseline raw Embree occlusion of {n_legs} segments: median {t_raw * 1e3:.3f} ms "
+          f"(solve / baseline = {t_specular / t_raw:.1f})")
+    if importlib.util.find_spec("acoustisim.propagation.edges") is not None:
+        with_edges = SolverConfig(max_order=3, mechanisms=("direct", "specular", "edge"), amplitude_floor_db=None)
+        n_edge = len(solve(prepared, config=with_edges))
+        t_edges = _median_time(lambda: solve(prepared, config=with_edges), max(3, args.repeats // 3))
+        print(f"  solve direct+specular+edge: median {t_edges * 1e3:.2f} ms, {n_edge} rows "
+              f"(goal < 20 ms for all deterministic paths)")
+
+    if args.skip_large:
+        return
+    mesh = trimesh.creation.icosphere(subdivisions=8, radius=0.3)
+    mesh.apply_translation((4.0, 1.5, 0.5))
+    big = SceneObject("big-ball", "sphere", get_material("steel"), mesh, SpherePrimitive((4.0, 1.5, 0.5), 0.3))
+    from dataclasses import replace
+
+    large = replace(scene, objects=scene.objects + (big,))
+    start = time.perf_counter()
+    prepared_large = prepare(large)
+    load_s = time.perf_counter() - start
+    solve(prepared_large, config=specular)
+    t_large = _median_time(lambda: solve(prepared_large, config=specular), 5)
+    start = time.perf_counter()
+    first = solve(large, config=specular)
+    cold_s = time.perf_counter() - start
+    print(f"large scene: {prepared_large.raycaster.triangle_count} triangles; prepare (checks + Embree build) "
+          f"{load_s:.2f} s; solve on the prepared scene median {t_large * 1e3:.1f} ms; cold solve(scene) "
+          f"{cold_s:.2f} s; {len(first)} paths")
+
+
+if __name__ == "__main__":
+    main()
