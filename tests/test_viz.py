@@ -201,10 +201,32 @@ def test_results_in_head_frame_are_placed_with_the_pose():
     assert markers[2].cls == "plane"
 
 
+def test_results_as_binsonar_writes_them():
+    """The layout of ``binsonar localize --json``: nulls for non-finite values, tank positions
+    when the recording has poses, per-axis standard deviations."""
+    sonar = SonarHead()
+    data = {"source": "p.h5", "pings": [{"ping": 0, "pose": [1.0, 1.5, 0.5, 0.0, 0.0, 0.0], "targets": [
+        {"class": "cylinder", "status": "ok", "range_m": 2.0, "bearing_deg": 0.0, "position_head_m": [0.0, 2.0, 0.0],
+         "position_head_std_m": [0.002, 0.001, None], "position_tank_m": [3.0, 1.5, 0.5],
+         "position_tank_std_m": [0.001, 0.002, 0.0]},
+        {"class": "unknown", "status": "failed", "range_m": None, "bearing_deg": None, "position_head_m": None,
+         "position_tank_m": None},
+        {"class": "point", "status": "ok", "range_m": 1.0, "bearing_deg": 90.0, "position_tank_m": [None, 1.0, 0.5]},
+    ]}], "fused": []}
+    markers = parse_results(data, sonar)
+    assert len(markers) == 2  # the failed fit has no position and is left out
+    np.testing.assert_allclose(markers[0].position_m, [3.0, 1.5, 0.5])
+    np.testing.assert_allclose(np.diag(markers[0].covariance_m2), [1e-6, 4e-6, 0.0])
+    assert markers[0].cls == "cylinder"
+    # A tank position with a null falls back to range and bearing (90 deg: toward the right
+    # receiver, tank -y at yaw 0).
+    np.testing.assert_allclose(markers[1].position_m, [1.0, 0.5, 0.5], atol=1e-12)
+
+
 @pytest.mark.parametrize(
     "data, message",
     [
-        ({"targets": [{"bearing_deg": 3.0}]}, r"targets\[0\]: no position"),
+        ({"targets": [{"class": "point", "radius_m": 0.1}]}, r"targets\[0\]: no position"),
         ({"targets": [{"position_tank_m": [1, 2]}]}, "position_tank_m must be 3"),
         ({"targets": [{"position_tank_m": [1, 2, "x"]}]}, "position_tank_m must be numbers"),
         ({"pings": [{"pose": [1, 2], "targets": []}]}, r"pings\[0\].pose"),

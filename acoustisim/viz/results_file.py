@@ -10,10 +10,16 @@ else. Layouts: ``{"pings": [{"ping": 0, "pose": ..., "targets": [...]}, ...]}``,
 - ``range_m`` and ``bearing_deg`` (optional ``elevation_deg``), head frame:
   x = r cos(el) sin(theta), y = r cos(el) cos(theta), z = r sin(el).
 
+A null (or a list holding a null: the writer's non-finite numbers) counts as missing; a target
+whose position fields are all null (a failed fit) is left out.
+
 The position uncertainty is the first of ``covariance_tank_m2`` (3x3, tank frame);
-``covariance_m2`` or ``covariance`` (2x2 or 3x3, in the frame of the position); ``std_m`` or
-``position_std_m`` (2 or 3 standard deviations, same frame); ``range_std_m`` with
-``bearing_std_deg`` (propagated through the polar-to-Cartesian Jacobian). The class is ``cls``,
+``covariance_m2`` or ``covariance`` (2x2 or 3x3, in the frame of the position);
+``position_tank_std_m`` (tank frame) or ``position_head_std_m`` (head frame) standard
+deviations, as written by ``binsonar localize``; ``position_std_m`` or ``std_m`` (2 or 3
+standard deviations, frame of the position); ``range_std_m`` with ``bearing_std_deg``
+(propagated through the polar-to-Cartesian Jacobian). Standard deviations give an ellipsoid
+aligned with that frame's axes (no correlation). The class is ``cls``,
 ``class`` or ``kind``. Head-frame values go to the tank frame with the ping's ``pose``
 (``[x_m, y_m, z_m, yaw_deg, pitch_deg, roll_deg]`` or an object with those keys), else the file's
 ``pose``, else the sonar given by the caller.
@@ -36,6 +42,7 @@ from acoustisim.sonar import SonarHead
 from acoustisim.viz.actors import EstimateMarker
 
 POSE_KEYS: tuple[str, ...] = ("x_m", "y_m", "z_m", "yaw_deg", "pitch_deg", "roll_deg")
+POSITION_KEYS: tuple[str, ...] = ("position_tank_m", "position_m", "position_head_m", "range_m", "bearing_deg")
 
 
 def _numbers(where: str, field: str, value: Any, sizes: Sequence[int]) -> NDArray[np.float64]:
@@ -70,57 +77,81 @@ def _embed(cov: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-def _target(where: str, target: Any, sonar: SonarHead, file_frame: str) -> EstimateMarker:
+def _present(target: Mapping[str, Any], key: str) -> bool:
+    """Whether ``key`` holds a value: absent keys, nulls and lists with a null (a non-finite
+    number in the writer) count as missing."""
+    value = target.get(key)
+    if value is None:
+        return False
+    if isinstance(value, (list, tuple)):
+        flat = np.asarray(value, dtype=object).ravel()
+        return flat.size > 0 and not any(v is None for v in flat)
+    return True
+
+
+def _target(where: str, target: Any, sonar: SonarHead, file_frame: str) -> EstimateMarker | None:
+    """One target as a marker; None when the target has position fields but all are null (a
+    failed fit)."""
     if not isinstance(target, Mapping):
         raise InputError(f"{where}: a target must be an object, got {type(target).__name__}")
     frame = str(target.get("frame", file_frame))
     head_frame: bool
-    if "position_tank_m" in target:
+    if _present(target, "position_tank_m"):
         position = _numbers(where, "position_tank_m", target["position_tank_m"], (3,))
         head_frame = False
-    elif "position_m" in target:
+    elif _present(target, "position_m"):
         position = _numbers(where, "position_m", target["position_m"], (2, 3) if frame == "head" else (3,))
         head_frame = frame == "head"
-    elif "position_head_m" in target:
+    elif _present(target, "position_head_m"):
         position = _numbers(where, "position_head_m", target["position_head_m"], (2, 3))
         head_frame = True
-    elif "range_m" in target and "bearing_deg" in target:
+    elif _present(target, "range_m") and _present(target, "bearing_deg"):
         r = float(_numbers(where, "range_m", target["range_m"], (1,))[()])
         theta = math.radians(float(_numbers(where, "bearing_deg", target["bearing_deg"], (1,))[()]))
-        elevation = math.radians(float(_numbers(where, "elevation_deg", target.get("elevation_deg", 0.0), (1,))[()]))
+        elevation = math.radians(float(_numbers(where, "elevation_deg", target.get("elevation_deg") or 0.0, (1,))[()]))
         position = r * np.array([math.cos(elevation) * math.sin(theta), math.cos(elevation) * math.cos(theta),
                                  math.sin(elevation)])
         head_frame = True
+    elif any(key in target for key in POSITION_KEYS):
+        return None
     else:
         raise InputError(f"{where}: no position (expected position_tank_m, position_m, position_head_m or "
                          f"range_m with bearing_deg)")
     position = position.ravel() if position.size == 3 else np.r_[position.ravel(), 0.0]
 
+    # The uncertainty: (key, frame is head?, kind) in order of preference; the frame of
+    # "covariance"/"std_m" is that of the position used.
     covariance: NDArray[np.float64] | None = None
     cov_head = head_frame
-    if "covariance_tank_m2" in target:
-        covariance = _numbers(where, "covariance_tank_m2", target["covariance_tank_m2"], (9,)).reshape(3, 3)
-        cov_head = False
-    else:
-        for key in ("covariance_m2", "covariance"):
-            if key in target and target[key] is not None:
-                raw = _numbers(where, key, target[key], (4, 9))
-                covariance = _embed(raw.reshape(int(round(math.sqrt(raw.size))), -1))
-                break
+    candidates = (
+        ("covariance_tank_m2", False, "cov"),
+        ("covariance_m2", head_frame, "cov"),
+        ("covariance", head_frame, "cov"),
+        ("position_tank_std_m", False, "std"),
+        ("position_head_std_m", True, "std"),
+        ("position_std_m", head_frame, "std"),
+        ("std_m", head_frame, "std"),
+    )
+    for key, in_head, kind in candidates:
+        if not _present(target, key):
+            continue
+        if kind == "cov":
+            raw = _numbers(where, key, target[key], (4, 9))
+            covariance = _embed(raw.reshape(int(round(math.sqrt(raw.size))), -1))
         else:
-            for key in ("std_m", "position_std_m"):
-                if key in target and target[key] is not None:
-                    covariance = _embed(np.diag(_numbers(where, key, target[key], (2, 3)) ** 2))
-                    break
-            else:
-                if "range_std_m" in target and "bearing_std_deg" in target and "range_m" in target:
-                    r = float(target["range_m"])
-                    theta = math.radians(float(target["bearing_deg"]))
-                    s_r = float(_numbers(where, "range_std_m", target["range_std_m"], (1,))[()])
-                    s_t = math.radians(float(_numbers(where, "bearing_std_deg", target["bearing_std_deg"], (1,))[()]))
-                    jac = np.array([[math.sin(theta), r * math.cos(theta)], [math.cos(theta), -r * math.sin(theta)]])
-                    covariance = _embed(jac @ np.diag([s_r**2, s_t**2]) @ jac.T)
-                    cov_head = True
+            covariance = _embed(np.diag(_numbers(where, key, target[key], (2, 3)).ravel() ** 2))
+        cov_head = in_head
+        break
+    else:
+        if all(_present(target, k) for k in ("range_std_m", "bearing_std_deg", "range_m", "bearing_deg")):
+            r = float(target["range_m"])
+            theta = math.radians(float(target["bearing_deg"]))
+            s_r = float(_numbers(where, "range_std_m", target["range_std_m"], (1,))[()])
+            s_t = math.radians(float(_numbers(where, "bearing_std_deg", target["bearing_std_deg"], (1,))[()]))
+            # d(x, y)/d(r, theta) of x = r sin(theta), y = r cos(theta).
+            jac = np.array([[math.sin(theta), r * math.cos(theta)], [math.cos(theta), -r * math.sin(theta)]])
+            covariance = _embed(jac @ np.diag([s_r**2, s_t**2]) @ jac.T)
+            cov_head = True
     if head_frame:
         position = sonar.head_to_tank(position[None, :])[0]
     if covariance is not None:
@@ -176,8 +207,10 @@ def parse_results(data: Any, sonar: SonarHead, source: str = "results") -> list[
         if not isinstance(targets, list):
             raise InputError(f"{source}: pings[{i}].targets must be a list")
         frame = str(ping.get("frame", file_frame))
-        markers.extend(_target(f"{source}: pings[{i}].targets[{j}]", t, ping_sonar, frame)
-                       for j, t in enumerate(targets))
+        for j, t in enumerate(targets):
+            marker = _target(f"{source}: pings[{i}].targets[{j}]", t, ping_sonar, frame)
+            if marker is not None:
+                markers.append(marker)
     return markers
 
 
