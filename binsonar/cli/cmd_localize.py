@@ -16,7 +16,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "and classify each target; tank positions when the recording has poses.",
     )
     parser.add_argument("recording", help="recording file (HDF5)")
-    parser.add_argument("--method", default="matched", help="detection method (default: matched)")
+    parser.add_argument("--method", default="ca-cfar",
+                        help="detection method (default: ca-cfar, which reports every echo; see binsonar detect)")
     parser.add_argument("--sound-speed", type=float, default=None, dest="sound_speed",
                         help="sound speed (m/s), used when the recording has none")
     parser.add_argument("--no-fuse", action="store_true", help="do not fuse targets across pings")

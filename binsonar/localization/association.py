@@ -98,13 +98,13 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
             cost = np.where(ok, dev / half, np.inf)
         order = np.argsort(cost, axis=None, kind="stable")
         for flat in order:
-            i, k, j = np.unravel_index(flat, cost.shape)
-            if not np.isfinite(cost[i, k, j]):
+            i, j, k = np.unravel_index(flat, cost.shape)   # (left, right, centre)
+            if not np.isfinite(cost[i, j, k]):
                 break
             if i in used_l or j in used_r or k in used_c:
                 continue
             used_l.add(int(i)), used_r.add(int(j)), used_c.add(int(k))
-            out.append(Association(int(i), int(k), int(j), float(cost[i, k, j])))
+            out.append(Association(int(i), int(k), int(j), float(cost[i, j, k])))
     pair_cost = np.where(pair_ok, np.abs(a - b), np.inf)
     for flat in np.argsort(pair_cost, axis=None, kind="stable"):
         i, j = np.unravel_index(flat, pair_cost.shape)

@@ -158,7 +158,7 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
 def localize(
     data: Recording | DetectionResult,
     *,
-    method: str = "matched",
+    method: str = "ca-cfar",
     sound_speed_m_s: float | None = None,
     channel_positions_m: ArrayLike | None = None,
     pose: ArrayLike | None = None,
@@ -173,7 +173,8 @@ def localize(
     data : Recording or DetectionResult
         A recording is passed to ``binsonar.detection.detect(data, method, **detect_options)``.
     method : str
-        Detection method (ignored for a DetectionResult, whose own method is reported).
+        Detection method (ignored for a DetectionResult, whose own method is reported). The
+        default, "ca-cfar", reports every echo; "matched" reports only the strongest per channel.
     sound_speed_m_s : float, optional
         Used when the recording has none (a DetectionResult needs it).
     channel_positions_m : array_like (3, 3), optional
