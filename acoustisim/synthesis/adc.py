@@ -39,7 +39,8 @@ def quantise(
         raise InputError(f"sonar.adc_bits must be an integer in [2, 16] to store int16 codes, got {bits!r}")
     step = adc_step_v(full_scale_v, int(bits))
     lo, hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
-    scaled = np.rint(np.asarray(volts, dtype=float) / step)
-    clipped = np.any((scaled < lo) | (scaled > hi), axis=-1)
-    codes = np.clip(scaled, lo, hi).astype(np.int16)
-    return codes, clipped, step
+    scaled = np.asarray(volts, dtype=float) * (1.0 / step)
+    np.rint(scaled, out=scaled)
+    clipped = (scaled.min(axis=-1) < lo) | (scaled.max(axis=-1) > hi)
+    np.clip(scaled, lo, hi, out=scaled)
+    return scaled.astype(np.int16), clipped, step

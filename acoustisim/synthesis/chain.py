@@ -114,9 +114,10 @@ class ReceiverChain:
     gain_db : tuple of 3 float
         Receiver gain per channel (left, centre, right) (dB); the 5052PR's 40 dB.
     attenuation_db : tuple of 3 float
-        Receiver attenuation per channel (dB), within the 5052PR's 0-68 dB. The default 50 dB
-        puts the thesis tank's target echoes at tenths of a volt at the ADC (the seed's plots:
-        a 0.04 V detection threshold) with the pulse's 220 dB re 1 uPa source level.
+        Receiver attenuation per channel (dB), within the 5052PR's 0-68 dB. The default 40 dB
+        puts the thesis tank's target echoes at 10-100 mV at the ADC (the seed's plots use a
+        0.04 V detection threshold) with the pulse's 220 dB re 1 uPa source level, and its
+        strongest wall echoes well inside the +/-1 V range.
     bandpass_low_hz, bandpass_high_hz : float or None
         Corners of the receive band-pass (Hz), an analog Butterworth (causal): the 5052PR's
         selectable high-pass and the digitiser's anti-alias low-pass. None disables that side.
@@ -154,7 +155,7 @@ class ReceiverChain:
 
     receive_sensitivity_db: float = -190.0
     gain_db: tuple[float, float, float] = (40.0, 40.0, 40.0)
-    attenuation_db: tuple[float, float, float] = (50.0, 50.0, 50.0)
+    attenuation_db: tuple[float, float, float] = (40.0, 40.0, 40.0)
     bandpass_low_hz: float | None = 100e3
     bandpass_high_hz: float | None = 2.0e6
     bandpass_order: int = 2

@@ -1,4 +1,4 @@
-"""Noise spectra of one ping, drawn directly on the record's rfft grid.
+"""Noise of the pings, drawn directly on the record's rfft grid.
 
 A real stationary noise of one-sided power spectral density S(f) (V^2/Hz), sampled at fs over
 M samples (circularly), has independent rfft bins with E|N_k|^2 = M fs S(f_k) / 2, real and
@@ -9,6 +9,7 @@ AC-coupled). Drawing the bins directly costs the same M normal draws as white no
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,47 +47,83 @@ def electrical_noise_psd_v2_per_hz(frequency_hz: ArrayLike, chain: ReceiverChain
     return chain.electrical_noise_v_per_rthz**2 * (f / chain.electrical_noise_ref_hz) ** exponent
 
 
-def gaussian_spectrum(
-    rng: np.random.Generator, psd_v2_per_hz: NDArray[np.float64], n_fft: int, sample_rate_hz: float, n_channels: int = 3
-) -> NDArray[np.complex128]:
-    """Random rfft bins (n_channels, M//2 + 1) of stationary Gaussian noise with one-sided PSD
-    ``psd_v2_per_hz`` given per bin (shape (M//2+1,) or (n_channels, M//2+1))."""
-    n_bins = n_fft // 2 + 1
-    scale = np.sqrt(np.broadcast_to(psd_v2_per_hz, (n_channels, n_bins)) * (n_fft * sample_rate_hz / 4.0))
-    draws = rng.standard_normal((2, n_channels, n_bins))
-    spectrum = scale * (draws[0] + 1j * draws[1])
-    spectrum[:, 0] = 0.0
-    if n_fft % 2 == 0:
-        spectrum[:, -1] = 0.0
-    return spectrum
+@dataclass(frozen=True, eq=False)
+class NoiseModel:
+    """One receiver chain's noise at the ADC input, planned on a record grid; draws pings.
 
+    Noise enters at the receiver input and goes through gain x H(f). Its bins have random
+    phases, so only |gain H(f)| matters: the per-bin standard deviations are precomputed and a
+    ping costs one complex normal draw per bin plus a multiply.
 
-def receiver_input_noise_spectrum(
-    rng: np.random.Generator,
-    chain: ReceiverChain,
-    frequency_hz: NDArray[np.float64],
-    n_fft: int,
-    sample_rate_hz: float,
-    thermal_psd_v2_per_hz: NDArray[np.float64] | None,
-) -> NDArray[np.complex128]:
-    """One ping's noise at the three receiver inputs, as rfft bins (3, M//2 + 1) (V per sample).
-
-    Thermal noise (if ``thermal_psd_v2_per_hz`` is given) plus electrical noise: a coloured
-    broadband part and interference lines (on their nearest bins, random phase per channel),
-    both scaled by one log-normal level factor per ping (``electrical_noise_level_sigma_db``).
+    Attributes
+    ----------
+    electrical_var : ndarray (3, M//2+1)
+        Variance of the real (and of the imaginary) part of each bin of the broadband electrical
+        noise at the ADC input, before the ping's level factor.
+    thermal_var : ndarray (3, M//2+1) or None
+        The same for the thermal noise.
+    line_bins : ndarray (n_lines,) int
+        rfft bins of the interference lines (inside the band).
+    line_amplitudes : ndarray (3, n_lines)
+        |bin value| of each line at the ADC input: A M / 2 |gain H(f_line)|.
+    level_sigma_db : float
+        Ping-to-ping level standard deviation (dB) of the electrical noise.
     """
-    level = 10.0 ** (chain.electrical_noise_level_sigma_db * rng.standard_normal() / 20.0)
-    psd = electrical_noise_psd_v2_per_hz(frequency_hz, chain) * level**2
-    if thermal_psd_v2_per_hz is not None:
-        psd = psd + thermal_psd_v2_per_hz
-    spectrum = gaussian_spectrum(rng, psd, n_fft, sample_rate_hz)
-    if chain.interference_lines:
-        freqs = np.array([line.frequency_hz for line in chain.interference_lines])
-        amps = np.array([line.amplitude_v for line in chain.interference_lines]) * level
+
+    electrical_var: NDArray[np.float64] = field(repr=False)
+    thermal_var: NDArray[np.float64] | None = field(repr=False)
+    line_bins: NDArray[np.int64] = field(repr=False)
+    line_amplitudes: NDArray[np.float64] = field(repr=False)
+    level_sigma_db: float = 0.0
+
+    @classmethod
+    def create(
+        cls,
+        chain: ReceiverChain,
+        frequency_hz: NDArray[np.float64],
+        n_fft: int,
+        sample_rate_hz: float,
+        gain_response: NDArray[np.complex128],
+        thermal_psd_v2_per_hz: NDArray[np.float64] | None,
+    ) -> "NoiseModel":
+        """Plan the noise of ``chain`` on the rfft grid ``frequency_hz`` of an ``n_fft`` record.
+
+        Parameters
+        ----------
+        gain_response : ndarray (3, M//2+1)
+            gain x H(f) per channel (V/V).
+        thermal_psd_v2_per_hz : ndarray (M//2+1,) or None
+            Thermal noise at the receiver input (one-sided, V^2/Hz), None for none.
+        """
+        power = np.abs(gain_response) ** 2 * (n_fft * sample_rate_hz / 4.0)
+        edges = np.ones(frequency_hz.size)
+        edges[0] = 0.0  # AC-coupled: no DC
+        if n_fft % 2 == 0:
+            edges[-1] = 0.0
+        electrical = power * (electrical_noise_psd_v2_per_hz(frequency_hz, chain) * edges)
+        thermal = None if thermal_psd_v2_per_hz is None else power * (thermal_psd_v2_per_hz * edges)
+        freqs = np.array([line.frequency_hz for line in chain.interference_lines], dtype=float)
+        amps = np.array([line.amplitude_v for line in chain.interference_lines], dtype=float)
         index = np.rint(freqs * n_fft / sample_rate_hz).astype(np.int64)
         inside = (index > 0) & (index < (n_fft + 1) // 2)
-        phases = rng.uniform(0.0, 2.0 * np.pi, size=(3, freqs.size))
+        index, amps = index[inside], amps[inside]
         # A cos(2 pi k n / M + psi) has rfft bin k equal to A M / 2 exp(j psi).
-        lines = (amps * n_fft / 2.0)[None, :] * np.exp(1j * phases)
-        np.add.at(spectrum, (slice(None), index[inside]), lines[:, inside])
-    return spectrum
+        line_amplitudes = np.abs(gain_response[:, index]) * (amps * n_fft / 2.0)
+        return cls(electrical, thermal, index, line_amplitudes, chain.electrical_noise_level_sigma_db)
+
+    def draw(self, rng: np.random.Generator) -> NDArray[np.complex128]:
+        """One ping's noise at the ADC input before TVG, as rfft bins (3, M//2+1).
+
+        The electrical part (broadband and lines) is scaled by one log-normal level factor per
+        ping; line phases are uniform and independent per channel.
+        """
+        level = 10.0 ** (self.level_sigma_db * rng.standard_normal() / 20.0)
+        variance = level * level * self.electrical_var
+        if self.thermal_var is not None:
+            variance = variance + self.thermal_var
+        spectrum = rng.standard_normal(variance.shape + (2,)).view(np.complex128)[..., 0]
+        spectrum *= np.sqrt(variance)
+        if self.line_bins.size:
+            phases = rng.uniform(0.0, 2.0 * np.pi, size=self.line_amplitudes.shape)
+            spectrum[:, self.line_bins] += level * self.line_amplitudes * np.exp(1j * phases)
+        return spectrum

@@ -20,7 +20,7 @@ from acoustisim.medium import Medium
 from acoustisim.sonar import SonarHead
 from acoustisim.synthesis.adc import quantise
 from acoustisim.synthesis.chain import ReceiverChain
-from acoustisim.synthesis.noise import receiver_input_noise_spectrum, thermal_noise_psd_v2_per_hz
+from acoustisim.synthesis.noise import NoiseModel, thermal_noise_psd_v2_per_hz
 from acoustisim.synthesis.synthesiser import PathSynthesiser
 from acoustisim.synthesis.transducer import pulse_spectrum, pulse_support_s
 
@@ -65,7 +65,7 @@ class PingSynthesiser:
     chain: ReceiverChain
     paths: PathSynthesiser
     _transfer: NDArray[np.complex128] = field(repr=False)  # (3, bins): V per Pa, gain x H(f)
-    _thermal_psd: NDArray[np.float64] | None = field(repr=False)
+    _noise: NoiseModel = field(repr=False)
     _tvg: NDArray[np.float64] | None = field(repr=False)
     _bang: NDArray[np.complex128] | None = field(repr=False)  # (3, bins) main bang at the ADC, or None
 
@@ -101,7 +101,10 @@ class PingSynthesiser:
         if chain.main_bang_peak_v > 0:
             spectrum = chain.main_bang_spectrum(f, sonar.centre_frequency_hz) * fs * response
             bang = (chain.main_bang_amplitudes_v / chain.main_bang_peak_v)[:, None] * spectrum[None, :]
-        return cls(sonar, medium, chain, paths, transfer, thermal, tvg, bang)
+        noise = NoiseModel.create(
+            chain, f, paths.grid.n_fft, fs, transfer / chain.sensitivity_v_per_pa, thermal
+        )
+        return cls(sonar, medium, chain, paths, transfer, noise, tvg, bang)
 
     @property
     def n_samples(self) -> int:
@@ -209,16 +212,13 @@ class PingSynthesiser:
                 raise InputError(f"snr_db: the named echo has no energy inside the record on channel {channel}")
             sigma = np.sqrt(energy / 10.0 ** (snr_db / 10.0))
         volts = np.empty((int(n_pings), 3, self.n_samples))
-        grid = self.paths.grid
-        gain_h = self._transfer / self.chain.sensitivity_v_per_pa  # V/V: gain x H(f)
         for ping, rng in enumerate(generators):
             if sigma is not None:
                 volts[ping] = clean + sigma[:, None] * rng.standard_normal((3, self.n_samples))
             else:
-                noise = receiver_input_noise_spectrum(
-                    rng, self.chain, grid.frequencies_hz, grid.n_fft, grid.sample_rate_hz, self._thermal_psd
-                )
-                volts[ping] = self.to_volts(deterministic + noise * gain_h)
+                noise = self._noise.draw(rng)
+                noise += deterministic
+                volts[ping] = self.to_volts(noise)
         codes, clipped, step = quantise(volts, int(self.sonar.adc_bits), self.chain.adc_full_scale_v)
         return Pings(codes, codes * step, clipped, step, clean, sigma)
 
