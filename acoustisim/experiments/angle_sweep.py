@@ -1,0 +1,45 @@
+"""``angle-sweep``: the seed's section 4.2.3, figure 4-14 (bearing -12..12 deg at a fixed range)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from acoustisim.experiments.config import ExperimentConfig
+from acoustisim.experiments.report import ExperimentReport
+
+NAME = "angle-sweep"
+SUMMARY = "edge target, bearing -12..12 deg at a fixed range, threshold vs matched filter (seed fig. 4-14)"
+DEFAULT_REPEATS = 2
+DEFAULT_PINGS = 50
+
+
+def add_arguments(parser: Any) -> None:
+    """``--start``, ``--stop``, ``--step`` (deg), ``--range`` (m), ``--pings``, ``--detectors``."""
+    from acoustisim.experiments.sweep import add_sweep_arguments
+
+    parser.add_argument("--start", type=float, default=-12.0, help="first bearing (deg, default -12)")
+    parser.add_argument("--stop", type=float, default=12.0, help="last bearing (deg, default 12)")
+    parser.add_argument("--step", type=float, default=1.0, help="bearing step (deg, default 1)")
+    parser.add_argument("--range", type=float, default=1.5, help="fixed range (m, default 1.5)")
+    add_sweep_arguments(parser, pings=DEFAULT_PINGS)
+
+
+def run(config: ExperimentConfig) -> ExperimentReport:
+    """Measure every bearing; ``config.trials`` is the number of measurements per bearing (default 2)."""
+    from acoustisim.errors import InputError
+    from acoustisim.experiments.sweep import frange, run_sweep
+
+    start, stop, step = (float(config.option(k, d)) for k, d in (("start", -12.0), ("stop", 12.0), ("step", 1.0)))
+    if not (-60.0 <= start <= stop <= 60.0 and step > 0):
+        raise InputError(f"angle sweep: need -60 <= start <= stop <= 60 deg and step > 0, got {start}, {stop}, {step}")
+    range_m = float(config.option("range", 1.5))
+    if not 0.05 <= range_m <= 8.0:
+        raise InputError(f"angle sweep: --range must be in [0.05, 8] m, got {range_m}")
+    return run_sweep(
+        config, variable="bearing_deg", values=frange(start, stop, step), fixed={"range_m": range_m},
+        default_repeats=DEFAULT_REPEATS, default_pings=DEFAULT_PINGS,
+        title=f"Angle sweep at {range_m:g} m: error vs bearing (cf. seed fig. 4-14)", figure_name="angle_sweep.png",
+        seed_note=("Seed (fig. 4-14): errors grow with the angle; matched filter within 0.2 deg, threshold within "
+                   "0.6 deg, and at large angles the threshold detector loses the target; threshold 0.007 s and "
+                   "matched filter 0.838 s per position."),
+    )
