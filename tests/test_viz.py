@@ -341,7 +341,7 @@ def test_render_png_and_view_command(tank_with_paths, tmp_path, capsys):
     image = np.asarray(Image.open(out))
     assert image.shape[:2] == (320, 480) and image[..., :3].std() > 10
     # Bad input: one line, exit 2.
-    results.write_text("[{\"range_m\": 1}]")
+    results.write_text("[{\"class\": \"point\"}]")
     assert main(["view", "thesis-tank", "--png", str(out), "--results", str(results), "--no-paths"]) == 2
     err = capsys.readouterr().err
     assert "no position" in err and len(err.strip().splitlines()) == 1

@@ -1,7 +1,7 @@
 """``acoustisim view``: look at a scene, its echo paths and localisation results in 3-D.
 
 ``acoustisim view FILE_OR_NAME [--ping PING.h5 [--ping-index I]] [--results RESULTS.json]
-[--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective] [--echo N]
+[--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective|targets] [--echo N]
 [--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--edge-elements] [--no-beam]
 [--size WxH] [--title TEXT]``
 
@@ -64,7 +64,9 @@ def _run(args: argparse.Namespace) -> int:
         ping = load_ping(args.ping, sonar, args.ping_index)
         sonar, paths = ping.sonar, ping.paths
         truths = list(ping.truths) or None
-    if paths is None and not args.no_paths:
+    if args.no_paths:
+        paths = None
+    elif paths is None:
         from acoustisim.propagation import SolverConfig, solve
 
         config = SolverConfig() if args.max_order is None else SolverConfig(max_order=args.max_order)
@@ -101,11 +103,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--results", metavar="RESULTS.json", help="localisation results (binsonar localize --json)")
     parser.add_argument("--png", metavar="OUT.png", help="render off-screen to this PNG file")
     parser.add_argument("--html", metavar="OUT.html", help="write a self-contained interactive HTML page")
-    parser.add_argument("--camera", choices=("top", "side", "sonar", "perspective"), default="perspective",
-                        help="camera preset (default perspective)")
+    parser.add_argument("--camera", choices=("top", "side", "sonar", "perspective", "targets"),
+                        default="perspective",
+                        help="camera preset (default perspective; targets: top view of the sonar and targets)")
     parser.add_argument("--echo", type=_nonnegative_int, metavar="N",
                         help="draw the time-of-flight ellipsoids of echo N (by delay on the centre channel)")
-    parser.add_argument("--no-paths", action="store_true", help="do not trace or draw paths")
+    parser.add_argument("--no-paths", action="store_true", help="draw no paths (neither traced nor the ping's)")
     parser.add_argument("--max-order", type=_nonnegative_int, metavar="N", help="reflection order when tracing")
     parser.add_argument("--channels", type=_channels, default=(0, 1, 2), metavar="LIST",
                         help="receiver channels whose paths are drawn, e.g. centre or left,right (default all)")

@@ -47,10 +47,16 @@ MATERIAL_COLORS: dict[str, RGB] = {
     "aluminium": (0.68, 0.70, 0.74),
     "rubber": (0.15, 0.15, 0.15),
     "sand": (0.84, 0.74, 0.50),
-    "rigid": (0.30, 0.30, 0.30),
+    "rigid": (0.50, 0.50, 0.55),
     "pressure-release": (0.60, 0.80, 1.00),
     "air": (0.60, 0.80, 1.00),
 }
+
+DIFFUSE_OPACITY_SCALE = 0.3
+"""Opacity factor of diffuse paths relative to discrete echoes of the same amplitude."""
+
+EDGE_GROUP_WEIGHT = 20.0
+"""With edge elements drawn one by one, a diffraction's opacity is spread as if over this many lines."""
 
 ESTIMATE_COLOR: RGB = (0.89, 0.10, 0.76)
 TRUTH_COLOR: RGB = (0.09, 0.75, 0.81)
@@ -330,6 +336,16 @@ def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0,
     echoes = amplitude[kinds != PathKind.DIRECT]
     reference = float(echoes.max()) if echoes.size and echoes.max() > 0 else float(max(amplitude.max(), 1e-300))
     alpha = path_opacity(amplitude, reference, dynamic_range_db)
+    # Diffuse rows are a random sample of the scattering whose size is a solver setting
+    # (thousands of rays): drawn fainter so that their number does not paint over the echoes.
+    alpha = np.where(kinds == PathKind.DIFFUSE, DIFFUSE_OPACITY_SCALE * alpha, alpha)
+    if edge_elements:
+        # A diffraction drawn element by element gets the visual weight of about
+        # EDGE_GROUP_WEIGHT lines whatever the discretisation step (else it is a solid fan).
+        group_key = selected["path_id"].astype(np.int64) * 8 + selected["channel"]
+        _, inverse, counts = np.unique(group_key, return_inverse=True, return_counts=True)
+        group_size = counts[inverse]
+        alpha = np.where(kinds == PathKind.EDGE, alpha * np.minimum(1.0, EDGE_GROUP_WEIGHT / group_size), alpha)
     points, segments, segment_row = path_polylines(selected, sonar)
     layers = []
     for kind in PathKind:
@@ -451,7 +467,7 @@ def tof_layers(paths: Paths, sonar: SonarHead, echo: int, bounds: NDArray[np.flo
             continue
         ellipsoid = tof_ellipsoid(tx, sonar.receiver_positions[channel], float(length))
         color = CHANNEL_COLORS[channel]
-        layers.append(Layer(f"tof-{name}", _clip_to_box(ellipsoid, bounds), color, 0.12, "surface",
+        layers.append(Layer(f"tof-{name}", _clip_to_box(ellipsoid, bounds), color, 0.07, "surface",
                             group="tof"))
         ellipse = ellipsoid.slice(normal=(0.0, 0.0, 1.0), origin=tuple(tx))
         if ellipse.n_points:
@@ -504,9 +520,11 @@ def _nice_magnification(factor: float) -> float:
 
 
 def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthMarker], *, n_sigma: float = 2.0,
-                    magnification: float | None = None, view_size_m: float = 1.0) -> list[Layer]:
+                    magnification: float | None = None, view_size_m: float = 1.0,
+                    match_radius_m: float = 0.25) -> list[Layer]:
     """Estimated targets (markers and ``n_sigma`` error ellipsoids) against the truth (markers),
-    each estimate joined to its nearest true target by a line.
+    each estimate joined by a line to its nearest true target within ``match_radius_m`` (an
+    estimate with none, e.g. a wall echo, stays unjoined).
 
     Parameters
     ----------
@@ -554,10 +572,13 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
                             label=f"truth ({len(truths)})", group="truth"))
         if estimates:
             positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
-            nearest = np.argmin(np.linalg.norm(positions[:, None, :] - truth_positions[None, :, :], axis=2), axis=1)
-            points = np.vstack([positions, truth_positions[nearest]])
-            n = len(positions)
-            lines = np.column_stack([np.full(n, 2), np.arange(n), n + np.arange(n)]).ravel()
-            layers.append(Layer("estimate-errors", pv.PolyData(points, lines=lines), (0.2, 0.2, 0.2), 1.0, "lines",
-                                line_width=2.0, group="estimate"))
+            distance = np.linalg.norm(positions[:, None, :] - truth_positions[None, :, :], axis=2)
+            nearest = np.argmin(distance, axis=1)
+            matched = np.flatnonzero(distance[np.arange(len(positions)), nearest] <= match_radius_m)
+            if matched.size:
+                points = np.vstack([positions[matched], truth_positions[nearest[matched]]])
+                n = matched.size
+                lines = np.column_stack([np.full(n, 2), np.arange(n), n + np.arange(n)]).ravel()
+                layers.append(Layer("estimate-errors", pv.PolyData(points, lines=lines), (0.2, 0.2, 0.2), 1.0,
+                                    "lines", line_width=2.0, group="estimate"))
     return layers

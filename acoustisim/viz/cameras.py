@@ -7,7 +7,7 @@ numbers drive the VTK plotter and the WebGL page.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.sonar import SonarHead
 
-CAMERA_NAMES: tuple[str, ...] = ("top", "side", "sonar", "perspective")
+CAMERA_NAMES: tuple[str, ...] = ("top", "side", "sonar", "perspective", "targets")
 
 
 @dataclass(frozen=True)
@@ -56,11 +56,13 @@ def camera_preset(name: str, bounds: NDArray[np.float64], *, aspect: float = 1.5
 
     Parameters
     ----------
-    name : {"top", "side", "sonar", "perspective"}
+    name : {"top", "side", "sonar", "perspective", "targets"}
         "top": looking down -z, x to the right, y up the screen (the tank's plan).
         "side": looking along +y, x to the right, z up.
         "sonar": just behind and above the head, looking along its boresight.
         "perspective": from above the x = 0, y = 0 corner's side, looking at the centre.
+        "targets": the top view of ``bounds`` as given (the caller passes the region around the
+        sonar and the targets).
     bounds : ndarray, shape (2, 3)
         Region to frame (m).
     aspect : float
@@ -78,6 +80,8 @@ def camera_preset(name: str, bounds: NDArray[np.float64], *, aspect: float = 1.5
     bounds = np.asarray(bounds, dtype=float)
     centre = bounds.mean(axis=0)
     extent = bounds[1] - bounds[0]
+    if name == "targets":
+        return replace(camera_preset("top", bounds, aspect=aspect, margin=margin), name="targets")
     if name in ("top", "side"):
         # Plan (x right, y up) or elevation (x right, z up). When the region is flatter than the
         # window, it is placed near the top edge, leaving the bottom for the legend.

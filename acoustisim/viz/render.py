@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
 from acoustisim.propagation.paths import Paths
@@ -98,6 +99,23 @@ def _prefer_egl_without_display() -> None:
     """
     if not has_display():
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, pad_m: float = 0.3) -> NDArray[np.float64]:
+    """The region (2, 3) (m) around the sonar and the true targets (the estimates when there is
+    no truth), padded by ``pad_m``: what the "targets" camera frames."""
+    groups = [layer for layer in layers if layer.group == "truth"] or [
+        layer for layer in layers if layer.name == "estimates"]
+    points = np.vstack([sonar.receiver_positions] + [np.asarray(layer.mesh.points, dtype=float) for layer in groups])
+    return np.array([points.min(axis=0) - pad_m, points.max(axis=0) + pad_m])
+
+
+def _camera(camera: str | CameraPreset, scene: Scene, sonar: SonarHead, layers: Sequence[Layer],
+            window_size: tuple[int, int]) -> CameraPreset:
+    if isinstance(camera, CameraPreset):
+        return camera
+    bounds = targets_bounds(layers, sonar) if camera == "targets" else scene_bounds(scene, sonar)
+    return camera_preset(camera, bounds, aspect=window_size[0] / window_size[1], sonar=sonar)
 
 
 def default_truths(scene: Scene) -> list[TruthMarker]:
@@ -238,7 +256,8 @@ def show_scene(scene: Scene, paths: Paths | None = None, results: ResultsInput =
     ----------
     scene, paths, results, sonar, truths, options
         See :func:`build_layers`.
-    camera : {"top", "side", "sonar", "perspective"} or CameraPreset
+    camera : {"top", "side", "sonar", "perspective", "targets"} or CameraPreset
+        "targets" is a top view of the sonar and the true targets (or the estimates).
     off_screen : bool or None
         None: off-screen exactly when there is no display.
     window_size : (int, int)
@@ -266,9 +285,7 @@ def show_scene(scene: Scene, paths: Paths | None = None, results: ResultsInput =
     plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
     plotter.set_background(background)
     add_layers(plotter, layers)
-    preset = camera if isinstance(camera, CameraPreset) else camera_preset(
-        camera, scene_bounds(scene, sonar), aspect=window_size[0] / window_size[1], sonar=sonar)
-    apply_camera(plotter, preset)
+    apply_camera(plotter, _camera(camera, scene, sonar, layers, window_size))
     entries = legend_entries(layers)
     if legend and entries:
         add_legend(plotter, entries, window_size)
@@ -313,6 +330,5 @@ def export_html(path: str | os.PathLike[str], scene: Scene, paths: Paths | None 
 
     sonar = scene.sonar if sonar is None else sonar
     layers = build_layers(scene, paths, results, sonar=sonar, truths=truths, options=options)
-    preset = camera if isinstance(camera, CameraPreset) else camera_preset(
-        camera, scene_bounds(scene, sonar), aspect=window_size[0] / window_size[1], sonar=sonar)
-    return write_webgl_html(path, layers, preset, title=_title(scene, title))
+    return write_webgl_html(path, layers, _camera(camera, scene, sonar, layers, window_size),
+                            title=_title(scene, title))
