@@ -191,7 +191,9 @@ def specular_points(curved: CurvedSet, which: NDArray[np.int64], a: NDArray[np.f
     rho_a = np.linalg.norm(a2 - x2, axis=1)
     rho_b = np.linalg.norm(b2 - x2, axis=1)
     z = np.where(sph, 0.0, za + (zb - za) * rho_a / np.where(rho_a + rho_b > 0, rho_a + rho_b, 1.0))
-    valid &= sph | (np.abs(z) < 0.5 * curved.length[which])
+    # inclusive (1e-9 m of round-off): a post meeting the free surface or the floor at a right
+    # angle reflects a monostatic double bounce exactly at the junction
+    valid &= sph | (np.abs(z) <= 0.5 * curved.length[which] + 1e-9)
     normal = _unit(x2[:, :1] * p_axis + x2[:, 1:] * q_axis)
     point = c + rad[:, None] * normal + z[:, None] * np.where(sph[:, None], 0.0, axis)
     # principal directions: cylinder (around, along); sphere any tangent pair

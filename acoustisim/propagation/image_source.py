@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.geometry import CylinderPrimitive
+from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
 from acoustisim.propagation.raycast import RayCaster
 from acoustisim.scene import Scene
@@ -111,6 +111,8 @@ class PlanarMirrors:
             faces_of_object = np.flatnonzero(raycaster.surface_index == s)
             offset = int(faces_of_object[0])
             mesh = obj.mesh
+            if isinstance(obj.primitive, SpherePrimitive):
+                continue  # never a mirror (and its facets are not worth computing)
             facet_normals = np.asarray(mesh.facets_normal, dtype=float) if len(mesh.facets) else np.zeros((0, 3))
             if obj.primitive is None:
                 if len(mesh.facets) > MAX_OBJECT_MIRRORS:

@@ -53,30 +53,6 @@ class _Chains:
     spreading: NDArray[np.float64]  # (n,) gain without reflection coefficients
     channel: NDArray[np.int64]  # (n,)
     chain: NDArray[np.int64]  # (n,) chain id (shared across channels)
-    key: NDArray[np.float64]  # (n, q) the unfolded end points: equal keys are the same physical path
-
-
-def _deduplicate(chains: _Chains) -> _Chains:
-    """Keep one chain per (channel, unfolded end points, set of surfaces touched).
-
-    Reflections on perpendicular planes commute: [wall, floor] and [floor, wall] have the same
-    image, and generically only one order is a real path; through the corner line itself (a
-    monostatic corner return) both orders pass, and they are one path (the image method is exact
-    in a right-angle wedge, whose edge does not diffract).
-    """
-    n = chains.length.shape[0]
-    if n < 2:
-        return chains
-    key = np.column_stack([chains.channel, np.round(chains.key / 1e-9), np.sort(chains.surface, axis=1)]).astype(np.int64)
-    _, first = np.unique(key, axis=0, return_index=True)
-    if first.size == n:
-        return chains
-    keep = np.sort(first)
-    return _Chains(
-        chains.vertices[keep], chains.surface[keep], chains.patch[keep], chains.normal[keep],
-        [(source, index[keep]) for source, index in chains.material], chains.length[keep],
-        chains.spreading[keep], chains.channel[keep], chains.chain[keep], chains.key[keep],
-    )
 
 
 def direct_rows(context: SolveContext) -> NDArray[Any]:
@@ -140,9 +116,8 @@ def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, ch
         spreading=1.0 / length,
         channel=channel,
         chain=chain_base + np.tile(chain_ids, n_rx)[valid],
-        key=images_all[:, -1],
     )
-    return _deduplicate(chains), chain_base + len(ok)
+    return chains, chain_base + len(ok)
 
 
 def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
@@ -204,9 +179,8 @@ def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int,
     material = ([("mirror", mirrors.material[sb_v[:, j]]) for j in range(n_before)]
                 + [("curved", refl)]
                 + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
-    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, channel[idx], chain[idx],
-                     np.column_stack([a_v, b_v]))
-    return _deduplicate(chains), chain_base + n_chain
+    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, channel[idx], chain[idx])
+    return chains, chain_base + n_chain
 
 
 def _reflection_product(chains: _Chains, mirrors: PlanarMirrors, reflectors: tuple[CurvedReflector, ...],
@@ -319,7 +293,26 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
         offset += n * legs
         reflection = _reflection_product(chains, mirrors, prepared.curved, context)
         out.append(_rows_from_chains(chains, blocked, reflection, context.first_path_id))
-    return np.concatenate(out)
+    return _deduplicate_rows(np.concatenate(out))
+
+
+def _deduplicate_rows(rows: NDArray[Any]) -> NDArray[Any]:
+    """Keep one row per (channel, ordered interaction points, set of surfaces).
+
+    Reflections on perpendicular planes commute: [wall, floor] and [floor, wall] have the same
+    image, and generically only one order is a real path. Through the corner line itself (a
+    monostatic corner return, or a post meeting the free surface or the floor) both orders pass
+    with coincident reflection points: they are one path, found twice (the image method is exact
+    in a right-angle wedge, whose edge does not diffract). Reciprocal twins of a monostatic path
+    ([wall-x0, wall-x1] and [wall-x1, wall-x0]) visit their points in opposite orders and stay.
+    """
+    if rows.size < 2:
+        return rows
+    points = np.nan_to_num(rows["points_m"], nan=0.0).reshape(rows.size, -1)
+    ids = np.sort(rows["object_ids"].astype(np.int64), axis=1)
+    key = np.column_stack([rows["channel"], rows["order"], ids, np.round(points / 1e-9)]).astype(np.int64)
+    _, first = np.unique(key, axis=0, return_index=True)
+    return rows[np.sort(first)]
 
 
 __all__ = ["direct_rows", "specular_rows"]
