@@ -452,6 +452,8 @@ def echo_values(
     Amplitude is the echo's peak in volts, taking the template's sample peak as its unit.
     """
     tof = plan.lag_to_tof(lag, t0_s)
+    # A noise-free record has (almost) no noise floor: cap the SNR at 200 dB.
+    noise_mean = np.maximum(noise_mean, 1e-20 * power)
     amplitude = np.sqrt(power) / plan.peak_response * float(np.max(np.abs(plan.template.samples)))
     snr = np.maximum(2.0 * power / noise_mean - 2.0, 1e-3)
     score = power / (threshold_factor * noise_mean)

@@ -136,8 +136,10 @@ def detect_threshold(
     index = np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)
     segment = rows[hit[:, np.newaxis], index]
     amplitude = np.abs(segment).max(axis=1)
-    energy = (segment ** 2).sum(axis=1) - window * sigma[hit] ** 2
-    snr = np.maximum(energy / sigma[hit] ** 2, 1e-3)
+    total = (segment ** 2).sum(axis=1)
+    # A noise-free record has (almost) no noise floor: cap the SNR at 200 dB.
+    noise_var = np.maximum(sigma[hit] ** 2, 1e-20 * total)
+    snr = np.maximum((total - window * sigma[hit] ** 2) / noise_var, 1e-3)
     slope = np.maximum((after - before) * fs, np.finfo(float).tiny)
     tof_std = sigma[hit] / slope
     score = amplitude / level[hit]
