@@ -46,7 +46,7 @@ def lambert_energy(tx, rx, n=400):
 
 def front_face_energy(context, rays, seed):
     events = trace_diffuse(context, SolverConfig(diffuse_rays=rays, seed=seed))
-    on_front = np.abs(events.points_m[:, 0, 0] - PLATE_X) < 1e-6
+    on_front = np.abs(events.points_m[events.event, 0] - PLATE_X) < 1e-6
     energy = np.zeros(3)
     np.add.at(energy, events.channel[on_front], events.gain[on_front] ** 2)
     return energy

@@ -23,7 +23,7 @@ one step, whatever their length; long elements are further split to a maximum le
 first element of each branch is made very short (1/128 of a step), so that the earliest
 element's delay is the least time to within a nanosecond.
 
-Integration (:func:`element_gains`): three-point Gauss-Legendre per element, after
+Integration (:func:`element_gains`): two-point Gauss-Legendre per element, after
 subtracting, for each of the four terms of beta, its apex approximation, which is integrated
 exactly (Svensson & Calamia 2006, "Edge-diffraction impulse responses near specular-zone and
 shadow-zone boundaries"). Near the least-time point, with z' = z - z*,
@@ -45,8 +45,8 @@ from numpy.typing import ArrayLike, NDArray
 ONSET_FRACTION = 1.0 / 128.0
 """Length of the first element of each branch, as a fraction of the path-length step."""
 
-_GAUSS_X = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
-_GAUSS_W = np.array([5.0, 8.0, 5.0]) / 9.0
+_GAUSS_X = np.array([-1.0, 1.0]) / np.sqrt(3.0)
+_GAUSS_W = np.array([1.0, 1.0])
 
 
 def btm_signs(pressure_release: ArrayLike) -> NDArray[np.float64]:
@@ -367,35 +367,33 @@ def element_gains(
     ndarray, shape (n,)
         Signed gains.
     """
-    idx = elements.pair
-    nu_, rs, ts, zs, rr, tr, zr = (
-        np.atleast_1d(np.asarray(v, dtype=float))[idx] for v in (nu, r_s, theta_s, z_s, r_r, theta_r, z_r)
+    # per pair: the angular factors of the four terms and the apex model's constants
+    nu_p, rs_p, ts_p, zs_p, rr_p, tr_p, zr_p = (
+        np.atleast_1d(np.asarray(v, dtype=float)) for v in (nu, r_s, theta_s, z_s, r_r, theta_r, z_r)
     )
-    soft = np.atleast_1d(np.asarray(pressure_release, dtype=bool))[idx]
-    z_star, _ = least_time(rs, zs, rr, zr)
-    q2 = ((zr - zs) / (rs + rr)) ** 2
-    kappa = (rs + rr) / (rs * rr * np.sqrt(1.0 + q2))  # eta ~ kappa |z - z*| near the apex
-    ml_star = rs * rr * (1.0 + q2)  # m l at the apex
-    phi = wedge_phis(ts, tr)  # (n, 4)
-    signs = btm_signs(soft)
-    half = 0.5 * nu_[:, None] * phi
-    sin_half = np.sin(half)
-    s_gap = 2.0 * np.abs(sin_half)  # sqrt(2 (1 - cos(nu phi)))
-    nk = (nu_ * kappa)[:, None]
+    soft_p = np.atleast_1d(np.asarray(pressure_release, dtype=bool))
+    half_p = 0.5 * nu_p[:, None] * wedge_phis(ts_p, tr_p)  # nu phi_i / 2, (p, 4)
+    sin_half_p = np.sin(half_p)
+    signs_p = btm_signs(soft_p)
+    num_p = signs_p * np.sin(2.0 * half_p)  # s_i sin(nu phi_i)
+    gap_p = 2.0 * sin_half_p**2  # 1 - cos(nu phi_i) >= 0
+    z_star_p, _ = least_time(rs_p, zs_p, rr_p, zr_p)
+    q2_p = ((zr_p - zs_p) / (rs_p + rr_p)) ** 2
+    nk_p = nu_p * (rs_p + rr_p) / (rs_p * rr_p * np.sqrt(1.0 + q2_p))  # nu eta ~ nu kappa |z - z*|
+    ml_star_p = rs_p * rr_p * (1.0 + q2_p)  # m l at the apex
+    # Int model dz' = sum_i s_i (2 / (nu kappa)) sgn(sin(nu phi/2)) cos(nu phi/2) atan(nu kappa z' / s);
+    # exactly on a boundary (sin(nu phi / 2) = 0 up to round-off) the term is 0: half the jump
+    sgn_p = np.where(np.abs(sin_half_p) > 1e-12, np.sign(sin_half_p), 0.0)
+    coef_p = signs_p * sgn_p * np.cos(half_p) * 2.0 / (nk_p[:, None] * ml_star_p[:, None])
+    s_gap_p = 2.0 * np.abs(sin_half_p)
 
-    def model(zp: NDArray[np.float64]) -> NDArray[np.float64]:
-        # apex approximation of sum_i s_i sin(nu phi_i) / (cosh(nu eta) - cos(nu phi_i)) / (m l)
-        den = 0.5 * (nk * zp[:, None]) ** 2 + 0.5 * s_gap**2
-        num = signs * np.sin(2.0 * half)
+    idx = elements.pair
+    nu_, rs, zs, rr, zr = nu_p[idx], rs_p[idx], zs_p[idx], rr_p[idx], zr_p[idx]
+    num, gap, nk, ml_star, z_star = num_p[idx], gap_p[idx], nk_p[idx], ml_star_p[idx], z_star_p[idx]
+
+    def terms(den: NDArray[np.float64]) -> NDArray[np.float64]:
         ok = den > 0.0
-        return np.sum(np.where(ok, num / np.where(ok, den, 1.0), 0.0), axis=1) / ml_star
-
-    def model_integral(zp: NDArray[np.float64]) -> NDArray[np.float64]:
-        # Int model dz' = sum_i s_i (2 / (nu kappa)) sgn(sin(nu phi/2)) cos(nu phi/2) atan(nu kappa z' / s)
-        # exactly on a boundary (sin(nu phi / 2) = 0 up to round-off) the term is 0: half the jump
-        sgn = np.where(np.abs(sin_half) > 1e-12, np.sign(sin_half), 0.0)
-        coef = signs * sgn * np.cos(half) * 2.0 / nk
-        return np.sum(coef * np.arctan2(nk * zp[:, None], s_gap), axis=1) / ml_star
+        return np.sum(np.divide(num, den, out=np.zeros_like(den), where=ok), axis=1)
 
     z0, z1 = elements.z_start_m, elements.z_end_m
     half_len = 0.5 * (z1 - z0)
@@ -403,11 +401,16 @@ def element_gains(
     total = np.zeros(z0.size)
     for x, w in zip(_GAUSS_X, _GAUSS_W):
         z = centre + x * half_len
-        m = np.hypot(rs, z - zs)
-        l = np.hypot(rr, z - zr)
-        f = beta(nu_, cosh_eta_minus_one(z, rs, zs, rr, zr), ts, tr, soft) / (m * l)
-        total += w * (f - model(z - z_star))
-    total = total * half_len + (model_integral(z1 - z_star) - model_integral(z0 - z_star))
+        ml = np.hypot(rs, z - zs) * np.hypot(rr, z - zr)
+        c1 = np.maximum(cosh_eta_minus_one(z, rs, zs, rr, zr), 0.0)
+        eta = np.log1p(c1 + np.sqrt(c1 * (c1 + 2.0)))
+        # cosh(nu eta) - cos(nu phi) = 2 sinh^2(nu eta / 2) + 2 sin^2(nu phi / 2)
+        exact = terms(2.0 * np.sinh(0.5 * nu_ * eta)[:, None] ** 2 + gap) / ml
+        apex = terms(0.5 * (nk * (z - z_star))[:, None] ** 2 + gap) / ml_star
+        total += w * (exact - apex)
+    g0 = np.sum(coef_p[idx] * np.arctan2((nk * (z0 - z_star))[:, None], s_gap_p[idx]), axis=1)
+    g1 = np.sum(coef_p[idx] * np.arctan2((nk * (z1 - z_star))[:, None], s_gap_p[idx]), axis=1)
+    total = total * half_len + (g1 - g0)
     return -(nu_ / (4.0 * np.pi)) * total
 
 

@@ -155,42 +155,54 @@ def sample_directions(
 
 @dataclass(frozen=True)
 class DiffuseEvents:
-    """Scattering events seen by receivers: the diffuse tracer's output before row packing.
+    """The diffuse tracer's output before row packing.
 
-    One entry per (scattering event, receiver) whose leg to the receiver is clear.
+    Scattering events (ray hits) and the receptions (event, receiver) whose leg to the
+    receiver is clear and in front of the scattering face.
 
     Attributes
     ----------
-    event : ndarray of int64, shape (n,)
-        Index of the scattering event (shared by the receivers that see it).
-    channel : ndarray of int64, shape (n,)
-        Receiver index.
-    bounce : ndarray of int64, shape (n,)
+    points_m : ndarray, shape (m, 3)
+        Hit point of each event (tank frame, m).
+    surface : ndarray of int64, shape (m,)
+        Index into ``scene.surface_names`` of the surface hit.
+    parent : ndarray of int64, shape (m,)
+        The previous event of the same ray (-1 for a first hit).
+    bounce : ndarray of int64, shape (m,)
         Scattering order (1 = first hit).
+    departure_dir : ndarray, shape (m, 3)
+        Unit direction in which the event's ray left the transmitter.
+    event : ndarray of int64, shape (n,)
+        Event of each reception.
+    channel : ndarray of int64, shape (n,)
+        Receiver of each reception.
     path_length_m : ndarray, shape (n,)
         Transmitter -> ... -> hit -> receiver (m).
     gain : ndarray, shape (n,)
-        |X| sqrt(mu sin(g_s) dOmega_eff) / r2 (relative to 1 m), >= 0.
+        |X| sqrt(mu sin(g_s) dOmega_eff) / r2 (relative to the source's pressure at 1 m), >= 0.
     phase_rad : ndarray, shape (n,)
         arg X (rad).
-    departure_dir, arrival_dir : ndarray, shape (n, 3)
-        Unit ray direction leaving the transmitter, unit direction hit -> receiver.
-    surfaces : ndarray of int16, shape (n, MAX_INTERACTIONS)
-        Surfaces hit along the chain (-1 padded).
-    points_m : ndarray, shape (n, MAX_INTERACTIONS, 3)
-        Hit points along the chain (NaN padded).
+    arrival_dir : ndarray, shape (n, 3)
+        Unit direction hit -> receiver.
     """
 
+    points_m: NDArray[np.float64]
+    surface: NDArray[np.int64]
+    parent: NDArray[np.int64]
+    bounce: NDArray[np.int64]
+    departure_dir: NDArray[np.float64]
     event: NDArray[np.int64]
     channel: NDArray[np.int64]
-    bounce: NDArray[np.int64]
     path_length_m: NDArray[np.float64]
     gain: NDArray[np.float64]
     phase_rad: NDArray[np.float64]
-    departure_dir: NDArray[np.float64]
     arrival_dir: NDArray[np.float64]
-    surfaces: NDArray[np.int16]
-    points_m: NDArray[np.float64]
+
+
+def _concatenate(parts: list[NDArray[Any]], empty: NDArray[Any]) -> NDArray[Any]:
+    if not parts:
+        return empty
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
@@ -219,28 +231,32 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     departure = directions
     origins = np.broadcast_to(tx, (n_rays, 3))
     travelled = np.zeros(n_rays)
-    chain_surface = np.full((n_rays, MAX_INTERACTIONS), -1, dtype=np.int16)
-    chain_points = np.full((n_rays, MAX_INTERACTIONS, 3), np.nan)
-    parts: list[tuple[NDArray[Any], ...]] = []
+    parent = np.full(n_rays, -1, dtype=np.int64)
+    ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
+    rc: dict[str, list[NDArray[Any]]] = {k: [] for k in ("event", "channel", "length", "gain", "phase", "arrival")}
     next_event = 0
     for bounce in range(int(config.diffuse_bounces)):  # a handful of bounces
         hits = raycaster.intersect(origins, directions)
-        normal = np.nan_to_num(hits.normal)
-        cos_in = -np.einsum("ij,ij->i", directions, normal)
-        mu = mu_of_surface[np.maximum(hits.surface, 0)]
-        live = hits.hit & (cos_in > 0.0) & (mu > 0.0)
-        if not np.any(live):
+        surface = hits.surface
+        mu = mu_of_surface[np.maximum(surface, 0)]
+        live = np.flatnonzero((surface >= 0) & (mu > 0.0))
+        normal = hits.normal[live]
+        directions = directions[live]
+        front = np.einsum("ij,ij->i", directions, normal) < 0.0
+        live, normal, directions = live[front], normal[front], directions[front]
+        if live.size == 0:
             break
         distance = hits.distance_m[live]
-        directions, normal, mu = directions[live], normal[live], mu[live]
+        mu = mu[live]
         points = origins[live] + distance[:, None] * directions
-        weight, departure = weight[live], departure[live]
+        weight, departure, parent = weight[live], departure[live], parent[live]
         travelled = travelled[live] + distance
-        chain_surface, chain_points = chain_surface[live], chain_points[live]
-        if bounce < MAX_INTERACTIONS:
-            chain_surface[:, bounce] = hits.surface[live]
-            chain_points[:, bounce] = points
-        n_hits = points.shape[0]
+        n_hits = live.size
+        ev["points"].append(points)
+        ev["surface"].append(surface[live])
+        ev["parent"].append(parent)
+        ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
+        ev["departure"].append(departure)
 
         # next-event estimation to every receiver
         to_rx = rx[None, :, :] - points[:, None, :]  # (n_hits, n_rx, 3)
@@ -251,12 +267,13 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         hit_idx, rx_idx = hit_idx[clear], rx_idx[clear]
         x = speckle(points, config.seed)[hit_idx]
         r2_sel = r2[hit_idx, rx_idx]
-        gain = np.abs(x) * np.sqrt(weight[hit_idx] * mu[hit_idx] * sin_gs[hit_idx, rx_idx]) / r2_sel
-        parts.append((
-            next_event + hit_idx, rx_idx, np.full(hit_idx.size, bounce + 1), travelled[hit_idx] + r2_sel, gain,
-            np.angle(x), departure[hit_idx], to_rx[hit_idx, rx_idx] / r2_sel[:, None], chain_surface[hit_idx],
-            chain_points[hit_idx],
-        ))
+        rc["event"].append(next_event + hit_idx)
+        rc["channel"].append(rx_idx)
+        rc["length"].append(travelled[hit_idx] + r2_sel)
+        rc["gain"].append(np.abs(x) * np.sqrt(weight[hit_idx] * mu[hit_idx] * sin_gs[hit_idx, rx_idx]) / r2_sel)
+        rc["phase"].append(np.angle(x))
+        rc["arrival"].append(to_rx[hit_idx, rx_idx] / r2_sel[:, None])
+        parent = next_event + np.arange(n_hits)
         next_event += n_hits
         if bounce + 1 >= int(config.diffuse_bounces):
             break
@@ -272,14 +289,20 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         )
         weight = weight * math.pi * mu
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
-    if not parts:
-        return DiffuseEvents(
-            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
-            np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, MAX_INTERACTIONS), np.int16),
-            np.zeros((0, MAX_INTERACTIONS, 3)),
-        )
-    columns = [np.concatenate(c) for c in zip(*parts)]
-    return DiffuseEvents(*columns)
+    i0, f0, v0 = np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3))
+    return DiffuseEvents(
+        points_m=_concatenate(ev["points"], v0),
+        surface=_concatenate(ev["surface"], i0),
+        parent=_concatenate(ev["parent"], i0),
+        bounce=_concatenate(ev["bounce"], i0),
+        departure_dir=_concatenate(ev["departure"], v0),
+        event=_concatenate(rc["event"], i0),
+        channel=_concatenate(rc["channel"], i0),
+        path_length_m=_concatenate(rc["length"], f0),
+        gain=_concatenate(rc["gain"], f0),
+        phase_rad=_concatenate(rc["phase"], f0),
+        arrival_dir=_concatenate(rc["arrival"], v0),
+    )
 
 
 def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
@@ -301,18 +324,33 @@ def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
     if int(config.diffuse_rays) <= 0:
         return empty_paths_array(0)
     events = trace_diffuse(context, config)
-    rows = np.zeros(events.event.size, dtype=PATH_DTYPE)
-    rows["path_id"] = context.first_path_id + events.event
+    e = events.event
+    rows = np.zeros(e.size, dtype=PATH_DTYPE)
+    rows["path_id"] = context.first_path_id + e
     rows["channel"] = events.channel
     rows["kind"] = int(PathKind.DIFFUSE)
-    rows["order"] = events.bounce
+    order = events.bounce[e]
+    rows["order"] = order
     rows["path_length_m"] = events.path_length_m
     rows["geometric_gain"] = events.gain
     rows["phase_rad"] = events.phase_rad
-    rows["departure_dir"] = events.departure_dir
+    rows["departure_dir"] = events.departure_dir[e]
     rows["arrival_dir"] = events.arrival_dir
-    rows["object_ids"] = events.surfaces
-    rows["points_m"] = events.points_m
+    # interaction chains: walk each event's parents back to the first hit
+    surfaces = np.full((e.size, MAX_INTERACTIONS), -1, dtype=np.int16)
+    points = np.full((e.size, MAX_INTERACTIONS, 3), np.nan)
+    current = e.copy()
+    level = order - 1
+    for _ in range(int(order.max()) if order.size else 0):  # a handful of bounces
+        alive = current >= 0
+        store = alive & (level < MAX_INTERACTIONS)
+        idx = np.flatnonzero(store)
+        surfaces[idx, level[idx]] = events.surface[current[idx]]
+        points[idx, level[idx]] = events.points_m[current[idx]]
+        current = np.where(alive, events.parent[np.maximum(current, 0)], -1)
+        level = level - 1
+    rows["object_ids"] = surfaces
+    rows["points_m"] = points
     return complete_columns(rows, context)
 
 
