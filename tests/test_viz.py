@@ -107,7 +107,7 @@ def _hand_paths(sonar: SonarHead) -> Paths:
         rows[i]["delay_s"] = length / C_WATER
         for k, p in enumerate(points):
             rows[i]["points_m"][k] = p
-            rows[i]["object_ids"][k] = 6 + k
+            rows[i]["object_ids"][k] = 7 if kind == PathKind.EDGE else 6 + k  # the edge is on post-2
     return Paths(rows, ("wall-x0", "wall-x1", "wall-y0", "wall-y1", "floor", "surface", "post-1", "post-2"),
                  500e3, C_WATER)
 
@@ -172,6 +172,13 @@ def test_choose_echo_finds_the_same_arrival_on_every_channel():
     np.testing.assert_allclose(second.path_length_m, expected, rtol=1e-12)
     with pytest.raises(IndexError, match="echo 9"):
         choose_echo(paths, 9)
+    # By surface name: the first single-bounce echo off it.
+    by_name = choose_echo(paths, "post-1")
+    assert by_name.index == 1 and by_name.label == "specular: post-1"
+    with pytest.raises(IndexError, match="no single-bounce echo off 'floor'"):
+        choose_echo(paths, "floor")
+    with pytest.raises(IndexError, match="no surface"):
+        choose_echo(paths, "nothing")
 
 
 # -------------------------------------------------------------------------------------- results

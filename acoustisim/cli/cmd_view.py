@@ -1,7 +1,7 @@
 """``acoustisim view``: look at a scene, its echo paths and localisation results in 3-D.
 
 ``acoustisim view FILE_OR_NAME [--ping PING.h5 [--ping-index I]] [--results RESULTS.json]
-[--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective|targets] [--echo N]
+[--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective|targets] [--echo N|NAME]
 [--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--edge-elements] [--no-beam]
 [--size WxH] [--title TEXT]``
 
@@ -25,6 +25,10 @@ def _nonnegative_int(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
     return value
+
+
+def _echo(text: str) -> int | str:
+    return _nonnegative_int(text) if text.strip().lstrip("-").isdigit() else text
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -106,8 +110,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--camera", choices=("top", "side", "sonar", "perspective", "targets"),
                         default="perspective",
                         help="camera preset (default perspective; targets: top view of the sonar and targets)")
-    parser.add_argument("--echo", type=_nonnegative_int, metavar="N",
-                        help="draw the time-of-flight ellipsoids of echo N (by delay on the centre channel)")
+    parser.add_argument("--echo", type=_echo, metavar="N|NAME",
+                        help="draw the time-of-flight ellipsoids of echo N (rank by delay among the centre "
+                             "channel's specular and edge echoes) or of the first echo off surface NAME")
     parser.add_argument("--no-paths", action="store_true", help="draw no paths (neither traced nor the ping's)")
     parser.add_argument("--max-order", type=_nonnegative_int, metavar="N", help="reflection order when tracing")
     parser.add_argument("--channels", type=_channels, default=(0, 1, 2), metavar="LIST",

@@ -390,7 +390,7 @@ class EchoChoice:
     label: str
 
 
-def choose_echo(paths: Paths, index: int) -> EchoChoice:
+def choose_echo(paths: Paths, index: int | str) -> EchoChoice:
     """The ``index``-th discrete echo (by delay) on the centre channel and the same arrival on
     the others.
 
@@ -400,15 +400,29 @@ def choose_echo(paths: Paths, index: int) -> EchoChoice:
     The same arrival on another channel is the row with the same ``path_id``; when the solver
     numbers channels separately, the row of the same kind and surfaces with the nearest delay.
 
+    Parameters
+    ----------
+    paths : Paths
+    index : int or str
+        The echo's rank by delay, or a surface name: the earliest single-interaction echo
+        off that surface.
+
     Raises
     ------
     IndexError
-        When there are fewer echoes than ``index + 1``.
+        When there are fewer echoes than ``index + 1``, or none off the named surface.
     """
     arrivals = paths.arrivals()
     discrete = np.isin(arrivals["kind"], (PathKind.SPECULAR, PathKind.EDGE))
     centre = arrivals[(arrivals["channel"] == 1) & discrete]
     centre = centre[np.argsort(centre["delay_s"], kind="stable")]
+    if isinstance(index, str):
+        if index not in paths.surface_names:
+            raise IndexError(f"echo {index!r}: no surface of that name (surfaces: {', '.join(paths.surface_names)})")
+        hits = np.flatnonzero((centre["order"] == 1) & (centre["object_ids"][:, 0] == paths.surface_names.index(index)))
+        if hits.size == 0:
+            raise IndexError(f"echo {index!r}: no single-bounce echo off {index!r} on the centre channel")
+        index = int(hits[0])
     if not 0 <= index < centre.size:
         raise IndexError(f"echo {index} does not exist: the centre channel has {centre.size} specular or edge echoes")
     row = centre[index]
@@ -454,7 +468,7 @@ def tof_ellipsoid(transmitter_m: NDArray[np.float64], receiver_m: NDArray[np.flo
     return ellipsoid_mesh(0.5 * (tx + rx), axes, resolution)
 
 
-def tof_layers(paths: Paths, sonar: SonarHead, echo: int, bounds: NDArray[np.float64]) -> list[Layer]:
+def tof_layers(paths: Paths, sonar: SonarHead, echo: int | str, bounds: NDArray[np.float64]) -> list[Layer]:
     """For echo ``echo`` (see :func:`choose_echo`): each receiver's time-of-flight ellipsoid,
     clipped to ``bounds``, its ellipse in the horizontal plane of the transmitter, and the echo's
     interaction points."""
@@ -475,7 +489,7 @@ def tof_layers(paths: Paths, sonar: SonarHead, echo: int, bounds: NDArray[np.flo
                                 line_width=2.0, label=f"time-of-flight ellipse, {name}", group="tof"))
     if choice.points_m.size:
         layers.append(Layer("echo-point", pv.PolyData(choice.points_m), (0.0, 0.0, 0.0), 1.0, "points",
-                            point_size=12.0, label=f"echo {echo} ({choice.label})", group="tof"))
+                            point_size=12.0, label=f"echo {choice.index} ({choice.label})", group="tof"))
     return layers
 
 
@@ -542,7 +556,7 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
     layers: list[Layer] = []
     if estimates:
         positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
-        layers.append(Layer("estimates", pv.PolyData(positions), ESTIMATE_COLOR, 1.0, "points", point_size=14.0,
+        layers.append(Layer("estimates", pv.PolyData(positions), ESTIMATE_COLOR, 1.0, "points", point_size=10.0,
                             label=f"estimates ({len(estimates)})", group="estimate"))
         axes_list = []
         for est in estimates:
@@ -568,7 +582,8 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
                                 label=f"{n_sigma:g}-sigma error ellipsoids{scale}", group="estimate"))
     if truths:
         truth_positions = np.array([t.position_m for t in truths], dtype=float).reshape(-1, 3)
-        layers.append(Layer("truth", pv.PolyData(truth_positions), TRUTH_COLOR, 1.0, "points", point_size=14.0,
+        # Larger than the estimates' markers, so a coincident estimate leaves a ring of truth.
+        layers.append(Layer("truth", pv.PolyData(truth_positions), TRUTH_COLOR, 1.0, "points", point_size=17.0,
                             label=f"truth ({len(truths)})", group="truth"))
         if estimates:
             positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)

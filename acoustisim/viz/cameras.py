@@ -7,7 +7,7 @@ numbers drive the VTK plotter and the WebGL page.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -81,7 +81,9 @@ def camera_preset(name: str, bounds: NDArray[np.float64], *, aspect: float = 1.5
     centre = bounds.mean(axis=0)
     extent = bounds[1] - bounds[0]
     if name == "targets":
-        return replace(camera_preset("top", bounds, aspect=aspect, margin=margin), name="targets")
+        scale = 0.5 * margin * max(extent[1], extent[0] / aspect)
+        return CameraPreset(name, _t(centre + np.array([0.0, 0.0, 4.0 * np.linalg.norm(extent)])), _t(centre),
+                            (0.0, 1.0, 0.0), True, scale)
     if name in ("top", "side"):
         # Plan (x right, y up) or elevation (x right, z up). When the region is flatter than the
         # window, it is placed near the top edge, leaving the bottom for the legend.

@@ -64,8 +64,9 @@ class ViewOptions:
         Draw each edge-diffraction element instead of one polyline per edge arrival.
     dynamic_range_db : float
         Paths this far below the strongest echo are drawn at the minimum opacity (dB).
-    echo : int or None
-        Draw the time-of-flight ellipsoids of this echo (rank by delay on the centre channel).
+    echo : int or str or None
+        Draw the time-of-flight ellipsoids of this echo: its rank by delay among the centre
+        channel's specular and edge echoes, or a surface name (its first single-bounce echo).
     show_beam : bool
         Draw the transmit beam's -3 dB and side-lobe cones.
     n_sigma : float
@@ -78,7 +79,7 @@ class ViewOptions:
     max_paths: int | None = 10_000
     edge_elements: bool = False
     dynamic_range_db: float = 40.0
-    echo: int | None = None
+    echo: int | str | None = None
     show_beam: bool = True
     n_sigma: float = 2.0
     magnification: float | None = None
@@ -226,7 +227,7 @@ def add_legend(plotter: "pv.Plotter", entries: Sequence[tuple[str, tuple[float, 
         legend.SetEntry(i, symbol, label, (0.0, 0.0, 0.0))
     legend.SetScalarVisibility(True)
     width = min(0.45, 330.0 / window_size[0])
-    height = min(0.9, (16.0 * len(entries) + 8.0) / window_size[1])
+    height = min(0.9, (19.0 * len(entries) + 8.0) / window_size[1])
     legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
     legend.GetPositionCoordinate().SetValue(1.0 - width - 0.01, 0.01)
     legend.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
