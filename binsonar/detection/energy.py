@@ -9,9 +9,11 @@ decimated grid (as in ``matched``). The statistic is
     e(t) = moving average over T_int of sum_k |z_k(t)|^2 / mu_k,
 
 mu_k the noise mean of |z_k|^2 (median / ln 2). For Gaussian noise, |z_k|^2 / mu_k is a unit
-exponential whose correlation coefficient at lag d is |rho_k(d)|^2, rho_k the band's normalised
-autocorrelation, so e has mean K and an exactly computable variance; the threshold is the
-Gamma distribution with these moments at the per-cell false-alarm probability pfa / n_cells.
+exponential, and the correlation coefficient of |z_k(t)|^2 and |z_l(t + d)|^2 is
+|rho_kl(d)|^2, rho_kl the bands' normalised cross-correlation (adjacent bands overlap), so e
+is a quadratic form of Gaussian noise: a sum of unit exponentials weighted by the eigenvalues
+of its covariance. The threshold is that law's upper quantile (saddle-point approximation,
+``quadratic_tail``) at the per-cell false-alarm probability pfa / n_cells.
 
 The TOF is the time of the statistic's maximum inside each region above the threshold
 (parabolic interpolation), minus a calibrated offset: the same statistic computed on the clean
@@ -28,8 +30,10 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.detection.inputs import template_rms_duration_s
 from binsonar.detection.matched import LN2, check_pfa
 from binsonar.detection.peaks import parabolic_offset
+from binsonar.detection.quadratic_tail import quantile
 from binsonar.preprocess import template_band_hz
 from binsonar.recording import RecordingError, Template
 
@@ -131,6 +135,7 @@ def detect_energy(
     band_db: float = -20.0,
     integration_s: float | None = None,
     pfa: float = 1e-3,
+    tof: str = "peak",
     where: str = "record",
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Energy-detector echoes of each row.
@@ -150,6 +155,10 @@ def detect_energy(
         holding 95 % of a Gaussian pulse's energy).
     pfa : float
         False-alarm probability per record (Bonferroni over the cells).
+    tof : {"peak", "crossing"}
+        "peak": the statistic's maximum minus the calibrated offset (unbiased for echoes shaped
+        like the template). "crossing": the seed's reading, the time the statistic first
+        exceeds the threshold (biased, more so for weaker echoes, like the threshold detector).
 
     Returns
     -------
@@ -158,9 +167,10 @@ def detect_energy(
         the noise's (2E/N0, rough); tof_std_s: NaN (no model).
     """
     import scipy.fft as sfft
-    from scipy.special import gammainccinv
 
     pfa = check_pfa(pfa)
+    if tof not in ("peak", "crossing"):
+        raise RecordingError(f"{where}: tof must be 'peak' or 'crossing', got {tof!r}")
     if not (isinstance(n_bands, (int, np.integer)) and 1 <= n_bands <= 64):
         raise RecordingError(f"{where}: n_bands must be an integer in [1, 64], got {n_bands!r}")
     fs = sample_rate_hz
@@ -169,10 +179,7 @@ def detect_energy(
     n_rows, n = rows.shape
     low, high = template_band_hz(s, fs, band_db)
     if integration_s is None:
-        t = np.arange(m) / fs
-        weight = s ** 2 / np.sum(s ** 2)
-        centre = np.sum(t * weight)
-        integration_s = 4.0 * math.sqrt(np.sum((t - centre) ** 2 * weight))
+        integration_s = 4.0 * template_rms_duration_s(template)
     if not (math.isfinite(integration_s) and integration_s > 0):
         raise RecordingError(f"{where}: integration_s must be > 0, got {integration_s!r}")
     pad = 2 * m
@@ -192,12 +199,21 @@ def detect_energy(
     band, mu = _band_statistic(spectrum, masks, n_env, scale, None)
     stat = _moving_average(band[:, :n_cells], length)
     # Noise moments of the statistic: mean K; variance from each band's autocorrelation.
-    rho = sfft.ifft(masks ** 2, n_env, axis=-1)  # band noise PSD is proportional to mask^2
-    rho_power = np.abs(rho) ** 2 / (np.abs(rho[:, :1]) ** 2)
-    d = np.arange(-(length - 1), length)
-    var = float(np.sum((length - np.abs(d)) * rho_power[:, d % n_env].sum(axis=0)) / length ** 2)
+    # Noise law of the statistic: e is the quadratic form (1/L) sum |z_k(t_j)|^2 / mu_k over the
+    # K x L band samples in a window, whose normalised covariance is rho_kl(j - i), the inverse
+    # FFT of mask_k mask_l over the bands' powers (adjacent bands overlap, so they correlate).
+    # e is then a sum of unit exponentials weighted by the eigenvalues of that covariance / L.
+    cross = sfft.ifft(masks[:, np.newaxis, :] * masks[np.newaxis, :, :], n_env, axis=-1)  # (K, K, n_env)
+    band_power = np.sum(masks ** 2, axis=-1) / n_env  # = cross[k, k, 0]
+    rho = cross / np.sqrt(band_power[:, np.newaxis, np.newaxis] * band_power[np.newaxis, :, np.newaxis])
+    j = np.arange(length)
+    lag = (j[:, np.newaxis] - j[np.newaxis, :]) % n_env  # (L, L)
+    covariance = rho[:, :, lag].transpose(0, 2, 1, 3).reshape(n_bands * length, n_bands * length)
+    covariance = 0.5 * (covariance + covariance.conj().T)
+    weights = np.clip(np.linalg.eigvalsh(covariance) / length, 0.0, None)
+    weights = weights[weights > 1e-12 * weights.max()]
     mean = float(n_bands)
-    threshold = float(gammainccinv(mean * mean / var, pfa / n_cells) * var / mean)  # Gamma upper quantile
+    threshold = quantile(pfa / n_cells, weights)
     calibration_s = _calibration_s(template, fs, band_cycles, n_bands, integration_s)
     # White-noise variance per sample from the bands' noise: E|z_k|^2 = sigma^2 sum(mask_k^2) / n_fft.
     sigma2 = mu.sum(axis=1) * n_fft / float(np.sum(masks ** 2))  # (rows,)
@@ -216,11 +232,16 @@ def detect_energy(
                 off_f, peak_f = float(off[0]), float(peak[0])
             else:
                 off_f, peak_f = 0.0, float(stat[r, j])
-            tof = t0_s + (j + off_f) * cell_s - calibration_s
+            if tof == "peak":
+                tof_s = t0_s + (j + off_f) * cell_s - calibration_s
+            else:
+                before = stat[r, a - 1] if a > 0 else 0.0
+                frac = (threshold - before) / (stat[r, a] - before) if stat[r, a] > before else 1.0
+                tof_s = t0_s + (a - 1 + frac) * cell_s
             # Echo energy sum(x^2): half the excess analytic energy, summed at full rate
             # (D samples per cell) over the window, taking the bands' mean noise level.
             excess = 0.5 * max(peak_f - mean, 0.0) * length * decimation * float(np.mean(mu[r]))
             snr = max(excess / sigma2[r], 1e-3)
             amplitude = math.sqrt(excess / energy_template) * peak_template
-            out[r].append((tof, amplitude, 10.0 * math.log10(snr), peak_f / threshold, float("nan")))
+            out[r].append((tof_s, amplitude, 10.0 * math.log10(snr), peak_f / threshold, float("nan")))
     return out

@@ -10,7 +10,7 @@ It needs only the echo's band, not its waveform (Zhang's DWT detector idea):
    energy they hold (levels under 2 % are dropped). The statistic lives on the grid of the
    finest kept level j0 (cells of 2^j0 samples): each coefficient of level j spans
    r_j = 2^(j - j0) cells and adds w_j (d / sigma_j)^2 / r_j to each; it is summed over
-   ``window`` cells (about the template's duration). For noise each (d / sigma)^2 is
+   ``window`` cells (4 RMS durations of the template, ~95 % of a Gaussian pulse's energy). For noise each (d / sigma)^2 is
    chi-square(1): the window sum has mean window sum_j w_j / r_j and variance
    2 window sum_j w_j^2 / r_j (up to the coefficients the window only partly covers), and the
    threshold is the Gamma law with those moments at pfa / n_cells.
@@ -28,6 +28,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.detection.inputs import template_rms_duration_s
 from binsonar.detection.matched import check_pfa
 from binsonar.detection.noise import MAD_TO_SIGMA
 from binsonar.detection.peaks import parabolic_offset
@@ -146,7 +147,7 @@ def detect_dwt(
     finest = int(np.flatnonzero(weights)[0]) + 1
     cell = 2 ** finest
     cell_s = cell / fs
-    window = max(1, int(round(m / cell)))
+    window = max(1, int(round(4.0 * template_rms_duration_s(template) / cell_s)))
     window += 1 - window % 2
     # Calibrated offset: maximum of the clean template's statistic, averaged over phases.
     unit_sigma = [np.ones(block) for _ in range(levels)]
