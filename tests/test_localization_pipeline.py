@@ -8,7 +8,7 @@ from binsonar.detection.echo import DetectionResult, Echo
 from binsonar.localization.array_geometry import ArrayGeometry
 from binsonar.localization.circle import circle_path_lengths
 from binsonar.localization.frames import head_to_tank
-from binsonar.localization.pipeline import LocalizationError, localize
+from binsonar.localization.pipeline import LocalizationConfig, LocalizationError, localize
 from binsonar.localization.point import point_path_lengths
 from binsonar.recording import Recording, Template
 
@@ -39,8 +39,8 @@ def test_three_point_targets_with_pose():
         assert t.cls == "point"
         np.testing.assert_allclose(t.position_head_m, p, atol=1e-9)
         np.testing.assert_allclose(t.position_tank_m, head_to_tank(p, pose), atol=1e-9)
-        # Path std = c x tof_std.
-        np.testing.assert_allclose(t.path_length_std_m, C * 1.35e-7, rtol=1e-12)
+        # Path std = c x tof_std, with the default 50 ns systematic floor in quadrature.
+        np.testing.assert_allclose(t.path_length_std_m, C * np.hypot(1.35e-7, 50e-9), rtol=1e-12)
     d = res.to_dict()
     assert d["pings"][0]["targets"][0]["class"] == "point" and d["sound_speed_source"] == "argument"
 
@@ -50,9 +50,12 @@ def test_crlb_used_when_echo_has_no_std():
     det = _detections(lengths, tof_std_s=float("nan"))
     with pytest.raises(LocalizationError, match="rms_bandwidth_hz"):
         localize(det, sound_speed_m_s=C, channel_positions_m=POSITIONS)
-    res = localize(det, sound_speed_m_s=C, channel_positions_m=POSITIONS, rms_bandwidth_hz=118.2e3)
+    res = localize(det, sound_speed_m_s=C, channel_positions_m=POSITIONS, rms_bandwidth_hz=118.2e3,
+                   config=LocalizationConfig(tof_floor_s=0.0))
     expected = C * float(tof_crlb_s(100.0, 118.2e3))  # snr_db = 20 on every echo
     np.testing.assert_allclose(res.targets[0][0].path_length_std_m, expected, rtol=1e-12)
+    with pytest.raises(LocalizationError, match="tof_floor_s"):
+        LocalizationConfig(tof_floor_s=-1.0)
 
 
 def test_missing_inputs_are_one_line_errors():

@@ -21,6 +21,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--sound-speed", type=float, default=None, dest="sound_speed",
                         help="sound speed (m/s), used when the recording has none")
     parser.add_argument("--no-fuse", action="store_true", help="do not fuse targets across pings")
+    parser.add_argument("--tof-floor-ns", type=float, default=50.0, dest="tof_floor_ns",
+                        help="systematic TOF uncertainty added in quadrature to each echo's std (ns, default 50)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     parser.set_defaults(run=run)
 
@@ -36,9 +38,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.sound_speed is not None and not (math.isfinite(args.sound_speed) and 1000 < args.sound_speed < 2000):
         raise RecordingError(f"--sound-speed: out of range (1000-2000 m/s): {args.sound_speed!r}")
+    if not (math.isfinite(args.tof_floor_ns) and args.tof_floor_ns >= 0):
+        raise RecordingError(f"--tof-floor-ns: must be >= 0, got {args.tof_floor_ns!r}")
     recording = read_recording(args.recording)
     result = localize(recording, method=args.method, sound_speed_m_s=args.sound_speed,
-                      config=LocalizationConfig(fuse=not args.no_fuse))
+                      config=LocalizationConfig(fuse=not args.no_fuse, tof_floor_s=args.tof_floor_ns * 1e-9))
     if args.json:
         print(json.dumps(result.to_dict()))
         return 0
