@@ -81,22 +81,32 @@ def main() -> int:
     planning = median_time(lambda: PingSynthesiser.create(sonar, scene.medium, chain), max(3, args.repeats // 3))
     synth = PingSynthesiser.create(sonar, scene.medium, chain)
     counter = iter(range(10**9))
-    floor_s = median_time(floor, args.repeats)
-    ping_s = median_time(lambda: synth.render(paths.rows, seed=next(counter)), args.repeats)
-    ten_s = median_time(lambda: synth.render(paths.rows, seed=next(counter), n_pings=10), max(3, args.repeats // 3))
-    floor_again = median_time(floor, args.repeats)
+    # Interleaved so that the floor and the pings see the same load on a shared machine.
+    floors, pings, tens, paths_only = [], [], [], []
+    for _ in range(args.repeats):
+        floors.append(median_time(floor, 1))
+        pings.append(median_time(lambda: synth.render(paths.rows, seed=next(counter)), 1))
+        paths_only.append(median_time(lambda: synth.paths.decimated_record(paths.rows), 1))
+        tens.append(median_time(lambda: synth.render(paths.rows, seed=next(counter), n_pings=10), 1))
+    floor_s, ping_s = statistics.median(floors), statistics.median(pings)
+    ten_s, paths_s = statistics.median(tens), statistics.median(paths_only)
     extra_s = (ten_s - ping_s) / 9.0
+    ratios = sorted(p / f for p, f in zip(pings, floors))
 
     memory = peak_memory(lambda: synth.render(paths.rows, seed=1))
     long_sonar = dataclasses.replace(sonar, record_length_s=2 * sonar.record_length_s)
     long_synth = PingSynthesiser.create(long_sonar, scene.medium, chain)
     memory_long = peak_memory(lambda: long_synth.render(paths.rows, seed=1))
 
-    floor_s = min(floor_s, floor_again)
     print(f"scene {scene.name}: {len(paths)} path rows ({paths.arrivals().size} arrivals), solve {solve_s:.2f} s")
     print(f"record: 3 x {n} samples at {sonar.sample_rate_hz / 1e6:g} MS/s ({sonar.record_length_s * 1e3:g} ms)")
     print(f"floor (noise + one rfft)      median {floor_s * 1e3:8.1f} ms")
     print(f"one ping, every mechanism on  median {ping_s * 1e3:8.1f} ms   ratio {ping_s / floor_s:5.2f} x floor (goal <= 3)")
+    print(f"  ratio per repeat (same load): min {ratios[0]:.2f}, median {statistics.median(ratios):.2f}, max {ratios[-1]:.2f}")
+    print(
+        f"  of which the paths (kernels + scatter)  {paths_s * 1e3:8.1f} ms"
+        f" ({paths_s / len(paths) * 1e7:.1f} ms per 10^4 rows)"
+    )
     print(f"each extra ping (of 10)              {extra_s * 1e3:8.1f} ms   ratio {extra_s / floor_s:5.2f} x floor")
     print(f"planning (create, once)       median {planning * 1e3:8.1f} ms")
     print(

@@ -1,4 +1,4 @@
-"""Transducer side of synthesis: the pulse's spectrum and band, and a fast directivity table.
+"""Transducer side of synthesis: the pulse's spectrum and band, the piston's directivity factor.
 
 The transmitted pulse q(t) (Pa at 1 m on axis) comes from ``acoustisim.pulse``: the seed's
 Gaussian pulse (analytic spectrum) or any user ``SampledPulse`` (measured pulse, chirp), whose
@@ -14,7 +14,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.pulse import GaussianPulse, SampledPulse
-from acoustisim.propagation.directivity import piston_directivity
 
 Pulse = GaussianPulse | SampledPulse
 
@@ -60,40 +59,6 @@ def pulse_support_s(pulse: Pulse) -> tuple[float, float]:
     """Interval (s), relative to the pulse's reference instant, that holds the pulse."""
     start, stop = pulse.support_s
     return float(start), float(stop)
-
-
-@dataclass(frozen=True, eq=False)
-class JincTable:
-    """2 J1(x)/x tabulated on [0, x_max] (float32) for fast nearest-point lookup over (rows, bins).
-
-    With 1024 points per unit of x the lookup error is below h/2 max|f'| = 0.58 / 2048 = 2.8e-4
-    absolute (0.0025 dB on axis, 0.025 dB where D = 0.1): far below every tolerance that uses it.
-
-    Attributes
-    ----------
-    x_max : float
-        Largest argument (rad); beyond it the table's last value is held.
-    points_per_unit : int
-        Table density.
-    """
-
-    x_max: float
-    points_per_unit: int = 1024
-    values: NDArray[np.float32] = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        n = int(math.ceil(self.x_max * self.points_per_unit)) + 2
-        x = np.arange(n) / self.points_per_unit
-        # 2 J1(x)/x through the shared piston model: k a sin(theta) = x for f = x / (2 pi),
-        # a = c = 1 and theta = 90 deg.
-        values = piston_directivity(np.pi / 2.0, x / (2.0 * np.pi), 1.0, 1.0).astype(np.float32)
-        values.setflags(write=False)
-        object.__setattr__(self, "values", values)
-
-    def __call__(self, x: NDArray[np.floating]) -> NDArray[np.float32]:
-        """2 J1(x)/x for x >= 0 (any shape), nearest tabulated point."""
-        index = np.minimum(np.asarray(x) * np.float32(self.points_per_unit) + np.float32(0.5), self.values.size - 1)
-        return self.values[index.astype(np.intp)]
 
 
 def piston_directivity_factor(frequency_hz: ArrayLike, radius_m: float, sound_speed_m_s: float) -> NDArray[np.float64]:
