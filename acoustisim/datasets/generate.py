@@ -304,12 +304,15 @@ def _run_on_client(client: Any, spec: DatasetSpec, samples: list[SampleDescripti
     spec_f, writer_f, vocab_f = client.scatter([spec, writer, vocab], broadcast=True)
     queue = iter(samples)
     futures = as_completed()
+    index_of: dict[str, int] = {}
 
     def submit_next() -> None:
         sample = next(queue, None)
         if sample is not None:
-            futures.add(client.submit(make_sample, spec_f, sample, writer_f, vocab_f, pure=False,
-                                      key=f"dataset-sample-{sample.index}-{time.monotonic_ns()}"))
+            future = client.submit(make_sample, spec_f, sample, writer_f, vocab_f, pure=False,
+                                   key=f"dataset-sample-{sample.index}-{time.monotonic_ns()}")
+            index_of[future.key] = sample.index
+            futures.add(future)
 
     for _ in range(window):
         submit_next()
@@ -318,13 +321,23 @@ def _run_on_client(client: Any, spec: DatasetSpec, samples: list[SampleDescripti
             try:
                 result = future.result()
             except Exception as exc:
-                raise RuntimeError(f"a dataset task failed: {type(exc).__name__}: {exc}") from exc
+                raise RuntimeError(f"sample {index_of.get(future.key)} failed: {type(exc).__name__}: {exc} "
+                                   "(samples completed so far are recorded; rerun to resume)") from exc
+            index_of.pop(future.key, None)
             future.release()
             recorder.add(result)
             submit_next()
     finally:
         for future in list(futures.futures):
             future.cancel()
+
+
+def warm_up_worker() -> None:
+    """Import the simulator's modules in a worker (start-up cost, not per-sample cost)."""
+    import acoustisim.propagation.solver  # noqa: F401
+    import acoustisim.simulation  # noqa: F401
+    import scenes.builders  # noqa: F401
+    import zarr  # noqa: F401
 
 
 def _local_cluster(workers: int) -> Any:
@@ -386,7 +399,7 @@ def generate(
     mode = "in-process"
     n_workers = 0
     try:
-        if client is None and (scheduler is not None or workers != 0):
+        if client is None and todo and (scheduler is not None or workers != 0):
             from distributed import Client
 
             if scheduler is not None:
@@ -406,6 +419,7 @@ def generate(
             mode = str(client.scheduler.address)
         if client is not None:
             n_workers = len(client.scheduler_info()["workers"])
+            client.run(warm_up_worker)
         startup = time.perf_counter() - t_start
         bar = tqdm(total=spec.n_samples, initial=int(done.sum()), unit="sample", desc=spec.name,
                    disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
