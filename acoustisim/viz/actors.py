@@ -582,8 +582,10 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
                                 label=f"{n_sigma:g}-sigma error ellipsoids{scale}", group="estimate"))
     if truths:
         truth_positions = np.array([t.position_m for t in truths], dtype=float).reshape(-1, 3)
-        # Larger than the estimates' markers, so a coincident estimate leaves a ring of truth.
+        # Larger than the estimates' markers and flat, so a coincident estimate (a sphere, drawn
+        # in front) leaves a frame of truth around it.
         layers.append(Layer("truth", pv.PolyData(truth_positions), TRUTH_COLOR, 1.0, "points", point_size=17.0,
+                            flat_points=True,
                             label=f"truth ({len(truths)})", group="truth"))
         if estimates:
             positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)

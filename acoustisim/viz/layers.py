@@ -41,6 +41,9 @@ class Layer:
         Line width (pixels); WebGL draws every line 1 pixel wide.
     point_size : float
         Marker diameter (pixels) for the "points" style.
+    flat_points : bool
+        Draw points as flat squares instead of shaded spheres; a sphere marker at the same
+        place is drawn in front of a flat one (truth under estimate).
     label : str
         Legend entry; "" keeps the layer out of the legend.
     group : str
@@ -55,6 +58,7 @@ class Layer:
     style: LayerStyle = "surface"
     line_width: float = 1.0
     point_size: float = 10.0
+    flat_points: bool = False
     label: str = ""
     group: str = ""
 

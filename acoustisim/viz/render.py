@@ -108,7 +108,10 @@ def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, pad_m: float = 0.3
     groups = [layer for layer in layers if layer.group == "truth"] or [
         layer for layer in layers if layer.name == "estimates"]
     points = np.vstack([sonar.receiver_positions] + [np.asarray(layer.mesh.points, dtype=float) for layer in groups])
-    return np.array([points.min(axis=0) - pad_m, points.max(axis=0) + pad_m])
+    lo, hi = points.min(axis=0) - pad_m, points.max(axis=0) + pad_m
+    # Room on the +x side for the legend box (lower-right corner, about 30 % of the width).
+    hi[0] += 0.35 * (hi[0] - lo[0])
+    return np.array([lo, hi])
 
 
 def _camera(camera: str | CameraPreset, scene: Scene, sonar: SonarHead, layers: Sequence[Layer],
@@ -194,7 +197,8 @@ def add_layers(plotter: "pv.Plotter", layers: Sequence[Layer]) -> None:
         else:
             colour = dict(color=layer.color, opacity=layer.opacity)
         if layer.style == "points":
-            plotter.add_mesh(layer.mesh, style="points", point_size=layer.point_size, render_points_as_spheres=True,
+            plotter.add_mesh(layer.mesh, style="points", point_size=layer.point_size,
+                             render_points_as_spheres=not layer.flat_points,
                              **colour, **common)
         elif layer.style in ("lines", "wireframe"):
             plotter.add_mesh(layer.mesh, style="wireframe", line_width=layer.line_width, lighting=False,

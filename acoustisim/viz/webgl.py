@@ -67,7 +67,7 @@ def layer_payload(layer: Layer) -> dict[str, Any] | None:
     mesh = layer.mesh
     if mesh.n_points == 0:
         return None
-    item: dict[str, Any] = {"name": layer.name, "size": float(layer.point_size)}
+    item: dict[str, Any] = {"name": layer.name, "size": float(layer.point_size), "flat": bool(layer.flat_points)}
     if layer.style == "points":
         points = np.asarray(mesh.points, dtype=float)
         rgba = np.empty((len(points), 4), dtype=np.uint8)
@@ -191,7 +191,7 @@ window.addEventListener("error", function (e) {
     lit: gl.getUniformLocation(prog, "lit"), pt: gl.getUniformLocation(prog, "pt")};
   function buffer(array) { const b = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW); return b; }
   const items = data.items.map(function (it) {
-    return {mode: it.mode, count: it.count, transparent: it.transparent, size: it.size,
+    return {mode: it.mode, count: it.count, transparent: it.transparent, size: it.size, flat: it.flat,
       pos: buffer(decode(it.pos, Float32Array)), nrm: it.nrm ? buffer(decode(it.nrm, Float32Array)) : null,
       col: buffer(decode(it.col, Uint8Array))};
   });
@@ -244,7 +244,7 @@ window.addEventListener("error", function (e) {
         if (it.nrm) { gl.bindBuffer(gl.ARRAY_BUFFER, it.nrm); gl.enableVertexAttribArray(loc.n); gl.vertexAttribPointer(loc.n, 3, gl.FLOAT, false, 0, 0); }
         else { gl.disableVertexAttribArray(loc.n); gl.vertexAttrib3f(loc.n, 0, 0, 1); }
         gl.bindBuffer(gl.ARRAY_BUFFER, it.col); gl.enableVertexAttribArray(loc.c); gl.vertexAttribPointer(loc.c, 4, gl.UNSIGNED_BYTE, true, 0, 0);
-        gl.uniform1f(loc.lit, it.mode === "triangles" ? 1 : 0); gl.uniform1f(loc.pt, it.mode === "points" ? 1 : 0);
+        gl.uniform1f(loc.lit, it.mode === "triangles" ? 1 : 0); gl.uniform1f(loc.pt, it.mode === "points" && !it.flat ? 1 : 0);
         gl.uniform1f(loc.ps, it.size * dpr);
         gl.drawArrays(it.mode === "triangles" ? gl.TRIANGLES : it.mode === "lines" ? gl.LINES : gl.POINTS, 0, it.count);
       });
