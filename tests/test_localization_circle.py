@@ -193,3 +193,22 @@ def test_circle_fit_inconsistent_paths_reports_not_raise():
 def test_fit_circle_paths_unreachable_start_is_a_status():
     fit = fit_circle_paths([1.0, 1.0], [1e-3, 1e-3], np.zeros((2, 3)), np.zeros((2, 3)), [np.nan, 1.0, 0.1])
     assert fit.status == "invalid-input"
+
+
+def test_fit_that_runs_out_of_evaluations_reports_not_converged():
+    g = ArrayGeometry.seed(0.04)
+    lengths, _ = circle_path_lengths((0.3, 2.0), 0.4, np.zeros((3, 3)), g.receivers_m)
+    tx = np.zeros((3, 3))
+    # A poor start and a budget of 2 evaluations: a status, not an exception or a silent answer.
+    fit = fit_circle_paths(lengths, np.full(3, 1e-6), tx, g.receivers_m, [0.0, 1.0, 0.01], max_nfev=2)
+    assert fit.status in ("not-converged", "fit-failed") and fit.message
+
+
+def test_import_of_localization_stays_light():
+    import subprocess
+    import sys
+
+    code = ("import sys, binsonar.localization; "
+            "print(any(m.split('.')[0] in ('scipy', 'acoustisim', 'scenes', 'h5py') for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
