@@ -139,3 +139,13 @@ def test_end_to_end_on_synthetic_waveforms_with_the_detector():
     assert len(single.targets[0]) <= 1
     beta = rms_bandwidth_hz(template.samples, template.sample_rate_hz)
     assert 100e3 < beta < 140e3  # the test pulse is close to the thesis pulse (118.2 kHz)
+
+
+def test_pose_reported_even_without_targets_and_clipped_echoes_flagged():
+    det = DetectionResult("hand-built", (((), (), ()),))
+    res = localize(det, sound_speed_m_s=C, channel_positions_m=POSITIONS, pose=[1, 2, 0.5, 0, 0, 0])
+    assert res.to_dict()["pings"][0]["pose"] == [1, 2, 0.5, 0, 0, 0] and res.targets == ((),)
+    L = point_path_lengths([0.0, 1.0, 0.0], G)[0]
+    echoes = tuple((Echo(c, L[c] / C, 1.0, 20.0, 5.0, 0, 1e-7, clipped=(c == 1)),) for c in range(3))
+    res = localize(DetectionResult("hand-built", (echoes,)), sound_speed_m_s=C, channel_positions_m=POSITIONS)
+    assert "clipped channel(s) [1]" in res.targets[0][0].message

@@ -9,7 +9,7 @@ ping's pose. With several pings and known poses, targets are grouped across ping
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -86,6 +86,8 @@ class LocalizationResult:
         Echoes left out of every target.
     source : str
         The recording's path, if any.
+    poses : ndarray, shape (n_pings, 6), or None
+        Head pose of each ping in the tank, when known.
     """
 
     targets: tuple[tuple[Target, ...], ...]
@@ -96,6 +98,7 @@ class LocalizationResult:
     geometry: ArrayGeometry = field(repr=False)
     unassociated: tuple[int, ...] = ()
     source: str = ""
+    poses: NDArray[np.float64] | None = field(default=None, repr=False)
 
     @property
     def n_pings(self) -> int:
@@ -110,7 +113,7 @@ class LocalizationResult:
             "sound_speed_m_s": self.sound_speed_m_s,
             "sound_speed_source": self.sound_speed_source,
             "pings": [
-                {"ping": k, "pose": None if not ts or ts[0].pose is None else [float(v) for v in ts[0].pose],
+                {"ping": k, "pose": None if self.poses is None else [float(v) for v in self.poses[k]],
                  "unassociated_echoes": self.unassociated[k] if k < len(self.unassociated) else 0,
                  "targets": [t.to_dict() for t in ts]}
                 for k, ts in enumerate(self.targets)
@@ -170,6 +173,9 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
         ech = tuple(echoes[c][i] if i is not None else None for c, i in enumerate(idx))
         used += sum(i is not None for i in idx)
         t = target_from_path_lengths(L, S, geometry, ping=ping, echoes=ech, config=cfg.estimation)
+        clipped = [c for c, e in enumerate(ech) if e is not None and getattr(e, "clipped", False)]
+        if clipped:
+            t = replace(t, message=f"{t.message}; echoes on clipped channel(s) {clipped} (unreliable)")
         if pose is not None:
             t = t.with_pose(pose)
         targets.append(t)
@@ -281,4 +287,4 @@ def localize(
             if len(group) >= cfg.min_pings_to_fuse:
                 fused.append(fuse(observations_of(group), geometry, cfg.estimation))
     return LocalizationResult(tuple(per_ping), tuple(fused), detections.method, float(c), c_source, geometry,
-                              tuple(unassociated), source)
+                              tuple(unassociated), source, pose_arr)
