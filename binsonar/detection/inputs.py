@@ -118,7 +118,7 @@ def as_signals(
 
     where = "array"
     try:
-        waveforms = np.array(data, dtype=float)
+        waveforms = np.asarray(data, dtype=float)  # no copy for float64 input: never written to
     except (TypeError, ValueError) as exc:
         raise RecordingError(f"{where}: waveforms are not a numeric array: {exc}") from None
     if waveforms.ndim == 1:
@@ -132,8 +132,9 @@ def as_signals(
         )
     if waveforms.shape[0] < 1 or waveforms.shape[2] < 2:
         raise RecordingError(f"{where}: waveforms are empty (shape {np.shape(data)})")
-    finite = np.isfinite(waveforms)
-    if not finite.all():
+    # The sum is finite unless a sample is NaN/inf (or it overflows): one cheap pass first.
+    finite = np.isfinite(waveforms) if not np.isfinite(waveforms.sum()) else None
+    if finite is not None and not finite.all():
         bad = np.argwhere(~finite)[0]
         raise RecordingError(
             f"{where}: waveforms contain NaN or infinite samples (first at ping {bad[0]}, channel {bad[1]}, "

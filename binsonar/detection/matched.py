@@ -224,7 +224,8 @@ def plan_matched(
         For the extended (whitened) matched filter: ``noise_psd(f_hz) -> PSD`` (any unit,
         > 0); None for white noise.
     full : bool
-        False skips the record-size spectrum (enough for the local matched filter).
+        False skips the record-size spectrum and the response's properties (correlation time,
+        FWHM, side lobes: NaN): enough for the local matched filter.
     """
     import scipy.fft as sfft
 
@@ -233,17 +234,20 @@ def plan_matched(
     if m > n_samples:
         raise RecordingError(f"template ({m} samples) is longer than the record ({n_samples} samples)")
     fs = sample_rate_hz
-    # Template properties on a small grid (the response lasts < 2 m samples; 8 m avoids wrap).
-    n_small = sfft.next_fast_len(max(8 * m, 4096), real=True)
-    k_small = _band_edge_bin(s, n_small)
-    spectrum_small = sfft.rfft(s, n_small)[:k_small]
-    freqs_small = np.arange(k_small) * fs / n_small
-    psd_small = np.ones(k_small) if noise_psd is None else np.asarray(noise_psd(freqs_small), dtype=float)
-    filtered_small = np.abs(spectrum_small) ** 2 / psd_small
-    filtered_small[0] *= 0.5
-    response_power, spacing_s, correlation_time_s, fwhm_s = _response(
-        filtered_small, n_small, sfft.next_fast_len(4 * k_small), fs
-    )
+    if full:
+        # Template properties on a small grid (the response lasts < 2 m samples; 8 m avoids wrap).
+        n_small = sfft.next_fast_len(max(8 * m, 4096), real=True)
+        k_small = _band_edge_bin(s, n_small)
+        spectrum_small = sfft.rfft(s, n_small)[:k_small]
+        freqs_small = np.arange(k_small) * fs / n_small
+        psd_small = np.ones(k_small) if noise_psd is None else np.asarray(noise_psd(freqs_small), dtype=float)
+        filtered_small = np.abs(spectrum_small) ** 2 / psd_small
+        filtered_small[0] *= 0.5
+        response_power, spacing_s, correlation_time_s, fwhm_s = _response(
+            filtered_small, n_small, sfft.next_fast_len(4 * k_small), fs
+        )
+    else:  # the local matched filter needs none of these
+        response_power, spacing_s, correlation_time_s, fwhm_s = np.ones(1), float("nan"), float("nan"), float("nan")
     if noise_psd is None:
         analytic_conj, offset = _analytic_template(s)
         beta = rms_bandwidth_hz(s, fs)
@@ -336,8 +340,9 @@ def lags_time_domain(
     index = start[:, np.newaxis] + np.arange(w + taps.size - 1)  # (k, w + m_a - 1)
     inside = (index >= 0) & (index < n)
     segment = np.where(inside, rows[row_index[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
-    windows = sliding_window_view(segment, taps.size, axis=-1)  # (k, w, m_a), no copy
-    return np.einsum("kwm,m->kw", windows, taps.real) + 1j * np.einsum("kwm,m->kw", windows, taps.imag)
+    windows = np.ascontiguousarray(sliding_window_view(segment, taps.size, axis=-1))  # (k, w, m_a)
+    parts = windows @ np.stack([taps.real, taps.imag], axis=1)  # (k, w, 2), BLAS
+    return parts[..., 0] + 1j * parts[..., 1]
 
 
 def lags_from_spectrum(plan: MatchedPlan, spectrum: NDArray[np.complex128], lags: NDArray[np.intp]) -> NDArray[np.complex128]:

@@ -18,8 +18,10 @@ from binsonar.detection.noise import noise_sigma
 from binsonar.recording import RecordingError, Template
 
 # The search for the first crossing proceeds in blocks of this many samples (all channels at
-# once) and stops at the first block where every channel has crossed.
+# once) and stops at the first block where every channel has crossed; inside a block it looks
+# at the maxima of |x| over chunks first, then at the samples of the first chunk that crossed.
 _BLOCK = 16384
+_CHUNK = 64
 
 
 def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> NDArray[np.intp]:
@@ -34,10 +36,22 @@ def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> ND
     found = np.full(n_rows, -1, dtype=np.intp)
     pending = np.arange(n_rows)
     for start in range(0, n, _BLOCK):  # blocks of samples, vectorised inside
-        block = rows[pending, start:start + _BLOCK]
-        above = np.abs(block) >= level[pending, np.newaxis]
+        stop = min(start + _BLOCK, n)
+        usable = start + (stop - start) // _CHUNK * _CHUNK
+        parts = []
+        if usable > start:
+            parts.append(np.abs(rows[pending, start:usable]).reshape(pending.size, -1, _CHUNK).max(axis=2))
+        if usable < stop:  # the ragged end of the record: one shorter chunk
+            parts.append(np.abs(rows[pending, usable:stop]).max(axis=1, keepdims=True))
+        peaks = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+        above = peaks >= level[pending, np.newaxis]
         hit = above.any(axis=1)
-        found[pending[hit]] = start + np.argmax(above[hit], axis=1)
+        if hit.any():
+            chunk = np.argmax(above[hit], axis=1)
+            first = start + chunk * _CHUNK
+            index = np.minimum(first[:, np.newaxis] + np.arange(_CHUNK), n - 1)
+            samples = np.abs(rows[pending[hit, np.newaxis], index]) >= level[pending[hit], np.newaxis]
+            found[pending[hit]] = first + np.argmax(samples, axis=1)
         pending = pending[~hit]
         if pending.size == 0:
             break
