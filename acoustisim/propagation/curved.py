@@ -255,12 +255,56 @@ def go_amplitude(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.f
     return cos_i / (r1 * r2 * np.sqrt(np.abs(det)))
 
 
+def go_amplitude_general(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.float64],
+                         normal: NDArray[np.float64], e1: NDArray[np.float64], e2: NDArray[np.float64],
+                         k11: NDArray[np.float64], k22: NDArray[np.float64], k12: NDArray[np.float64]
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`go_amplitude` for a full (possibly indefinite) curvature tensor, with its phase.
+
+    Parameters
+    ----------
+    a, b, x, normal, e1, e2 : ndarray, shape (n, 3)
+        As in :func:`go_amplitude`; (e1, e2) any orthonormal tangent basis.
+    k11, k22, k12 : ndarray, shape (n,)
+        Curvature tensor in (e1, e2) (1/m, convex > 0).
+
+    Returns
+    -------
+    amplitude : ndarray, shape (n,)
+        cos(theta_i) / (r1 r2 sqrt|det H|).
+    phase_rad : ndarray, shape (n,)
+        Extra phase of the stationary point relative to a mirror, in the engineering convention
+        of ``Paths.phase_rad``: the physics factor exp(i pi sig(H) / 4) (exp(-i omega t)) relative
+        to sig = 2, conjugated: -(pi / 4)(sig - 2). 0 for a minimum (convex, plane), pi / 2 for a
+        saddle, pi for a maximum (focusing concave patch beyond its focus).
+    """
+    d1 = x - a
+    d2 = x - b
+    r1 = np.linalg.norm(d1, axis=1)
+    r2 = np.linalg.norm(d2, axis=1)
+    s1 = d1 / r1[:, None]
+    s2 = d2 / r2[:, None]
+    cos_i = np.abs(np.einsum("ij,ij->i", s1, normal))
+    cos_s = np.abs(np.einsum("ij,ij->i", s2, normal))
+    a1, a2 = np.einsum("ij,ij->i", e1, s1), np.einsum("ij,ij->i", e2, s1)
+    b1, b2 = np.einsum("ij,ij->i", e1, s2), np.einsum("ij,ij->i", e2, s2)
+    c = cos_i + cos_s
+    h11 = (1.0 - a1 * a1) / r1 + (1.0 - b1 * b1) / r2 + c * k11
+    h22 = (1.0 - a2 * a2) / r1 + (1.0 - b2 * b2) / r2 + c * k22
+    h12 = -a1 * a2 / r1 - b1 * b2 / r2 + c * k12
+    det = h11 * h22 - h12 * h12
+    trace = h11 + h22
+    signature = np.where(det < 0, 0, np.where(trace > 0, 2, -2))
+    return cos_i / (r1 * r2 * np.sqrt(np.abs(det))), -(np.pi / 4.0) * (signature - 2)
+
+
 __all__ = [
     "CurvedSet",
     "circle_specular_point",
     "cylinder_frame",
     "cylinder_specular_point",
     "go_amplitude",
+    "go_amplitude_general",
     "specular_points",
     "sphere_specular_point",
 ]

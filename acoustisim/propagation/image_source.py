@@ -19,12 +19,13 @@ from numpy.typing import NDArray
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
 from acoustisim.propagation.raycast import RayCaster
-from acoustisim.scene import Scene
+from acoustisim.scene import Scene, SceneObject
 
 MAX_OBJECT_MIRRORS = 256
-"""Objects (without a curved primitive) with more planar facets than this are not used as
-mirrors: they are smooth or finely detailed meshes, not polyhedra, and order-3 chains over
-their facets would explode combinatorially."""
+"""Objects (without a curved primitive) with more planar patches than this are not used as
+mirrors: they are smooth or finely detailed meshes, not polyhedra (traced through their
+interpolated normals instead, :mod:`acoustisim.propagation.smooth_mesh`), and order-3 chains
+over their facets would explode combinatorially."""
 
 _ON_PLANE_TOL_M = 1e-12
 """A point this close (m) to a mirror's plane counts as on it (float64 round-off at tank scale)."""
@@ -113,33 +114,38 @@ class PlanarMirrors:
             mesh = obj.mesh
             if isinstance(obj.primitive, SpherePrimitive):
                 continue  # never a mirror (and its facets are not worth computing)
-            facet_normals = np.asarray(mesh.facets_normal, dtype=float) if len(mesh.facets) else np.zeros((0, 3))
             if obj.primitive is None:
-                if len(mesh.facets) > MAX_OBJECT_MIRRORS:
-                    continue
-                chosen = range(len(mesh.facets))
-            elif isinstance(obj.primitive, CylinderPrimitive):
-                axis = np.asarray(obj.primitive.axis, dtype=float)
-                chosen = [k for k in range(len(mesh.facets)) if abs(facet_normals[k] @ axis) > 1.0 - 1e-9]
-            else:
-                continue
-            for k in chosen:
-                faces = np.asarray(mesh.facets[k], dtype=np.int64) + offset
-                tri = tri_all[faces]
-                normals.append(facet_normals[k])
-                surfaces.append(s)
-                patches.append(int(raycaster.patch_index[faces[0]]))
-                material_of.append(material_index(obj.material))
-                if isinstance(obj.primitive, CylinderPrimitive):
-                    cyl = obj.primitive
-                    side = np.sign(facet_normals[k] @ np.asarray(cyl.axis))
-                    points.append(np.asarray(cyl.center_m) + side * 0.5 * cyl.length_m * np.asarray(cyl.axis))
-                    polygons.append(tri[:1])
-                    discs.append(float(cyl.radius_m))
-                else:
+                # every planar patch (coplanar facet or lonely triangle) of a polyhedron
+                labels = raycaster.patch_index[faces_of_object]
+                if not is_polyhedral(obj, raycaster, s):
+                    continue  # a smooth mesh (see acoustisim.propagation.smooth_mesh)
+                order = np.argsort(labels, kind="stable")
+                bounds = np.flatnonzero(np.r_[True, np.diff(labels[order]) != 0, True])
+                groups = [faces_of_object[order[b0:b1]] for b0, b1 in zip(bounds[:-1], bounds[1:])]
+                for faces in groups:
+                    tri = tri_all[faces]
+                    normals.append(raycaster.face_normals[faces[0]])
+                    surfaces.append(s)
+                    patches.append(int(raycaster.patch_index[faces[0]]))
+                    material_of.append(material_index(obj.material))
                     points.append(tri[0, 0])
                     polygons.append(tri)
                     discs.append(np.nan)
+            elif isinstance(obj.primitive, CylinderPrimitive):
+                # the flat caps, as exact discs
+                cyl = obj.primitive
+                axis = np.asarray(cyl.axis, dtype=float)
+                facet_normals = np.asarray(mesh.facets_normal, dtype=float) if len(mesh.facets) else np.zeros((0, 3))
+                for k in [k for k in range(len(mesh.facets)) if abs(facet_normals[k] @ axis) > 1.0 - 1e-9]:
+                    faces = np.asarray(mesh.facets[k], dtype=np.int64) + offset
+                    side = np.sign(facet_normals[k] @ axis)
+                    normals.append(facet_normals[k])
+                    surfaces.append(s)
+                    patches.append(int(raycaster.patch_index[faces[0]]))
+                    material_of.append(material_index(obj.material))
+                    points.append(np.asarray(cyl.center_m) + side * 0.5 * cyl.length_m * axis)
+                    polygons.append(tri_all[faces[:1]])
+                    discs.append(float(cyl.radius_m))
         m = len(points)
         t = max((len(p) for p in polygons), default=1)
         triangles = np.zeros((m, t, 3, 3))
@@ -203,6 +209,28 @@ class PlanarMirrors:
         u = 1.0 - v - w
         inside = (u >= -_INSIDE_TOL) & (v >= -_INSIDE_TOL) & (w >= -_INSIDE_TOL)
         return np.where(np.isnan(radius), np.any(inside, axis=1), in_disc)
+
+
+def object_patch_count(raycaster: RayCaster, surface: int) -> int:
+    """Number of planar patches (coplanar facets and lonely triangles) of one object's mesh."""
+    labels = raycaster.patch_index[raycaster.surface_index == surface]
+    return int(labels.max() - labels.min() + 1) if labels.size else 0
+
+
+def is_polyhedral(obj: SceneObject, raycaster: RayCaster, surface: int) -> bool:
+    """Whether an object without a primitive is traced as planar mirrors (a polyhedron).
+
+    It is if every edge between non-coplanar faces is a crease (dihedral angle above
+    ``smooth_mesh.CREASE_DEG``: the mesh does not approximate a curved surface) and it has at
+    most :data:`MAX_OBJECT_MIRRORS` planar patches; otherwise it is a smooth mesh.
+    """
+    from acoustisim.propagation.smooth_mesh import CREASE_DEG
+
+    if obj.primitive is not None or object_patch_count(raycaster, surface) > MAX_OBJECT_MIRRORS:
+        return False
+    angles = np.asarray(obj.mesh.face_adjacency_angles, dtype=float)
+    # 1e-6 rad: trimesh's own coplanarity tolerance for facets is of this order
+    return not bool(np.any((angles > 1e-6) & (angles < np.radians(CREASE_DEG))))
 
 
 def mirror_sequences(sees: NDArray[np.bool_], length: int, first: NDArray[np.bool_] | None = None,
@@ -303,4 +331,4 @@ def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: ND
     return points, valid
 
 
-__all__ = ["MAX_OBJECT_MIRRORS", "PlanarMirrors", "backtrace", "mirror_sequences", "unfold"]
+__all__ = ["MAX_OBJECT_MIRRORS", "PlanarMirrors", "backtrace", "mirror_sequences", "is_polyhedral", "object_patch_count", "unfold"]

@@ -17,8 +17,9 @@ from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
 from acoustisim.propagation.curved import CurvedSet
-from acoustisim.propagation.image_source import PlanarMirrors
+from acoustisim.propagation.image_source import PlanarMirrors, is_polyhedral
 from acoustisim.propagation.raycast import RayCaster
+from acoustisim.propagation.smooth_mesh import SmoothMesh
 from acoustisim.scene import Scene, SceneObject
 
 MIN_FACE_AREA_FRACTION = 1e-14
@@ -51,6 +52,27 @@ class CurvedReflector:
 
 
 @dataclass(frozen=True, eq=False)
+class SmoothReflector:
+    """A user mesh without a primitive, too finely faceted to be a set of mirrors, traced through
+    its interpolated normals (:mod:`acoustisim.propagation.smooth_mesh`).
+
+    Attributes
+    ----------
+    surface : int
+        Index into ``scene.surface_names``.
+    material : Material
+    mesh : SmoothMesh
+    patch : ndarray of int64, shape (t,)
+        The ray caster's patch label of each of ``mesh``'s triangles.
+    """
+
+    surface: int
+    material: Material
+    mesh: SmoothMesh
+    patch: NDArray[np.int64] = field(repr=False)
+
+
+@dataclass(frozen=True, eq=False)
 class PreparedScene:
     """A scene with its validated geometry, Embree scene, mirrors and curved reflectors.
 
@@ -64,6 +86,7 @@ class PreparedScene:
     curved: tuple[CurvedReflector, ...]
     curved_set: CurvedSet = field(repr=False)
     curved_seen_by: NDArray[np.bool_] = field(repr=False)
+    smooth: tuple[SmoothReflector, ...] = ()
 
 
 def check_mesh(obj: SceneObject) -> None:
@@ -116,7 +139,14 @@ def prepare(scene: Scene) -> PreparedScene:
                 CurvedReflector(s, int(raycaster.patch_index[faces[0]]), obj.primitive, obj.material, seen_by))
     seen_by = np.array([r.seen_by for r in curved], dtype=bool).reshape(len(curved), mirrors.count)
     curved_set = CurvedSet.from_primitives([r.primitive for r in curved])
-    return PreparedScene(scene, raycaster, mirrors, tuple(curved), curved_set, seen_by)
+    smooth = []
+    for j, obj in enumerate(scene.objects):
+        s = n_boundaries + j
+        if obj.primitive is None and not is_polyhedral(obj, raycaster, s):
+            offset = int(np.flatnonzero(raycaster.surface_index == s)[0])
+            mesh = SmoothMesh.from_mesh(obj.mesh)
+            smooth.append(SmoothReflector(s, obj.material, mesh, raycaster.patch_index[offset + mesh.source_face]))
+    return PreparedScene(scene, raycaster, mirrors, tuple(curved), curved_set, seen_by, tuple(smooth))
 
 
-__all__ = ["CurvedReflector", "PreparedScene", "check_mesh", "prepare"]
+__all__ = ["CurvedReflector", "PreparedScene", "SmoothReflector", "check_mesh", "prepare"]

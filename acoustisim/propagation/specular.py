@@ -31,10 +31,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.curved import go_amplitude, specular_points
+from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, specular_points
 from acoustisim.propagation.image_source import PlanarMirrors, backtrace, mirror_sequences, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
-from acoustisim.propagation.prepared import CurvedReflector, PreparedScene
+from acoustisim.propagation.prepared import PreparedScene
 
 _REAL_TOL = 1e-12
 """|Im R| below this fraction of |R| counts as a real coefficient (sign kept in the gain)."""
@@ -53,6 +53,7 @@ class _Chains:
     spreading: NDArray[np.float64]  # (n,) gain without reflection coefficients
     channel: NDArray[np.int64]  # (n,)
     chain: NDArray[np.int64]  # (n,) chain id (shared across channels)
+    phase: NDArray[np.float64] | None = None  # (n,) extra phase_rad of the stationary point (saddles)
 
 
 def direct_rows(context: SolveContext) -> NDArray[Any]:
@@ -183,8 +184,38 @@ def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int,
     return chains, chain_base + n_chain
 
 
-def _reflection_product(chains: _Chains, mirrors: PlanarMirrors, reflectors: tuple[CurvedReflector, ...],
-                        context: SolveContext) -> NDArray[np.complex128]:
+def _smooth_chains(context: SolveContext, prepared: PreparedScene, chain_base: int) -> tuple[_Chains, int]:
+    """First-order echoes of smooth meshes (transmitter -> mesh -> each receiver)."""
+    tx = context.transmitter_m
+    rx = context.receivers_m
+    n_rx = rx.shape[0]
+    parts = []
+    for i, reflector in enumerate(prepared.smooth):
+        a = np.broadcast_to(tx, (n_rx, 3))
+        pair, tri, x, normal, e1, e2, k11, k22, k12 = reflector.mesh.specular_points(np.array(a), rx)
+        spreading, phase = go_amplitude_general(a[pair], rx[pair], x, normal, e1, e2, k11, k22, k12)
+        n = pair.size
+        vertices = np.stack([np.broadcast_to(tx, (n, 3)), x, rx[pair]], axis=1)
+        length = np.linalg.norm(x - tx, axis=1) + np.linalg.norm(rx[pair] - x, axis=1)
+        # path ids: one per (mesh, specular point), shared by receivers only by coincidence
+        chain = chain_base + np.arange(n)
+        chain_base += n
+        parts.append(_Chains(vertices, np.full((n, 1), reflector.surface), reflector.patch[tri][:, None],
+                             normal[:, None, :], [("smooth", np.full(n, i))], length, spreading, pair, chain, phase))
+    if not parts:
+        return _Chains(np.zeros((0, 3, 3)), np.zeros((0, 1), np.int64), np.zeros((0, 1), np.int64),
+                       np.zeros((0, 1, 3)), [("smooth", np.zeros(0, np.int64))], np.zeros(0), np.zeros(0),
+                       np.zeros(0, np.int64), np.zeros(0, np.int64)), chain_base
+    return _Chains(
+        np.concatenate([p.vertices for p in parts]), np.concatenate([p.surface for p in parts]),
+        np.concatenate([p.patch for p in parts]), np.concatenate([p.normal for p in parts]),
+        [("smooth", np.concatenate([p.material[0][1] for p in parts]))], np.concatenate([p.length for p in parts]),
+        np.concatenate([p.spreading for p in parts]), np.concatenate([p.channel for p in parts]),
+        np.concatenate([p.chain for p in parts]), np.concatenate([p.phase for p in parts]),
+    ), chain_base
+
+
+def _reflection_product(chains: _Chains, prepared: PreparedScene, context: SolveContext) -> NDArray[np.complex128]:
     """Product over the chain's vertices of R(cos theta_incidence) (n,), complex."""
     n = chains.length.shape[0]
     total = np.ones(n, dtype=complex)
@@ -202,7 +233,12 @@ def _reflection_product(chains: _Chains, mirrors: PlanarMirrors, reflectors: tup
             incoming = np.where(norm > 1e-12, incoming, mirrored)
         previous = incoming
         cos_i = np.abs(np.einsum("ij,ij->i", incoming, chains.normal[:, j]))
-        table = mirrors.materials if source == "mirror" else tuple(r.material for r in reflectors)
+        if source == "mirror":
+            table = prepared.mirrors.materials
+        elif source == "curved":
+            table = tuple(r.material for r in prepared.curved)
+        else:
+            table = tuple(r.material for r in prepared.smooth)
         r = np.ones(n, dtype=complex)
         for m in np.unique(index):
             sel = index == m
@@ -267,6 +303,9 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
             for n_after in range(max_order - n_before):
                 chains, chain_base = _mixed_chains(context, prepared, n_before, n_after, chain_base)
                 groups.append(chains)
+    if prepared.smooth:
+        chains, chain_base = _smooth_chains(context, prepared, chain_base)
+        groups.append(chains)
     # one batched occlusion query over every leg of every candidate
     origins, targets, excludes, owner = [], [], [], []
     for g, chains in enumerate(groups):
@@ -291,7 +330,11 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
             continue
         blocked = blocked_legs[offset:offset + n * legs].reshape(n, legs).any(axis=1)
         offset += n * legs
-        reflection = _reflection_product(chains, mirrors, prepared.curved, context)
+        reflection = _reflection_product(chains, prepared, context)
+        if chains.phase is not None:
+            # R in the physics convention exp(-i omega t) and the stationary-point phase in the
+            # engineering one: convert the latter back before multiplying
+            reflection = reflection * np.exp(-1j * chains.phase)
         out.append(_rows_from_chains(chains, blocked, reflection, context.first_path_id))
     return _deduplicate_rows(np.concatenate(out))
 

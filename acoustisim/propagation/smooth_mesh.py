@@ -1,0 +1,200 @@
+"""Specular points on smooth triangle meshes (user meshes without an analytic primitive).
+
+A smooth mesh is traced through its interpolated (Phong) vertex normals, split at creases
+sharper than :data:`CREASE_DEG` so that true edges stay sharp. For a source A and receiver B,
+a specular point is where the interpolated normal n(u, v) equals the bisector of the
+directions to A and B seen from the point X(u, v) of the flat triangle (barycentric u, v):
+solved by Newton's method on every triangle whose normal cone can contain the bisector
+(vectorised over candidate (pair, triangle) combinations). Several specular points per pair are
+possible (non-convex meshes).
+
+The curvature tensor at X is the gradient of the interpolated normal (the shape operator
+dn = S dX, symmetrised), which feeds the general bistatic Hessian of
+:func:`acoustisim.propagation.curved.go_amplitude_general`. Position and curvature converge to
+the smooth surface's as O(h^2) in the mesh spacing h.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+CREASE_DEG = 30.0
+"""Dihedral angle (degrees) above which an edge is a crease: normals are not interpolated across it."""
+
+_NEWTON_STEPS = 12
+"""Newton iterations in barycentric coordinates (quadratic convergence; 6-8 suffice from the centroid)."""
+
+_BARY_TOL = 1e-9
+"""Barycentric slack at the triangle's edges (points on a shared edge belong to both triangles)."""
+
+
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+@dataclass(frozen=True, eq=False)
+class SmoothMesh:
+    """A mesh traced through interpolated normals.
+
+    Attributes
+    ----------
+    triangles : ndarray, shape (t, 3, 3)
+        Corner positions (m).
+    corner_normals : ndarray, shape (t, 3, 3)
+        Unit vertex normals at the corners (outward, split at creases).
+    face_normals : ndarray, shape (t, 3)
+    spread : ndarray, shape (t,)
+        Largest angle (rad) between a corner normal and the face normal.
+    size : ndarray, shape (t,)
+        Longest edge (m).
+    source_face : ndarray of int64, shape (t,)
+        Index of each triangle in the original mesh (crease splitting may reorder faces).
+    """
+
+    triangles: NDArray[np.float64] = field(repr=False)
+    corner_normals: NDArray[np.float64] = field(repr=False)
+    face_normals: NDArray[np.float64] = field(repr=False)
+    spread: NDArray[np.float64] = field(repr=False)
+    size: NDArray[np.float64] = field(repr=False)
+    source_face: NDArray[np.int64] = field(repr=False)
+
+    @classmethod
+    def from_mesh(cls, mesh) -> "SmoothMesh":  # type: ignore[no-untyped-def]
+        """Interpolated normals of a trimesh (faces keep their order)."""
+        import trimesh
+
+        smooth = trimesh.graph.smooth_shade(mesh, angle=np.radians(CREASE_DEG), facet_minarea=None)
+        triangles = np.asarray(smooth.triangles, dtype=float)
+        faces = np.asarray(smooth.faces)
+        # vertex normals with Max's (1999) weights, cross(e1, e2) / (|e1|^2 |e2|^2) per corner:
+        # exact for vertices on a sphere, so the interpolated normal's gradient (the curvature)
+        # converges with refinement (area weights leave an O(1) error in the gradient)
+        summed = np.zeros((len(smooth.vertices), 3))
+        for corner in range(3):
+            e1 = triangles[:, (corner + 1) % 3] - triangles[:, corner]
+            e2 = triangles[:, (corner + 2) % 3] - triangles[:, corner]
+            weight = np.einsum("ij,ij->i", e1, e1) * np.einsum("ij,ij->i", e2, e2)
+            np.add.at(summed, faces[:, corner], np.cross(e1, e2) / weight[:, None])
+        vertex_normals = _unit(summed)
+        corner_normals = vertex_normals[faces]
+        face_normals = np.asarray(smooth.face_normals, dtype=float)
+        cosines = np.einsum("tjk,tk->tj", corner_normals, face_normals)
+        spread = np.arccos(np.clip(cosines.min(axis=1), -1.0, 1.0))
+        edges = triangles[:, [1, 2, 0]] - triangles
+        size = np.linalg.norm(edges, axis=2).max(axis=1)
+        from scipy.spatial import cKDTree
+
+        _, source_face = cKDTree(np.asarray(mesh.triangles_center)).query(triangles.mean(axis=1))
+        return cls(triangles, corner_normals, face_normals, spread, size, np.asarray(source_face, dtype=np.int64))
+
+    def _normal(self, tri: NDArray[np.int64], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+        n = self.corner_normals[tri]
+        return (1.0 - u - v)[:, None] * n[:, 0] + u[:, None] * n[:, 1] + v[:, None] * n[:, 2]
+
+    def _point(self, tri: NDArray[np.int64], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+        p = self.triangles[tri]
+        return p[:, 0] + u[:, None] * (p[:, 1] - p[:, 0]) + v[:, None] * (p[:, 2] - p[:, 0])
+
+    def specular_points(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray, ...]:
+        """All specular points of pairs (a[i], b[i]).
+
+        Parameters
+        ----------
+        a, b : ndarray, shape (n, 3)
+            (Image) source and receiver (m).
+
+        Returns
+        -------
+        pair : ndarray of int64, shape (m,)
+            Which pair each solution belongs to.
+        triangle : ndarray of int64, shape (m,)
+        point, normal : ndarray, shape (m, 3)
+            Specular point on the flat triangle (m) and the interpolated unit normal there.
+        e1, e2 : ndarray, shape (m, 3)
+            Orthonormal tangent basis.
+        k11, k22, k12 : ndarray, shape (m,)
+            Shape operator in (e1, e2) (1/m, convex > 0), symmetrised.
+        """
+        centroid = self.triangles.mean(axis=1)
+        # candidate (pair, triangle) combinations whose normal cone can contain the bisector: the
+        # bisector turns by at most ~ size / distance across a triangle; 3x margins
+        pair_list, tri_list = [], []
+        for i in range(a.shape[0]):  # loop over pairs (a handful), vectorised over triangles
+            da = a[i] - centroid
+            db = b[i] - centroid
+            ra = np.linalg.norm(da, axis=1)
+            rb = np.linalg.norm(db, axis=1)
+            h = _unit(da / ra[:, None] + db / rb[:, None])
+            cos_h = np.einsum("tk,tk->t", h, self.face_normals)
+            slack = 3.0 * self.spread + 3.0 * self.size / np.minimum(ra, rb) + 1e-6
+            lit = (np.einsum("tk,tk->t", da, self.face_normals) > 0) & (np.einsum("tk,tk->t", db, self.face_normals) > 0)
+            near = lit & (cos_h > np.cos(np.minimum(slack, np.pi / 2)))
+            idx = np.flatnonzero(near)
+            pair_list.append(np.full(idx.size, i))
+            tri_list.append(idx)
+        pair = np.concatenate(pair_list).astype(np.int64) if pair_list else np.zeros(0, np.int64)
+        tri = np.concatenate(tri_list).astype(np.int64) if tri_list else np.zeros(0, np.int64)
+        empty = np.zeros((0, 3))
+        if tri.size == 0:
+            z = np.zeros(0)
+            return pair, tri, empty, empty, empty, empty, z, z, z
+        p = self.triangles[tri]
+        e_u = p[:, 1] - p[:, 0]
+        e_v = p[:, 2] - p[:, 0]
+        t1 = _unit(e_u)
+        t2 = np.cross(self.face_normals[tri], t1)
+        aa, bb = a[pair], b[pair]
+
+        def residual(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+            x = self._point(tri, u, v)
+            h = _unit(_unit(aa - x) + _unit(bb - x))
+            d = h - _unit(self._normal(tri, u, v))
+            return np.stack([np.einsum("ij,ij->i", d, t1), np.einsum("ij,ij->i", d, t2)], axis=1)
+
+        u = np.full(tri.size, 1.0 / 3.0)
+        v = np.full(tri.size, 1.0 / 3.0)
+        step = 1e-7
+        for _ in range(_NEWTON_STEPS):
+            f = residual(u, v)
+            ju = (residual(u + step, v) - f) / step
+            jv = (residual(u, v + step) - f) / step
+            det = ju[:, 0] * jv[:, 1] - ju[:, 1] * jv[:, 0]
+            det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+            du = (f[:, 0] * jv[:, 1] - f[:, 1] * jv[:, 0]) / det
+            dv = (ju[:, 0] * f[:, 1] - ju[:, 1] * f[:, 0]) / det
+            u = u - np.clip(du, -0.5, 0.5)
+            v = v - np.clip(dv, -0.5, 0.5)
+        f = residual(u, v)
+        ok = (np.linalg.norm(f, axis=1) < 1e-10) & (u >= -_BARY_TOL) & (v >= -_BARY_TOL) & (u + v <= 1 + _BARY_TOL)
+        pair, tri, u, v, p, e_u, e_v = pair[ok], tri[ok], u[ok], v[ok], p[ok], e_u[ok], e_v[ok]
+        x = self._point(tri, u, v)
+        raw = self._normal(tri, u, v)
+        norm = np.linalg.norm(raw, axis=1, keepdims=True)
+        n = raw / norm
+        # a point on an edge shared by two triangles is found twice: keep one per pair
+        key = np.column_stack([pair, np.round(x / 1e-7)]).astype(np.int64)
+        _, first = np.unique(key, axis=0, return_index=True)
+        first = np.sort(first)
+        pair, tri, x, n, norm, e_u, e_v = pair[first], tri[first], x[first], n[first], norm[first], e_u[first], e_v[first]
+        # shape operator from the normal's gradient: dn = S dX on the tangent plane
+        cn = self.corner_normals[tri]
+        proj = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
+        dn_du = np.einsum("ijk,ik->ij", proj, cn[:, 1] - cn[:, 0]) / norm
+        dn_dv = np.einsum("ijk,ik->ij", proj, cn[:, 2] - cn[:, 0]) / norm
+        e1 = _unit(np.einsum("ijk,ik->ij", proj, e_u))
+        e2 = np.cross(n, e1)
+
+        def in_basis(w: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.stack([np.einsum("ij,ij->i", w, e1), np.einsum("ij,ij->i", w, e2)], axis=1)
+
+        big_n = np.stack([in_basis(dn_du), in_basis(dn_dv)], axis=1)  # rows: d/du, d/dv
+        big_m = np.stack([in_basis(e_u), in_basis(e_v)], axis=1)
+        shape = np.swapaxes(np.linalg.solve(big_m, big_n), 1, 2)
+        shape = 0.5 * (shape + np.swapaxes(shape, 1, 2))
+        return pair, tri, x, n, e1, e2, shape[:, 0, 0], shape[:, 1, 1], shape[:, 0, 1]
+
+
+__all__ = ["CREASE_DEG", "SmoothMesh"]
