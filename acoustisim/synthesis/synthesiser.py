@@ -24,9 +24,9 @@ O(chunk x Lk) plus O(record) plus the tables (a few MB).
 
 Table resolutions (nearest entry): sin(theta) in steps of 1/8192 (directivity error below
 7e-4 absolute at the centre frequency, 0.02 dB where D = 0.3), path length in 1 cm steps
-(absorption error below 3e-5 relative at 500 kHz), delay in 1/8192 of a decimated sample
-(0.02 ns at 20 MS/s / 7: the echo's error is below 1e-4 of its peak and its delay is exact
-to 0.02 ns).
+(absorption error below 3e-5 relative at 500 kHz), delay in steps of at most 0.05 ns (a
+power-of-two fraction of a decimated sample: the echo's error is below 1e-4 of its peak at
+500 kHz and its delay is exact to 0.025 ns).
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ CHUNK_ROWS = 8192
 SINE_STEPS = 8192
 """Directivity table: entries per unit of sin(theta)."""
 
-DELAY_STEPS = 8192
-"""Phase-ramp table: entries per decimated sample of fractional delay."""
+DELAY_RESOLUTION_S = 5e-11
+"""Phase-ramp table: fractional-delay step at most this (s); 8192 steps per sample at 20 MS/s / 7."""
 
 LENGTH_STEP_M = 0.01
 """Absorption table: path-length step (m)."""
@@ -126,9 +126,9 @@ class KernelPlan:
         Index of the pulse's reference instant in a kernel, before the fractional shift.
     max_spread : float
         Largest |sin theta_tx| + |sin theta_rx| the kernel holds without wrap-around.
-    phase_table : ndarray (DELAY_STEPS + 1, n_bins) complex64
-        fs_dec Q(f_k) exp(-j 2 pi k (centre + u / DELAY_STEPS) / Lk): the sampled pulse with its
-        reference instant at centre + u / DELAY_STEPS samples.
+    phase_table : ndarray (delay_steps + 1, n_bins) complex64
+        fs_dec Q(f_k) exp(-j 2 pi k (centre + u / delay_steps) / Lk): the sampled pulse with its
+        reference instant at centre + u / delay_steps samples.
     directivity_table : ndarray (SINE_STEPS + 1, n_bins) float32
         2 J1(x)/x at x = k a s, s = i / SINE_STEPS.
     absorption_table : ndarray (n_lengths, n_bins) float32
@@ -139,6 +139,7 @@ class KernelPlan:
     centre: int
     max_spread: float
     phase_table: NDArray[np.complex64] = field(repr=False)
+    delay_steps: int
     directivity_table: NDArray[np.float32] = field(repr=False)
     absorption_table: NDArray[np.float32] = field(repr=False)
 
@@ -149,14 +150,20 @@ class KernelPlan:
     ) -> "KernelPlan":
         """Tabulate the factors of a kernel's spectrum on its bins ``bins_hz`` (Hz)."""
         k = np.arange(bins_hz.size)
-        shift = centre + np.arange(DELAY_STEPS + 1)[:, None] / DELAY_STEPS
+        delay_steps = 1 << int(math.ceil(math.log2(1.0 / (fs_dec * DELAY_RESOLUTION_S))))
+        shift = centre + np.arange(delay_steps + 1)[:, None] / delay_steps
         phase = (fs_dec * pulse_spectrum(pulse, bins_hz))[None, :] * np.exp(-2j * np.pi * shift * k / length)
+        # 2 J1(x)/x on a fine x grid (64 per unit: linear interpolation error h^2/32 < 1e-5),
+        # through the shared piston model (x = k a sin(theta) with f = x / (2 pi), a = c = 1).
+        kappa = 2.0 * np.pi * bins_hz * radius_m / medium.sound_speed
+        x_grid = np.arange(int(math.ceil((kappa[-1] if kappa.size else 1.0) * 64)) + 2) / 64.0
+        jinc = piston_directivity(0.5 * np.pi, x_grid / (2.0 * np.pi), 1.0, 1.0)
         sines = np.arange(SINE_STEPS + 1) / SINE_STEPS
-        directivity = piston_directivity(np.arcsin(sines)[:, None], bins_hz[None, :], radius_m, medium.sound_speed)
+        directivity = np.interp(np.multiply.outer(sines, kappa), x_grid, jinc)
         lengths = np.arange(int(math.ceil(max_length_m / LENGTH_STEP_M)) + 1) * LENGTH_STEP_M
         absorption = 10.0 ** (-np.multiply.outer(lengths, medium.absorption_db_per_m(bins_hz)) / 20.0)
         return cls(
-            length, centre, max_spread, phase.astype(np.complex64), directivity.astype(np.float32),
+            length, centre, max_spread, phase.astype(np.complex64), delay_steps, directivity.astype(np.float32),
             absorption.astype(np.float32),
         )
 
@@ -247,7 +254,7 @@ class PathSynthesiser:
         i_tx = np.rint(np.abs(np.sin(angle_tx)) * SINE_STEPS).astype(np.intp)
         i_rx = np.rint(np.abs(np.sin(angle_rx)) * SINE_STEPS).astype(np.intp)
         i_len = np.minimum(np.rint(rows["path_length_m"] / LENGTH_STEP_M), plan.absorption_table.shape[0] - 1)
-        i_frac = np.rint(frac * DELAY_STEPS).astype(np.intp)
+        i_frac = np.rint(frac * plan.delay_steps).astype(np.intp)
         weight = (rows["geometric_gain"] * np.exp(1j * rows["phase_rad"]) * front).astype(np.complex64)
         spectra = plan.directivity_table[i_tx]
         spectra *= plan.directivity_table[i_rx]
