@@ -102,12 +102,20 @@ def _prefer_egl_without_display() -> None:
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 
-def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, pad_m: float = 0.3) -> NDArray[np.float64]:
-    """The region (2, 3) (m) around the sonar and the true targets (the estimates when there is
-    no truth), padded by ``pad_m``: what the "targets" camera frames."""
-    groups = [layer for layer in layers if layer.group == "truth"] or [
-        layer for layer in layers if layer.name == "estimates"]
-    points = np.vstack([sonar.receiver_positions] + [np.asarray(layer.mesh.points, dtype=float) for layer in groups])
+def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, region: NDArray[np.float64], pad_m: float = 0.3,
+                   match_radius_m: float = 0.25) -> NDArray[np.float64]:
+    """What the "targets" camera frames (2, 3) (m): the sonar, the estimates inside ``region``
+    and the true targets within ``match_radius_m`` of one (all true targets when there is no
+    estimate), padded by ``pad_m`` and widened toward +x for the legend box."""
+    by_name = {layer.name: np.asarray(layer.mesh.points, dtype=float) for layer in layers
+               if layer.name in ("estimates", "truth")}
+    estimates = by_name.get("estimates", np.empty((0, 3)))
+    truths = by_name.get("truth", np.empty((0, 3)))
+    inside = estimates[np.all((estimates >= region[0]) & (estimates <= region[1]), axis=1)]
+    if inside.size and truths.size:
+        near = np.min(np.linalg.norm(truths[:, None, :] - inside[None, :, :], axis=2), axis=1) <= match_radius_m
+        truths = truths[near]
+    points = np.vstack([sonar.receiver_positions, inside, truths])
     lo, hi = points.min(axis=0) - pad_m, points.max(axis=0) + pad_m
     # Room on the +x side for the legend box (lower-right corner, about 30 % of the width).
     hi[0] += 0.35 * (hi[0] - lo[0])
@@ -118,7 +126,9 @@ def _camera(camera: str | CameraPreset, scene: Scene, sonar: SonarHead, layers: 
             window_size: tuple[int, int]) -> CameraPreset:
     if isinstance(camera, CameraPreset):
         return camera
-    bounds = targets_bounds(layers, sonar) if camera == "targets" else scene_bounds(scene, sonar)
+    bounds = scene_bounds(scene, sonar)
+    if camera == "targets":
+        bounds = targets_bounds(layers, sonar, bounds)
     return camera_preset(camera, bounds, aspect=window_size[0] / window_size[1], sonar=sonar)
 
 

@@ -18,4 +18,5 @@ acoustisim view free-cylinder --camera perspective --echo 0 --png "$out/free-cyl
 acoustisim simulate thesis-tank -o "$tmp/ping.h5" --seed 1 >/dev/null
 binsonar localize "$tmp/ping.h5" --json > "$tmp/results.json"
 acoustisim view thesis-tank --ping "$tmp/ping.h5" --results "$tmp/results.json" --camera targets \
-    --no-paths --no-beam --size 1200x600 --png "$out/thesis-tank-localisation.png"
+    --no-paths --no-beam --size 1200x600 --title "thesis-tank: binsonar localize estimates vs truth" \
+    --png "$out/thesis-tank-localisation.png"
