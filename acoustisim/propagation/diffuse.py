@@ -3,12 +3,12 @@
 Rays leave the transmitter in directions drawn from a mixture of two densities over the
 whole sphere (``physics.md`` section 5)::
 
-    pdf(w) = a / (4 pi) + (1 - a) D(theta)^2 / Z,    Z = Int D^2 dOmega,
+    pdf(w) = a / (4 pi) + (1 - a) D(theta)^2 / Z  (theta < 90 deg),    Z = Int D^2 dOmega,
 
 half of them uniform (side lobes, the back, the floor under the head) and half importance
-sampled by the transmit power directivity D^2 = (2 J1(x)/x)^2 at the centre frequency (the
-main lobe; D^2 is tabulated as a density piecewise constant in cos(theta), so the pdf of each
-drawn direction is exact). Each ray carries the solid angle ``dOmega = 1 / (N pdf)``; one
+sampled by the forward transmit power directivity D^2 = (2 J1(x)/x)^2 at the centre
+frequency (the main lobe; D^2 is tabulated as a density piecewise constant in cos(theta), so
+the pdf of each drawn direction is exact). Each ray carries the solid angle ``dOmega = 1 / (N pdf)``; one
 batched Embree ``intersect`` finds every first hit.
 
 Each hit is a point scatterer (next-event estimation): with Lambert's law
@@ -72,6 +72,26 @@ def _splitmix64(x: NDArray[np.uint64]) -> NDArray[np.uint64]:
     return z ^ (z >> np.uint64(31))
 
 
+def speckle_polar(points_m: NDArray[np.float64], seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Magnitude and phase of the speckle factors of :func:`speckle` (no complex arithmetic).
+
+    Returns
+    -------
+    magnitude : ndarray, shape (n,)
+        |X| (Rayleigh distributed, E|X|^2 = 1).
+    phase : ndarray, shape (n,)
+        arg X in [-pi, pi) (rad), uniform.
+    """
+    cells = np.floor(np.asarray(points_m, dtype=float) / SPECKLE_CELL_M).astype(np.int64).view(np.uint64)
+    key = (cells[:, 0] * _PRIME_X) ^ (cells[:, 1] * _PRIME_Y) ^ (cells[:, 2] * _PRIME_Z)
+    h = _splitmix64(key ^ _splitmix64(np.array([seed], dtype=np.uint64)))
+    h2 = _splitmix64(h)
+    u1 = (h >> np.uint64(11)).astype(np.float64) * 2.0**-53
+    u2 = (h2 >> np.uint64(11)).astype(np.float64) * 2.0**-53
+    # |X|^2 ~ Exp(1), phase uniform
+    return np.sqrt(-np.log1p(-u1)), 2.0 * np.pi * u2 - np.pi
+
+
 def speckle(points_m: NDArray[np.float64], seed: int) -> NDArray[np.complex128]:
     """Complex Gaussian speckle factors frozen to world positions.
 
@@ -86,16 +106,11 @@ def speckle(points_m: NDArray[np.float64], seed: int) -> NDArray[np.complex128]:
     -------
     ndarray of complex, shape (n,)
         Circular complex Gaussian values with E|X|^2 = 1; equal for points in the same cube of
-        side :data:`SPECKLE_CELL_M`, whatever the receiver, ping or ray that found them.
+        side :data:`SPECKLE_CELL_M`, whatever the receiver, ping or ray that found them (the
+        value is a hash of the cube's integer coordinates and the seed).
     """
-    cells = np.floor(np.asarray(points_m, dtype=float) / SPECKLE_CELL_M).astype(np.int64).view(np.uint64)
-    key = (cells[:, 0] * _PRIME_X) ^ (cells[:, 1] * _PRIME_Y) ^ (cells[:, 2] * _PRIME_Z)
-    h = _splitmix64(key ^ _splitmix64(np.array([seed], dtype=np.uint64)))
-    h2 = _splitmix64(h)
-    u1 = (h >> np.uint64(11)).astype(np.float64) * 2.0**-53
-    u2 = (h2 >> np.uint64(11)).astype(np.float64) * 2.0**-53
-    # |X|^2 ~ Exp(1), phase uniform
-    return np.sqrt(-np.log1p(-u1)) * np.exp(2j * np.pi * u2)
+    magnitude, phase = speckle_polar(points_m, seed)
+    return magnitude * np.exp(1j * phase)
 
 
 def _basis(axis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -141,6 +156,9 @@ def sample_directions(
     edges = np.linspace(1.0, -1.0, _COS_CELLS + 1)  # cos(theta) from the axis backwards
     centres = np.arccos(0.5 * (edges[1:] + edges[:-1]))
     power = piston_directivity(centres, context.centre_frequency_hz, context.piston_radius_m, context.sound_speed_m_s) ** 2
+    # 2 J1(x)/x with x = k a sin(theta) is symmetric about 90 degrees; the lobe density keeps the
+    # forward half (the transducer's face) and leaves the backward half to the uniform share
+    power = np.where(centres < 0.5 * np.pi, power, 0.0)
     mass = np.cumsum(power)
     width = 2.0 / _COS_CELLS
     lobe_pdf = power / (mass[-1] * 2.0 * np.pi * width)  # per steradian, per cell
@@ -269,17 +287,20 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         to_rx = rx[None, :, :] - points[:, None, :]  # (n_hits, n_rx, 3)
         r2 = np.sqrt(np.einsum("ijk,ijk->ij", to_rx, to_rx))
         sin_gs = np.einsum("ijk,ik->ij", to_rx, normal) / r2
-        hit_idx, rx_idx = np.nonzero(sin_gs > 0.0)
+        magnitude, phase = speckle_polar(points, config.seed)
+        gain = (magnitude * np.sqrt(weight * mu))[:, None] * np.sqrt(np.maximum(sin_gs, 0.0)) / r2
+        flat = np.flatnonzero(sin_gs > 0.0)  # (hit, receiver) pairs in front of the face
+        n_rx = rx.shape[0]
+        hit_idx, rx_idx = flat // n_rx, flat % n_rx
         clear = ~raycaster.occluded(points[hit_idx], rx[rx_idx])
-        hit_idx, rx_idx = hit_idx[clear], rx_idx[clear]
-        x = speckle(points, config.seed)[hit_idx]
-        r2_sel = r2[hit_idx, rx_idx]
+        flat, hit_idx, rx_idx = flat[clear], hit_idx[clear], rx_idx[clear]
+        r2_sel = r2.reshape(-1)[flat]
         rc["event"].append(next_event + hit_idx)
         rc["channel"].append(rx_idx)
         rc["length"].append(travelled[hit_idx] + r2_sel)
-        rc["gain"].append(np.abs(x) * np.sqrt(weight[hit_idx] * mu[hit_idx] * sin_gs[hit_idx, rx_idx]) / r2_sel)
-        rc["phase"].append(np.angle(x))
-        rc["arrival"].append(to_rx[hit_idx, rx_idx] / r2_sel[:, None])
+        rc["gain"].append(gain.reshape(-1)[flat])
+        rc["phase"].append(phase[hit_idx])
+        rc["arrival"].append(to_rx.reshape(-1, 3)[flat] / r2_sel[:, None])
         parent = next_event + np.arange(n_hits)
         next_event += n_hits
         if bounce + 1 >= int(config.diffuse_bounces):
@@ -369,5 +390,6 @@ __all__ = [
     "diffuse_paths",
     "sample_directions",
     "speckle",
+    "speckle_polar",
     "trace_diffuse",
 ]

@@ -8,6 +8,11 @@ integral of ``-(nu / 4 pi) beta / (m l) dz`` (signed), so that the sum of the ro
 and receiver is its band-limited impulse response relative to the source's pressure at 1 m.
 All elements of one (polygonal) edge and one receiver share a ``path_id``.
 
+Boundary conditions (:func:`~acoustisim.propagation.edge_extraction.is_pressure_release`):
+pressure-release materials (and ``fixed`` ones with a negative coefficient) diffract as
+pressure-release wedges; every other material, the ``fluid`` ones (steel, PVC, concrete)
+included, as a rigid wedge, the BTM solution existing for the two ideal conditions only.
+
 Discretisation: neighbouring elements differ in path length by ``c / (16 f0)`` (a delay of
 1/(16 f0): 22.5 degrees of phase at 2 f0, the top of the pulse's band, well under the quarter
 period the integral needs) and are at most ``config.edge_segment_m`` long.
