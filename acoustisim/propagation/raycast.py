@@ -192,6 +192,9 @@ class RayCaster:
         faces32 = np.ascontiguousarray(faces, dtype=np.int32)
         embree = rtcore_scene.EmbreeScene()
         TriangleMesh(embree, vertices32, faces32)
+        # Embree builds its BVH lazily on the first query: do it here, once per scene, so that
+        # per-pose queries (and their timings) do not pay for it
+        embree.run(np.zeros((1, 3), dtype=np.float32), np.array([[1.0, 0.0, 0.0]], dtype=np.float32))
         return cls(
             vertices=vertices,
             faces=faces,

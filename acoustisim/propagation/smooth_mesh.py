@@ -72,12 +72,15 @@ class SmoothMesh:
         # vertex normals with Max's (1999) weights, cross(e1, e2) / (|e1|^2 |e2|^2) per corner:
         # exact for vertices on a sphere, so the interpolated normal's gradient (the curvature)
         # converges with refinement (area weights leave an O(1) error in the gradient)
-        summed = np.zeros((len(smooth.vertices), 3))
+        n_vertices = len(smooth.vertices)
+        summed = np.zeros((n_vertices, 3))
         for corner in range(3):
             e1 = triangles[:, (corner + 1) % 3] - triangles[:, corner]
             e2 = triangles[:, (corner + 2) % 3] - triangles[:, corner]
             weight = np.einsum("ij,ij->i", e1, e1) * np.einsum("ij,ij->i", e2, e2)
-            np.add.at(summed, faces[:, corner], np.cross(e1, e2) / weight[:, None])
+            contribution = np.cross(e1, e2) / weight[:, None]
+            for k in range(3):  # bincount: a scatter-add far faster than np.add.at
+                summed[:, k] += np.bincount(faces[:, corner], contribution[:, k], minlength=n_vertices)
         vertex_normals = _unit(summed)
         corner_normals = vertex_normals[faces]
         face_normals = np.asarray(smooth.face_normals, dtype=float)
