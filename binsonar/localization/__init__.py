@@ -26,5 +26,5 @@ __all__ = [
     "LocalizationResult", "ModelFit", "PoseObservation", "Target", "associate", "circle_path_lengths", "classify",
     "fit_circle", "fit_plane", "fit_point", "fuse", "head_to_tank", "head_to_tank_rotation", "localize",
     "plane_path_lengths", "point_from_path_lengths", "point_path_lengths", "seed_path_lengths",
-    "seed_point_covariance", "tank_to_head", "tri_aural_approximation",
+    "seed_point_covariance", "tank_to_head", "target_from_path_lengths", "tri_aural_approximation",
 ]

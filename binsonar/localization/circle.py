@@ -32,7 +32,7 @@ CIRCLE_PARAMETERS: tuple[str, str, str] = ("xc_m", "yc_m", "rc_m")
 
 
 def tri_aural_approximation(left_m: ArrayLike, centre_m: ArrayLike, right_m: ArrayLike,
-                            separation_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+                            separation_m: float) -> tuple[NDArray[np.float64], ...]:
     """The seed's approximate circle, eqs. 4.37-4.44 as written (vectorised).
 
     Parameters

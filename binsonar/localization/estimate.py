@@ -57,7 +57,8 @@ def _embed(cov2: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _invalid_target(ping: int, lengths: NDArray[np.float64], sigma: NDArray[np.float64],
-                    echoes: tuple[Echo | None, ...], status: str, message: str, fits: tuple[ModelFit, ...] = ()) -> tg.Target:
+                    echoes: tuple[Echo | None, ...], status: str, message: str,
+                    fits: tuple[ModelFit, ...] = ()) -> tg.Target:
     return tg.Target(ping, UNKNOWN, status, message, np.full(3, np.nan), np.full((3, 3), np.nan), np.nan, np.nan,
                      np.nan, np.nan, path_lengths_m=lengths, path_length_std_m=sigma, echoes=echoes, fits=fits)
 
@@ -96,7 +97,8 @@ def target_from_path_lengths(
     d = geometry.half_baseline_m
     if np.any(np.isinf(L)) or not (np.isfinite(L[0]) and np.isfinite(L[2])):
         return _invalid_target(ping, L, s, echoes, tg.STATUS_INVALID_PATH_LENGTHS,
-                               f"need finite left and right path lengths (NaN only for a missing centre), got {L.tolist()}")
+                               "need finite left and right path lengths (NaN only for a missing centre), "
+                               f"got {L.tolist()}")
     if not np.all(np.isfinite(s[np.isfinite(L)]) & (s[np.isfinite(L)] > 0)):
         return _invalid_target(ping, L, s, echoes, tg.STATUS_INVALID_PATH_LENGTHS,
                                f"path-length stds must be finite and > 0, got {s.tolist()}")

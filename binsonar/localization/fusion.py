@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from binsonar.localization import target as tg
 from binsonar.localization.array_geometry import ArrayGeometry
@@ -290,6 +290,7 @@ def group_across_pings(targets: Sequence[tg.Target], gate_m: float) -> list[list
 
 def observations_of(targets: Sequence[tg.Target]) -> list[PoseObservation]:
     """PoseObservations from targets that carry a pose."""
-    return [PoseObservation(t.pose, t.path_lengths_m, t.path_length_std_m, t.ping) for t in targets if t.pose is not None]
+    return [PoseObservation(t.pose, t.path_lengths_m, t.path_length_std_m, t.ping)
+            for t in targets if t.pose is not None]
 
 

@@ -30,6 +30,8 @@ from numpy.typing import ArrayLike, NDArray
 from binsonar.localization.array_geometry import ArrayGeometry
 from binsonar.localization.fit import INVALID_INPUT, ModelFit, weighted_least_squares
 
+ArrayPair = tuple[NDArray[np.float64], NDArray[np.float64]]
+
 # Status values of a seed-geometry point solution.
 POINT_OK = "ok"
 NOT_FINITE = "not-finite"
@@ -37,7 +39,7 @@ SHORTER_THAN_BASELINE = "shorter-than-baseline"
 DIFFERENCE_TOO_LARGE = "path-difference-exceeds-baseline"
 
 
-def seed_path_lengths(range_m: ArrayLike, bearing_rad: ArrayLike, separation_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def seed_path_lengths(range_m: ArrayLike, bearing_rad: ArrayLike, separation_m: ArrayLike) -> ArrayPair:
     """Forward model, eq. 4.29: left and right bistatic path lengths (m) of a point target.
 
     Parameters
@@ -55,7 +57,7 @@ def seed_path_lengths(range_m: ArrayLike, bearing_rad: ArrayLike, separation_m: 
     return r + np.sqrt(r * r + d * d + 2 * r * d * s), r + np.sqrt(r * r + d * d - 2 * r * d * s)
 
 
-def seed_point_status(left_m: ArrayLike, right_m: ArrayLike, separation_m: float) -> NDArray[np.str_]:
+def seed_point_status(left_m: ArrayLike, right_m: ArrayLike, separation_m: ArrayLike) -> NDArray[np.str_]:
     """Why a pair of path lengths has no point solution ("ok" where it has one), elementwise.
 
     A path is at least the transmitter-receiver distance d, and |R1 - R2| <= 2 d by the triangle
@@ -78,13 +80,13 @@ def seed_point_status(left_m: ArrayLike, right_m: ArrayLike, separation_m: float
     return status
 
 
-def _raw_range_sine(r1: NDArray[np.float64], r2: NDArray[np.float64], d: NDArray[np.float64] | float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _raw_range_sine(r1: NDArray[np.float64], r2: NDArray[np.float64], d: NDArray[np.float64] | float) -> ArrayPair:
     q = r1 * r1 + r2 * r2 - 2 * d * d
     with np.errstate(invalid="ignore", divide="ignore"):
         return q / (2 * (r1 + r2)), (r1 - r2) * (r1 * r2 + d * d) / (d * q)
 
 
-def point_from_path_lengths(left_m: ArrayLike, right_m: ArrayLike, separation_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def point_from_path_lengths(left_m: ArrayLike, right_m: ArrayLike, separation_m: ArrayLike) -> ArrayPair:
     """Exact range and bearing of a point target in the seed geometry (vectorised).
 
     Parameters
@@ -109,7 +111,7 @@ def point_from_path_lengths(left_m: ArrayLike, right_m: ArrayLike, separation_m:
     return np.where(good, r, np.nan), np.where(good, theta, np.nan)
 
 
-def seed_bearing_eq_4_31(left_m: ArrayLike, right_m: ArrayLike, separation_m: float) -> NDArray[np.float64]:
+def seed_bearing_eq_4_31(left_m: ArrayLike, right_m: ArrayLike, separation_m: ArrayLike) -> NDArray[np.float64]:
     """The seed's PRINTED eq. 4.31 (wrong; documentation and tests only): bearing (rad), NaN if |sin| > 1."""
     r1 = np.asarray(left_m, dtype=float)
     r2 = np.asarray(right_m, dtype=float)
@@ -144,7 +146,7 @@ def seed_point_covariance(range_m: ArrayLike, bearing_rad: ArrayLike, separation
     return ainv @ sig @ np.swapaxes(ainv, -1, -2)
 
 
-def bistatic_path_lengths(position_m: ArrayLike, transmitters_m: ArrayLike, receivers_m: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def bistatic_path_lengths(position_m: ArrayLike, transmitters_m: ArrayLike, receivers_m: ArrayLike) -> ArrayPair:
     """Bistatic path lengths |p - T_k| + |p - R_k| of a point for m paths, and their gradient.
 
     Parameters
@@ -170,7 +172,7 @@ def bistatic_path_lengths(position_m: ArrayLike, transmitters_m: ArrayLike, rece
     return nt + nr, grad
 
 
-def point_path_lengths(position_m: ArrayLike, geometry: ArrayGeometry) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def point_path_lengths(position_m: ArrayLike, geometry: ArrayGeometry) -> ArrayPair:
     """Bistatic path lengths (3,) of a point reflector for the head's receivers, and their gradient (3, 3).
 
     Parameters
@@ -182,7 +184,8 @@ def point_path_lengths(position_m: ArrayLike, geometry: ArrayGeometry) -> tuple[
     return bistatic_path_lengths(position_m, np.broadcast_to(geometry.transmitter_m, (3, 3)), geometry.receivers_m)
 
 
-def range_bearing_from_position(position_m: ArrayLike, covariance: ArrayLike, geometry: ArrayGeometry) -> tuple[float, float, float, float]:
+def range_bearing_from_position(position_m: ArrayLike, covariance: ArrayLike,
+                                geometry: ArrayGeometry) -> tuple[float, float, float, float]:
     """Range from the transmitter (m) and bearing atan2(x, y) (deg) of a head-frame point, with stds.
 
     ``covariance`` is the (3, 3) covariance of the position (m^2); the stds are linearised.
@@ -196,7 +199,8 @@ def range_bearing_from_position(position_m: ArrayLike, covariance: ArrayLike, ge
     with np.errstate(invalid="ignore"):
         var_r = float(g_r @ cov @ g_r) if np.all(np.isfinite(cov)) else float(np.inf)
         var_b = float(g_b @ cov @ g_b) if np.all(np.isfinite(cov)) else float(np.inf)
-    return rng, float(np.degrees(np.arctan2(v[0], v[1]))), float(np.sqrt(abs(var_r))), float(np.degrees(np.sqrt(abs(var_b))))
+    bearing_deg = float(np.degrees(np.arctan2(v[0], v[1])))
+    return rng, bearing_deg, float(np.sqrt(abs(var_r))), float(np.degrees(np.sqrt(abs(var_b))))
 
 
 def initial_point(lengths_m: ArrayLike, geometry: ArrayGeometry) -> NDArray[np.float64]:
@@ -207,7 +211,8 @@ def initial_point(lengths_m: ArrayLike, geometry: ArrayGeometry) -> NDArray[np.f
     if np.isfinite(L[0]) and np.isfinite(L[2]):
         r, th = point_from_path_lengths(L[0], L[2], d)
         if np.isfinite(r) and r > 0:
-            return geometry.transmitter_m + np.array([r * np.sin(th), r * np.cos(th), mid[2] - geometry.transmitter_m[2]])
+            height = mid[2] - geometry.transmitter_m[2]
+            return geometry.transmitter_m + np.array([r * np.sin(th), r * np.cos(th), height])
     finite = L[np.isfinite(L)]
     half = 0.5 * float(np.mean(finite)) if finite.size else np.nan
     return geometry.transmitter_m + np.array([0.0, half, 0.0])

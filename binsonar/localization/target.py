@@ -23,6 +23,13 @@ STATUS_FIT_FAILED = "fit-failed"
 STATUS_NO_MODEL_FITS = "no-model-fits"
 
 
+def _radius_json(radius_m: float) -> float | str | None:
+    """A radius for JSON: None when not fitted, "inf" for a plane."""
+    if math.isnan(radius_m):
+        return None
+    return float(radius_m) if math.isfinite(radius_m) else "inf"
+
+
 def _frozen(a: ArrayLike) -> NDArray[np.float64]:
     out = np.array(a, dtype=float)
     out.setflags(write=False)
@@ -146,7 +153,7 @@ class Target:
             "position_head_std_m": vec(self.position_std_m),
             "position_tank_m": vec(self.position_tank_m),
             "position_tank_std_m": vec(self.position_tank_std_m),
-            "radius_m": None if math.isnan(self.radius_m) else (float(self.radius_m) if math.isfinite(self.radius_m) else "inf"),
+            "radius_m": _radius_json(self.radius_m),
             "radius_std_m": num(self.radius_std_m),
             "path_lengths_m": vec(self.path_lengths_m),
             "path_length_std_m": vec(self.path_length_std_m),
