@@ -198,7 +198,6 @@ def detect_energy(
     n_cells = int(math.floor((n - 1) / decimation)) + 1
     band, mu = _band_statistic(spectrum, masks, n_env, scale, None)
     stat = _moving_average(band[:, :n_cells], length)
-    # Noise moments of the statistic: mean K; variance from each band's autocorrelation.
     # Noise law of the statistic: e is the quadratic form (1/L) sum |z_k(t_j)|^2 / mu_k over the
     # K x L band samples in a window, whose normalised covariance is rho_kl(j - i), the inverse
     # FFT of mask_k mask_l over the bands' powers (adjacent bands overlap, so they correlate).

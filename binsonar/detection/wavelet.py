@@ -124,8 +124,8 @@ def detect_dwt(
     m = s.size
     n_rows, n = rows.shape
     if levels is None:
-        # Deep enough that the coarsest detail band (fs / 2^(J+1) .. fs / 2^J) lies below the
-        # template's centroid frequency over 2.
+        # Deep enough that the coarsest detail band (fs / 2^(J+1) .. fs / 2^J) reaches down to
+        # half the template's centroid frequency: 2^J >= fs / centroid.
         spectrum = np.abs(np.fft.rfft(s, 8 * m)) ** 2
         centroid = float(np.sum(np.fft.rfftfreq(8 * m, 1 / fs) * spectrum) / np.sum(spectrum))
         levels = max(1, int(math.ceil(math.log2(fs / centroid))))
@@ -169,7 +169,7 @@ def detect_dwt(
     mean = window * float(np.sum(weights / repeats))
     var = 2.0 * window * float(np.sum(weights ** 2 / repeats))
     threshold = float(gammainccinv(mean * mean / var, pfa / n_cells) * var / mean)  # Gamma upper quantile
-    # Energy scale: template energy in the weighted statistic per unit sigma^2 (white noise).
+    # The clean template's statistic (unit sigma), the scale of an echo's excess statistic.
     template_stat = float(np.mean(cal_stat.max(axis=1)))
     peak_template = float(np.max(np.abs(s)))
     energy_template = float(np.sum(s ** 2))
