@@ -353,7 +353,7 @@ def _sonar_overrides(reader: _Reader) -> tuple[tuple[str, Any], ...]:
 
 def _solver_options(reader: _Reader) -> tuple[tuple[str, Any], ...]:
     """``[solver]`` keys, checked by building a ``SolverConfig`` from them."""
-    from acoustisim.propagation import SolverConfig
+    from acoustisim.propagation.config import SolverConfig
 
     allowed = {f.name for f in dataclasses.fields(SolverConfig)} - {"seed"}
     options = []
