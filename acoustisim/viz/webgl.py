@@ -140,7 +140,7 @@ _PAGE = """<!DOCTYPE html>
 html,body{margin:0;height:100%;overflow:hidden;background:#fff;font:13px sans-serif}
 canvas{display:block;width:100vw;height:100vh}
 #title{position:absolute;left:10px;top:8px;font-size:16px}
-#legend{position:absolute;right:10px;top:10px;background:rgba(255,255,255,.85);border:1px solid #999;padding:6px 8px}
+#legend{position:absolute;right:10px;bottom:10px;background:rgba(255,255,255,.85);border:1px solid #999;padding:6px 8px}
 #legend div{white-space:nowrap;line-height:18px}
 #legend span{display:inline-block;width:12px;height:12px;margin-right:6px;vertical-align:-1px}
 #help{position:absolute;left:10px;bottom:8px;color:#555}
