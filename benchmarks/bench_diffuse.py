@@ -108,6 +108,9 @@ def main() -> int:
           f"medians of {args.repeats}")
     for name, seconds in results.items():
         print(f"  {name:14s} {seconds * 1e3:9.2f} ms   {n / seconds / 1e6:7.3f} M rays/s")
+    queries = n + seg_t32.size
+    print(f"  tracer Embree queries (rays + NEE segments): {queries / results['tracer'] / 1e6:.3f} M/s, "
+          f"raw: {queries / results['raw same work'] / 1e6:.3f} M/s")
     print(f"  tracer / raw intersect = {results['tracer'] / results['raw intersect']:.2f}x   (goal <= 2x)")
     print(f"  tracer / raw same work = {results['tracer'] / results['raw same work']:.2f}x")
     print(f"  diffuse_paths / tracer = {results['diffuse_paths'] / results['tracer']:.2f}x")

@@ -139,3 +139,12 @@ def test_speckle_is_frozen_to_the_world_position():
     rows = diffuse_paths(context, SolverConfig(diffuse_rays=2000))
     for pid in np.unique(rows["path_id"])[:50]:
         assert np.unique(rows[rows["path_id"] == pid]["phase_rad"]).size == 1
+
+
+def test_no_scatterers_no_rows():
+    """Free field with a rigid sphere (mu = 0) and rays that mostly escape: nothing scatters."""
+    scene = builtin_scene("free-sphere")
+    context = SolveContext.build(scene, scene.sonar, RayCaster.from_scene(scene))
+    assert scene.objects[0].material.diffuse_mu == 0.0
+    rows = diffuse_paths(context, SolverConfig(diffuse_rays=500, diffuse_bounces=2))
+    assert rows.size == 0 and rows.dtype == diffuse_paths(context, SolverConfig(diffuse_rays=0)).dtype
