@@ -26,6 +26,9 @@ BASE_METHODS: tuple[str, ...] = (
 )
 METHODS: tuple[str, ...] = BASE_METHODS + tuple(c.name for c in SEED_COMBINATIONS)
 CLIPPED_POLICIES: tuple[str, ...] = ("flag", "drop", "error")
+# Rows (ping-channels) processed together: bounds the spectra held at once (24 x 250,000
+# samples: about 50 MB of complex spectrum) while keeping the FFTs batched.
+ROW_CHUNK = 24
 
 RawEchoes = list[list[tuple[float, float, float, float, float]]]
 
@@ -238,19 +241,27 @@ def _run(
     template: Template | None,
     options: dict[str, Any],
 ) -> RawEchoes:
-    """Call a base method with what it needs."""
+    """Call a base method with what it needs, on chunks of rows (bounded memory: every method
+    treats rows independently)."""
     fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
     if base == "threshold":
-        return function(rows, sample_rate_hz=fs, t0_s=t0, template=template, where=where, **options)
-    if template is None:
+        call = lambda chunk: function(chunk, sample_rate_hz=fs, t0_s=t0, template=template, where=where, **options)  # noqa: E731
+    elif template is None:
         raise RecordingError(f"{where}: method {base!r} needs a template")
-    if base in ("energy", "whitened-matched", "dwt"):
-        return function(rows, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)
-    from binsonar.detection.matched import plan_matched
+    elif base in ("energy", "whitened-matched", "dwt"):
+        call = lambda chunk: function(chunk, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)  # noqa: E731
+    else:
+        from binsonar.detection.matched import plan_matched
 
-    plan = plan_matched(template, rows.shape[1], fs, full=base != "local-matched")
-    if base == "matched":
-        return function(rows, plan, t0_s=t0, **options)
-    if base == "local-matched":
-        return function(rows, plan, t0_s=t0, where=where, **options)
-    return function(rows, plan, t0_s=t0, kind="ca" if base == "ca-cfar" else "os", **options)
+        plan = plan_matched(template, rows.shape[1], fs, full=base != "local-matched")
+        if base == "matched":
+            call = lambda chunk: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
+        elif base == "local-matched":
+            call = lambda chunk: function(chunk, plan, t0_s=t0, where=where, **options)  # noqa: E731
+        else:
+            kind = "ca" if base == "ca-cfar" else "os"
+            call = lambda chunk: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
+    out: RawEchoes = []
+    for start in range(0, rows.shape[0], ROW_CHUNK):  # chunks of rows, vectorised inside
+        out.extend(call(rows[start:start + ROW_CHUNK]))
+    return out
