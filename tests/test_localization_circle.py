@@ -212,3 +212,12 @@ def test_import_of_localization_stays_light():
             "print(any(m.split('.')[0] in ('scipy', 'acoustisim', 'scenes', 'h5py') for m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_newton_from_the_bisector_converges_in_three_steps():
+    # physics.md: Newton on the reflection angle from the bisector normal converges in 2-3 steps.
+    g = ArrayGeometry.seed(0.15)
+    for centre, rc in (((0.0, 0.5), 0.3), ((0.8, 0.6), 0.5), ((-0.2, 3.0), 0.01)):
+        three, _ = circle_path_lengths(centre, rc, np.zeros((3, 3)), g.receivers_m, n_newton=3)
+        many, _ = circle_path_lengths(centre, rc, np.zeros((3, 3)), g.receivers_m, n_newton=20)
+        np.testing.assert_allclose(three, many, rtol=0, atol=1e-14)  # rounding of metre-scale lengths

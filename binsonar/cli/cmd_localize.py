@@ -1,4 +1,16 @@
-"""``binsonar localize PING.h5 [--method DETECTOR] [--sound-speed C] [--json]``: targets per ping."""
+"""``binsonar localize PING.h5 [--method DETECTOR] [--sound-speed C] [--json]``: targets per ping.
+
+``--json`` prints one object: ``source``, ``method``, ``sound_speed_m_s``, ``sound_speed_source``
+("recording" or "argument"), ``pings`` (per ping: ``ping``, ``pose`` or null,
+``unassociated_echoes``, ``targets``) and ``fused`` (targets fused over pings with known poses).
+Each target has ``class`` (point, cylinder, plane, unknown), ``status`` ("ok" or the problem, e.g.
+"radius-not-observable", "no-centre-echo", "invalid-path-lengths"), ``message``, ``range_m``,
+``range_std_m``, ``bearing_deg``, ``bearing_std_deg``, ``position_head_m`` and
+``position_head_std_m``, ``position_tank_m`` and ``position_tank_std_m`` (null without a pose),
+``radius_m`` (null when not fitted, "inf" for a plane), ``radius_std_m``, ``path_lengths_m``,
+``path_length_std_m`` and ``tof_s`` (left, centre, right; null where missing). Non-finite numbers
+are null.
+"""
 
 from __future__ import annotations
 
