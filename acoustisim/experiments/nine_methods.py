@@ -40,6 +40,8 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument("--min-range", type=float, default=2.0, help="nearest range (m, default 2)")
     parser.add_argument("--max-range", type=float, default=5.0, help="farthest range (m, default 5)")
     parser.add_argument("--max-bearing", type=float, default=3.0, help="bearings drawn in +/- this (deg, default 3)")
+    parser.add_argument("--no-reverberation", action="store_true",
+                        help="leave out the diffuse (Lambert) reverberation of the floor, surface, walls and prism")
 
 
 def measure_group(trial: Trial) -> dict[str, Any]:
@@ -48,9 +50,9 @@ def measure_group(trial: Trial) -> dict[str, Any]:
 
     from acoustisim.experiments.gating import gate_recording, range_window_s
     from acoustisim.experiments.geometry import pose_for_target
-    from acoustisim.experiments.point_target import EDGE_M, GATE_HALF_WIDTH_M, edge_tank_scene, estimate_point
+    from acoustisim.experiments.point_target import (
+        EDGE_M, GATE_HALF_WIDTH_M, edge_tank_scene, estimate_point, solver_config)
     from acoustisim.experiments.truth import object_truth
-    from acoustisim.propagation import SolverConfig, solve
     from acoustisim.simulation import simulate
     from binsonar.detection import detect
 
@@ -68,7 +70,7 @@ def measure_group(trial: Trial) -> dict[str, Any]:
     t = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
-        sim = simulate(scene, sonar, solver_config=SolverConfig(max_order=2), seed=trial.seed, n_pings=n_pings)
+        sim = simulate(scene, sonar, solver_config=solver_config(p), seed=trial.seed, n_pings=n_pings)
     simulate_s = time.perf_counter() - t
     recording = gate_recording(sim.recording, start_s, stop_s + tail_s)
     out: dict[str, Any] = {"range_m": range_m, "bearing_deg": bearing_deg, "n_pings": n_pings,
@@ -169,8 +171,9 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     ranges = np.linspace(lo, hi, n_groups) if n_groups > 1 else np.array([0.5 * (lo + hi)])
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 4_2_4]))
     bearings = rng.uniform(-max_bearing, max_bearing, n_groups)
-    params = [{"range_m": float(r), "bearing_deg": float(b), "n_pings": int(n), "methods": METHODS}
-              for r, b, n in zip(ranges, bearings, sizes)]
+    reverberation = not bool(config.option("no_reverberation", False))
+    params = [{"range_m": float(r), "bearing_deg": float(b), "n_pings": int(n), "methods": METHODS,
+               "reverberation": reverberation} for r, b, n in zip(ranges, bearings, sizes)]
     trials = make_trials(config.seed, params)
     start = time.perf_counter()
     groups = run_trials(measure_group, trials, workers=config.workers, description=config.name,
@@ -179,7 +182,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     summary = summarise(groups, METHODS)
     report = ExperimentReport(config.name, config.out_dir)
     report.results = {
-        "seed": config.seed, "pings": total, "pings_per_position": per, "positions": n_groups,
+        "seed": config.seed, "reverberation": reverberation, "pings": total, "pings_per_position": per, "positions": n_groups,
         "range_m": [lo, hi], "correct_threshold_m": CORRECT_M, "wall_time_s": wall_s,
         "simulate_s_per_ping": float(sum(g["simulate_s"] for g in groups) / total),
         "summary": summary, "groups": groups,

@@ -78,11 +78,23 @@ def bound_of(echoes: tuple[Any, Any, Any], range_m: float, bearing_deg: float, s
     return float(math.sqrt(cov[0, 0])), float(math.degrees(math.sqrt(cov[1, 1])))
 
 
+def solver_config(params: dict[str, Any]) -> Any:
+    """Propagation settings of a trial: ``max_order`` (default 2: the gate holds no higher order) and,
+    with ``reverberation`` False, no diffuse mechanism (no Lambert reverberation from the floor,
+    surface, walls and the prism's faces)."""
+    from acoustisim.propagation import SolverConfig
+    from acoustisim.propagation.config import MECHANISMS
+
+    mechanisms = MECHANISMS if params.get("reverberation", True) else tuple(m for m in MECHANISMS if m != "diffuse")
+    return SolverConfig(max_order=int(params.get("max_order", 2)), mechanisms=mechanisms)
+
+
 def measure_position(trial: Trial) -> dict[str, Any]:
     """Simulate and measure one position, ``repeats`` times (a module-level function for the runner).
 
     Trial parameters: ``range_m``, ``bearing_deg``, ``n_pings``, ``repeats``; optional
-    ``detectors`` (tuple of method names), ``max_order`` (propagation).
+    ``detectors`` (tuple of method names), ``max_order`` and ``reverberation`` (propagation, see
+    ``solver_config``).
 
     Returns
     -------
@@ -92,7 +104,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
         ``range_error_m``, ``bearing_error_deg``, ``detected``, ``elapsed_s``, ``snr_db``
         (left/right mean), ``bound_range_m``, ``bound_bearing_deg``.
     """
-    from acoustisim.propagation import SolverConfig, solve
+    from acoustisim.propagation import solve
     from acoustisim.simulation import simulate
     from binsonar.detection import detect
 
@@ -112,7 +124,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     truth = object_truth(scene, sonar, scene.objects[0])
     half_baseline = float(sonar.separation_m)
     t = time.perf_counter()
-    paths = solve(scene, sonar, SolverConfig(max_order=int(p.get("max_order", 2))))
+    paths = solve(scene, sonar, solver_config(p))
     solve_s = time.perf_counter() - t
     out: dict[str, Any] = {
         "range_m": range_m, "bearing_deg": bearing_deg,
