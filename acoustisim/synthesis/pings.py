@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -40,7 +41,8 @@ class Pings:
     clipped : bool ndarray, shape (n_pings, 3)
     volts_per_code : float
     clean : ndarray, shape (3, n_samples)
-        The noise-free ADC input (V): echoes and main bang, after the chain and TVG.
+        The noise-free ADC input (V): echoes and main bang, after the chain and TVG (computed
+        on first access: one inverse FFT).
     noise_sigma_v : ndarray, shape (3,) or None
         Per-channel white-noise standard deviation (V) when ``snr_db`` set it.
     """
@@ -49,8 +51,16 @@ class Pings:
     volts: NDArray[np.float64] = field(repr=False)
     clipped: NDArray[np.bool_] = field(repr=False)
     volts_per_code: float
-    clean: NDArray[np.float64] = field(repr=False)
     noise_sigma_v: NDArray[np.float64] | None = None
+    deterministic_spectrum: NDArray[np.complex128] | None = field(default=None, repr=False)
+    synthesiser: "PingSynthesiser | None" = field(default=None, repr=False)
+
+    @cached_property
+    def clean(self) -> NDArray[np.float64]:
+        """Noise-free ADC input (3, n_samples) (V)."""
+        if self.synthesiser is None or self.deterministic_spectrum is None:
+            raise ValueError("these pings carry no deterministic spectrum")
+        return self.synthesiser.to_volts(self.deterministic_spectrum)
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,7 +207,6 @@ class PingSynthesiser:
         deterministic = self.echo_spectrum(rows)
         if self._bang is not None:
             deterministic = deterministic + self._bang
-        clean = self.to_volts(deterministic)
         sigma = None
         if snr_db is not None:
             if not math.isfinite(snr_db):
@@ -211,6 +220,7 @@ class PingSynthesiser:
                 channel = int(np.flatnonzero(energy <= 0)[0])
                 raise InputError(f"snr_db: the named echo has no energy inside the record on channel {channel}")
             sigma = np.sqrt(energy / 10.0 ** (snr_db / 10.0))
+        clean = self.to_volts(deterministic) if sigma is not None else None
         volts = np.empty((int(n_pings), 3, self.n_samples))
         for ping, rng in enumerate(generators):
             if sigma is not None:
@@ -220,7 +230,7 @@ class PingSynthesiser:
                 noise += deterministic
                 volts[ping] = self.to_volts(noise)
         codes, clipped, step = quantise(volts, int(self.sonar.adc_bits), self.chain.adc_full_scale_v)
-        return Pings(codes, codes * step, clipped, step, clean, sigma)
+        return Pings(codes, codes * step, clipped, step, sigma, deterministic, self)
 
 
 def _check_seed(seed: Any) -> int:
