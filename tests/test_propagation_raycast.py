@@ -87,3 +87,13 @@ def test_derived_columns_follow_their_definitions():
                 * 10 ** (-rows["absorption_db"] / 20))
     np.testing.assert_allclose(rows["amplitude"], expected, rtol=1e-12)
     assert len(np.unique(rows["path_id"][rows["channel"] == 1])) == np.sum(rows["channel"] == 1)
+
+
+def test_empty_free_field_gives_the_direct_paths_only():
+    sonar = SonarHead(position_m=(0.0, 0.0, 0.0))
+    config = SolverConfig(mechanisms=("direct", "specular"), amplitude_floor_db=None)
+    paths = solve(Scene("empty", Medium(), sonar, None, ()), config=config)
+    assert sorted(paths["channel"].tolist()) == [0, 2]
+    np.testing.assert_allclose(paths["geometric_gain"], 1.0 / sonar.separation_m, rtol=1e-12)
+    hits = RayCaster.from_scene(Scene("empty", Medium(), sonar, None, ())).intersect([[0.0, 0, 0]], [[1.0, 0, 0]])
+    assert not hits.hit[0] and np.isinf(hits.distance_m[0])

@@ -77,7 +77,8 @@ class PreparedScene:
     """A scene with its validated geometry, Embree scene, mirrors and curved reflectors.
 
     ``curved_set`` stacks the reflectors' primitives (same order as ``curved``) for batched
-    specular-point solves; ``curved_seen_by`` (r, m) stacks their ``seen_by`` rows.
+    specular-point solves; ``curved_seen_by`` (r, m) stacks their ``seen_by`` rows;
+    ``object_bounds`` (n_objects, 2, 3) the objects' axis-aligned bounds (m).
     """
 
     scene: Scene
@@ -87,6 +88,7 @@ class PreparedScene:
     curved_set: CurvedSet = field(repr=False)
     curved_seen_by: NDArray[np.bool_] = field(repr=False)
     smooth: tuple[SmoothReflector, ...] = ()
+    object_bounds: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2, 3)), repr=False)
 
 
 def check_mesh(obj: SceneObject) -> None:
@@ -146,7 +148,8 @@ def prepare(scene: Scene) -> PreparedScene:
             offset = int(np.flatnonzero(raycaster.surface_index == s)[0])
             mesh = SmoothMesh.from_mesh(obj.mesh)
             smooth.append(SmoothReflector(s, obj.material, mesh, raycaster.patch_index[offset + mesh.source_face]))
-    return PreparedScene(scene, raycaster, mirrors, tuple(curved), curved_set, seen_by, tuple(smooth))
+    bounds = np.array([obj.bounds_m for obj in scene.objects], dtype=float).reshape(-1, 2, 3)
+    return PreparedScene(scene, raycaster, mirrors, tuple(curved), curved_set, seen_by, tuple(smooth), bounds)
 
 
 __all__ = ["CurvedReflector", "PreparedScene", "SmoothReflector", "check_mesh", "prepare"]

@@ -138,7 +138,7 @@ class RayCaster:
         Raises
         ------
         InputError
-            If the scene has no triangles or a mesh has non-finite vertices.
+            If a mesh has no triangles or non-finite vertices.
         """
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
@@ -183,25 +183,29 @@ class RayCaster:
             n_vertices += len(vertices)
             n_patches += k
             surface += 1
-        if not face_blocks:
-            raise InputError(f"scene {scene.name!r}: nothing to trace (no tank and no objects)")
-        vertices = np.concatenate(vertex_blocks)
-        faces = np.concatenate(face_blocks)
-        shift = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+        empty = not face_blocks  # free field without objects: every query misses
+        vertices = np.concatenate(vertex_blocks) if not empty else np.zeros((0, 3))
+        faces = np.concatenate(face_blocks) if not empty else np.zeros((0, 3), dtype=np.int64)
+        shift = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0)) if not empty else np.zeros(3)
         vertices32 = np.ascontiguousarray(vertices - shift, dtype=np.float32)
         faces32 = np.ascontiguousarray(faces, dtype=np.int32)
         embree = rtcore_scene.EmbreeScene()
-        TriangleMesh(embree, vertices32, faces32)
+        if not empty:
+            TriangleMesh(embree, vertices32, faces32)
         # Embree builds its BVH lazily on the first query: do it here, once per scene, so that
         # per-pose queries (and their timings) do not pay for it
         embree.run(np.zeros((1, 3), dtype=np.float32), np.array([[1.0, 0.0, 0.0]], dtype=np.float32))
+
+        def stack(blocks: list[NDArray[Any]], shape: tuple[int, ...], dtype: Any) -> NDArray[Any]:
+            return np.concatenate(blocks) if blocks else np.zeros(shape, dtype=dtype)
+
         return cls(
             vertices=vertices,
             faces=faces,
-            face_normals=np.concatenate(normal_blocks),
-            surface_index=np.concatenate(surface_blocks),
-            patch_index=np.concatenate(patch_blocks),
-            patch_surface=np.concatenate(patch_surface),
+            face_normals=stack(normal_blocks, (0, 3), float),
+            surface_index=stack(surface_blocks, (0,), np.int64),
+            patch_index=stack(patch_blocks, (0,), np.int64),
+            patch_surface=stack(patch_surface, (0,), np.int64),
             surface_names=scene.surface_names,
             _shift=shift,
             _embree=embree,
@@ -243,8 +247,9 @@ class RayCaster:
         o = np.atleast_2d(np.asarray(origins, dtype=float))
         d = np.atleast_2d(np.asarray(directions, dtype=float))
         n = o.shape[0]
-        if n == 0:
-            return RayHits(np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
+        if n == 0 or self.triangle_count == 0:
+            return RayHits(np.full(n, np.inf), np.full(n, -1, np.int64), np.full(n, -1, np.int64),
+                           np.full((n, 3), np.nan))
         d = d / np.linalg.norm(d, axis=1, keepdims=True)
         tfar = None if max_distance_m is None else np.broadcast_to(np.asarray(max_distance_m, float), (n,))
         out = self._run(o, d, tfar, "INTERSECT")
@@ -281,7 +286,7 @@ class RayCaster:
             raise ValueError(f"origins and targets must both be (n, 3), got {o.shape} and {t.shape}")
         n = o.shape[0]
         blocked = np.zeros(n, dtype=bool)
-        if n == 0:
+        if n == 0 or self.triangle_count == 0:
             return blocked
         seg = t - o
         length = np.linalg.norm(seg, axis=1)

@@ -59,8 +59,7 @@ def check_sonar(prepared: PreparedScene, sonar: SonarHead) -> None:
                 f"sonar.position_m: the {CHANNEL_NAMES[i]} transducer at {positions[i].round(4).tolist()} m is "
                 f"outside the water or within {a} m of a tank boundary"
             )
-    for obj in scene.objects:
-        lo, hi = obj.bounds_m
+    for obj, (lo, hi) in zip(scene.objects, prepared.object_bounds):
         near = np.all((positions >= lo - a) & (positions <= hi + a), axis=1)
         if not np.any(near):
             continue
