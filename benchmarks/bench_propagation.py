@@ -72,23 +72,25 @@ def main() -> None:
 
     if args.skip_large:
         return
+    # off the axis (in sight of the sonar past the targets), 20 x 4^8 triangles
+    centre = (5.5, 2.4, 0.5)
     mesh = trimesh.creation.icosphere(subdivisions=8, radius=0.3)
-    mesh.apply_translation((4.0, 1.5, 0.5))
-    big = SceneObject("big-ball", "sphere", get_material("steel"), mesh, SpherePrimitive((4.0, 1.5, 0.5), 0.3))
+    mesh.apply_translation(centre)
+    big = SceneObject("big-ball", "sphere", get_material("steel"), mesh, SpherePrimitive(centre, 0.3))
     from dataclasses import replace
 
     large = replace(scene, objects=scene.objects + (big,))
     start = time.perf_counter()
     prepared_large = prepare(large)
     load_s = time.perf_counter() - start
-    solve(prepared_large, config=specular)
+    n_big = sum("big-ball" in label for label in solve(prepared_large, config=specular).object_labels())
     t_large = _median_time(lambda: solve(prepared_large, config=specular), 5)
     start = time.perf_counter()
     first = solve(large, config=specular)
     cold_s = time.perf_counter() - start
     print(f"large scene (sphere primitive): {prepared_large.raycaster.triangle_count} triangles; prepare (checks + "
           f"Embree build) {load_s:.2f} s; solve on the prepared scene median {t_large * 1e3:.1f} ms; cold "
-          f"solve(scene) {cold_s:.2f} s; {len(first)} paths")
+          f"solve(scene) {cold_s:.2f} s; {len(first)} paths, {n_big} touch the big sphere")
     if args.large_user_mesh:
         blob = SceneObject("blob", "mesh", get_material("steel"), mesh)
         user = replace(scene, objects=scene.objects + (blob,))

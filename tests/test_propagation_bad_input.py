@@ -28,6 +28,7 @@ def _scene(objects=(), sonar=SonarHead()) -> Scene:
     [
         ({"max_order": 0}, "max_order"),
         ({"max_order": 2.5}, "max_order"),
+        ({"max_order": 5}, "max_order"),
         ({"diffuse_rays": -1}, "diffuse_rays"),
         ({"diffuse_bounces": 0}, "diffuse_bounces"),
         ({"edge_segment_m": 0.0}, "edge_segment_m"),

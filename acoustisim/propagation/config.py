@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from acoustisim.errors import InputError
+from acoustisim.propagation.paths import MAX_INTERACTIONS
 
 MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge", "diffuse")
 """Every mechanism name :func:`acoustisim.propagation.solve` knows."""
@@ -18,7 +19,7 @@ class SolverConfig:
     Attributes
     ----------
     max_order : int
-        Most reflections per specular path (>= 1). Default 3.
+        Most reflections per specular path, 1 to ``paths.MAX_INTERACTIONS`` (4). Default 3.
     mechanisms : tuple of str
         Which of "direct", "specular", "edge", "diffuse" to run.
     diffuse_rays : int
@@ -49,6 +50,10 @@ class SolverConfig:
                 raise InputError(f"solver.{name} = {value!r}: must be an integer >= {minimum}")
 
         integer("max_order", 1)
+        if self.max_order > MAX_INTERACTIONS:
+            raise InputError(
+                f"solver.max_order = {self.max_order!r}: at most {MAX_INTERACTIONS} (interaction points stored per path)"
+            )
         integer("diffuse_rays", 0)
         integer("diffuse_bounces", 1)
         integer("seed", 0)
