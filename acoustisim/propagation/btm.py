@@ -319,10 +319,10 @@ def discretise_edges(
     )
     node_d = np.where(k == 0, d_start[node_branch], np.where(last, d_end[node_branch], node_d))
     # elements between consecutive nodes of a branch
-    first = ~last
-    e_branch = node_branch[first]
-    za, zb = node_z[first], node_z[1:][first[:-1]] if node_z.size else node_z[:0]
-    da, db = node_d[first], node_d[1:][first[:-1]] if node_d.size else node_d[:0]
+    start_node = np.flatnonzero(~last)  # every node but a branch's last starts an element
+    e_branch = node_branch[start_node]
+    za, zb = node_z[start_node], node_z[start_node + 1]
+    da, db = node_d[start_node], node_d[start_node + 1]
     # split long elements evenly
     n_sub = np.maximum(np.ceil(np.abs(zb - za) / max_element_m).astype(np.int64), 1)
     parent, j = _group_arange(n_sub)
