@@ -64,7 +64,7 @@ def test_surface_and_floor_multipaths(tank):
 
 
 def test_far_wall_is_shadowed_by_the_prism_on_the_axis(tank):
-    scene, prepared, paths = tank
+    scene, _, paths = tank
     c = scene.medium.sound_speed
     # the prism on the boresight hides the far wall's normal echo ...
     assert _rows(paths, 1, "wall-x1").size == 0

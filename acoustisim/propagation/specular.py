@@ -307,8 +307,8 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
         chains, chain_base = _smooth_chains(context, prepared, chain_base)
         groups.append(chains)
     # one batched occlusion query over every leg of every candidate
-    origins, targets, excludes, owner = [], [], [], []
-    for g, chains in enumerate(groups):
+    origins, targets, excludes = [], [], []
+    for chains in groups:
         n, legs = chains.vertices.shape[0], chains.vertices.shape[1] - 1
         if n == 0:
             continue
@@ -318,7 +318,6 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
         start_patch = np.concatenate([pad, chains.patch], axis=1)  # patch at each leg's start
         end_patch = np.concatenate([chains.patch, pad], axis=1)
         excludes.append(np.stack([start_patch, end_patch], axis=2).reshape(-1, 2))
-        owner.append(np.full(n * legs, g))
     if origins:
         blocked_legs = prepared.raycaster.occluded(
             np.concatenate(origins), np.concatenate(targets), exclude_patches=np.concatenate(excludes))
