@@ -189,6 +189,10 @@ def test_rows_behind_the_transducer_are_silent(medium):
     synth = PingSynthesiser.create(sonar, medium, chain)
     volts = synth.echo_volts(rows_of([1e-3, 2e-3], [0.3, 0.3], angles_tx=[math.pi, 0.0], angles_rx=[0.0, 2.0]))
     assert np.all(volts == 0.0)
+    # At exactly 90 deg (the direct path to a side receiver) the piston still radiates:
+    # D = 2 J1(ka)/ka, 0.0087 at 500 kHz, strongly low-passed.
+    grazing = synth.echo_volts(rows_of([1e-3], [1.0], angles_tx=0.5 * math.pi, angles_rx=0.5 * math.pi))[1]
+    assert 0 < np.max(np.abs(grazing)) < 1e-2 * chain.sensitivity_v_per_pa * chain.net_gain[1] * sonar.source_level_pa
 
 
 def test_many_rows_equal_the_sum_of_single_rows(medium):

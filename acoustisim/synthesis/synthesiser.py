@@ -5,8 +5,8 @@ Every path row is the impulse ``geometric_gain * delta(t - delay_s)`` with the c
 
     P(f) = g Q(f) D(theta_tx, f) D(theta_rx, f) 10^(-alpha(f) L / 20) exp(j phi) exp(-j 2 pi f tau),
 
-Q the pulse's spectrum, D the piston directivity 2 J1(x)/x (``propagation/directivity.py``; 0 at
-and beyond 90 deg: nothing radiates behind the baffle), alpha the medium's
+Q the pulse's spectrum, D the piston directivity 2 J1(x)/x (``propagation/directivity.py``; 0
+beyond 90 deg: nothing radiates behind the baffle), alpha the medium's
 absorption (dB/m) over the path length L. Edge elements sharing a ``path_id`` are summed like
 any row, so the band-limited Biot-Tolstoy-Medwin response (the half-integrated pulse) comes
 out of the sum by itself.
@@ -296,9 +296,9 @@ class PathSynthesiser:
         angle_tx = np.ascontiguousarray(rows["angle_tx_rad"])
         angle_rx = np.ascontiguousarray(rows["angle_rx_rad"])
         sin_tx, sin_rx = np.abs(np.sin(angle_tx)), np.abs(np.sin(angle_rx))
-        # A baffled piston radiates (and receives) only in front of its face: D = 0 at and
-        # beyond 90 deg off axis (the housing), not the mirror of the front lobe.
-        front = (np.abs(angle_tx) < 0.5 * np.pi) & (np.abs(angle_rx) < 0.5 * np.pi)
+        # A baffled piston radiates (and receives) only in front of its face: D = 0 beyond
+        # 90 deg off axis (the housing), as in propagation.directivity (cos(angle) >= 0 is front).
+        front = (np.cos(angle_tx) >= 0.0) & (np.cos(angle_rx) >= 0.0)
         weight = (rows["geometric_gain"] * np.exp(1j * rows["phase_rad"]) * front).astype(np.complex64)
         i_tx = np.rint(sin_tx * SINE_STEPS).astype(np.intp)
         i_rx = np.rint(sin_rx * SINE_STEPS).astype(np.intp)

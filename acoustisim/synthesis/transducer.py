@@ -8,7 +8,6 @@ spectrum is its band-limited interpolant's (zero above the pulse's own Nyquist f
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
