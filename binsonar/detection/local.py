@@ -89,14 +89,13 @@ def detect_local_matched(
     # them (noise alone can top the energy at 20 dB in a 250,000-sample record).
     exclusion = max(1, m // block)
     r = np.arange(n_rows)
-    picks = []
-    for _ in range(int(candidates)):  # a few candidates per row, not samples
+    picks = np.zeros((n_rows, int(candidates)), dtype=np.intp)
+    for k in range(int(candidates)):  # a few candidates per row, not samples
         best = np.argmax(window_energy, axis=1)
-        picks.append(best)
-        low = np.maximum(best - exclusion, 0)[:, np.newaxis]
-        index = np.arange(window_energy.shape[1])[np.newaxis, :]
-        window_energy = np.where((index >= low) & (index <= best[:, np.newaxis] + exclusion), -np.inf, window_energy)
-    coarse = start + np.stack(picks, axis=1) * block + (span * block) // 2  # (n_rows, candidates)
+        picks[:, k] = best
+        for row, b in enumerate(best):  # blank the neighbourhood of each pick (a slice per row)
+            window_energy[row, max(b - exclusion, 0): b + exclusion + 1] = -np.inf
+    coarse = start + picks * block + (span * block) // 2  # (n_rows, candidates)
     taps = plan.analytic_template_conj
     reference = int(np.argmax(np.abs(taps))) - plan.analytic_offset  # template envelope maximum
     coarse_lag = (coarse - reference).ravel()
