@@ -111,12 +111,20 @@ def main() -> int:
                     ax.axvline(delay * 1e3, color="tab:red" if is_target else "tab:blue", lw=0.6, alpha=0.5)
             if column == 0:
                 ax.set_ylabel(f"{names[channel]} (V)")
-        bang = np.abs(recording.waveforms[0, channel, : int(50e-6 * recording.sample_rate_hz)]).max()
+        bang = np.abs(recording.waveforms[0, channel, : int(20e-6 * recording.sample_rate_hz)]).max()
         axes[channel, 0].annotate(
             ("main bang" if channel == 1 else "cross-talk") + f" (peak {bang:.2f} V)",
             xy=(0.0, 0.95 * limit), xytext=(0.4, 0.8 * limit), fontsize=8,
             arrowprops=dict(arrowstyle="->", lw=0.6),
         )
+        if channel != 1:  # the direct path from the transmitter, 65 mm along the baffle plane
+            direct = sim.paths.arrivals()
+            direct = direct[(direct["channel"] == channel) & (direct["kind"] == 0)]
+            if direct.size:
+                axes[channel, 0].annotate(
+                    f"direct path ({direct['delay_s'][0] * 1e6:.0f} us)", xy=(direct["delay_s"][0] * 1e3, -0.9 * limit),
+                    xytext=(0.4, -0.8 * limit), fontsize=8, arrowprops=dict(arrowstyle="->", lw=0.6),
+                )
     for k, (delay, label, is_target) in enumerate(marks):
         for column, (lo, hi) in enumerate(((0.0, t_ms[-1]), zoom)):
             if not lo <= delay * 1e3 <= hi or (column == 0 and lo <= delay * 1e3 <= zoom[1]):
