@@ -57,8 +57,8 @@ class SeedCombination:
     def description(self) -> str:
         """The seed's wording, e.g. "matched filter on a band-pass filtered averaged waveform"."""
         detector = {"threshold": "simple threshold", "matched": "matched filter", "local-matched": "local matched"}[self.base]
-        return (f"{detector} on a {'band-pass filtered ' if self.bandpass else ''}"
-                f"{'averaged' if self.average else 'single'} waveform")
+        waveform = f"{'band-pass filtered ' if self.bandpass else ''}{'averaged' if self.average else 'single'} waveform"
+        return f"{detector} on {'an' if waveform[0] in 'aeiou' else 'a'} {waveform}"
 
 
 SEED_COMBINATIONS: tuple[SeedCombination, ...] = (
