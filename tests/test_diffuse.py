@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from acoustisim.materials import Material
+from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import diffuse_paths, sample_directions, speckle, trace_diffuse
@@ -98,9 +99,9 @@ def test_monte_carlo_noise_falls_as_one_over_sqrt_rays():
 def test_rows_are_deterministic_for_a_seed_and_change_with_it():
     scene = builtin_scene("thesis-tank")
     context = SolveContext.build(scene, scene.sonar, RayCaster.from_scene(scene), first_path_id=7)
-    a = diffuse_paths(context, SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=5))
-    b = diffuse_paths(context, SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=5))
-    c = diffuse_paths(context, SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=6))
+    a = complete_columns(diffuse_paths(context, SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=5)), context)
+    b = complete_columns(diffuse_paths(context, SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=5)), context)
+    c = complete_columns(diffuse_paths(context, SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=6)), context)
     assert a.tobytes() == b.tobytes()
     assert a.tobytes() != c.tobytes()
     assert np.all(a["kind"] == PathKind.DIFFUSE)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from acoustisim.propagation import btm
+from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edges import edge_paths
@@ -23,7 +24,7 @@ FS = 200e6  # fine time grid for the convolutions (5 ns: 0.9 degrees of phase at
 def edge_rows(scene, position=None, config=None):
     sonar = scene.sonar if position is None else scene.sonar.with_pose(position)
     context = SolveContext.build(scene, sonar, RayCaster.from_scene(scene), first_path_id=100)
-    return edge_paths(context, config or SolverConfig()), context
+    return complete_columns(edge_paths(context, config or SolverConfig()), context), context
 
 
 def envelope_peak(impulses, times, pulse):
@@ -138,8 +139,8 @@ def test_reciprocity_of_an_edge():
     tx, rx = context.transmitter_m, context.receivers_m[2]
     forward = replace(context, receivers_m=np.array([rx]))
     backward = replace(context, transmitter_m=rx, receivers_m=np.array([tx]))
-    a = edge_paths(forward, SolverConfig())
-    b = edge_paths(backward, SolverConfig())
+    a = complete_columns(edge_paths(forward, SolverConfig()), forward)
+    b = complete_columns(edge_paths(backward, SolverConfig()), backward)
     names = np.asarray(scene.surface_names)
     for rows in (a, b):
         assert rows.size > 0
@@ -156,3 +157,22 @@ def test_no_edges_no_rows():
     scene = Scene(name="s", tank=None, objects=builtin_scene("free-sphere").objects)
     rows, _ = edge_rows(scene)
     assert rows.size == 0 and rows.dtype.names is not None
+
+
+def test_solve_runs_the_edge_and_diffuse_mechanisms():
+    from acoustisim.propagation import solve
+
+    scene = builtin_scene("thesis-tank")
+    config = SolverConfig(mechanisms=("edge", "diffuse"), diffuse_rays=2000, amplitude_floor_db=None)
+    paths = solve(scene, config=config)
+    kinds = set(np.unique(paths.rows["kind"]).tolist())
+    assert kinds == {int(PathKind.EDGE), int(PathKind.DIFFUSE)}
+    rows = paths.rows
+    assert np.all(rows["delay_s"] > 0) and np.all(np.isfinite(rows["amplitude"]))
+    # path ids of the two mechanisms never collide
+    edge_ids = np.unique(rows["path_id"][rows["kind"] == PathKind.EDGE])
+    diffuse_ids = np.unique(rows["path_id"][rows["kind"] == PathKind.DIFFUSE])
+    assert np.intersect1d(edge_ids, diffuse_ids).size == 0
+    table = paths.arrivals_table()
+    assert {"edge", "diffuse"} == {row["kind"] for row in table}
+    assert any(row["objects"] == ["edge-1"] and row["kind"] == "edge" for row in table)

@@ -38,7 +38,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
@@ -348,8 +347,11 @@ def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
     -------
     structured ndarray of PATH_DTYPE, shape (n,)
         One row per (scattering event, receiver) with ``kind = DIFFUSE``, ``order`` the bounce
-        number, every column filled; ``path_id`` from ``context.first_path_id`` upwards, one per
-        scattering event (shared by the receivers that see it).
+        number, ``path_id`` from ``context.first_path_id`` upwards, one per scattering event
+        (shared by the receivers that see it), and the other mechanism columns;
+        :func:`~acoustisim.propagation.columns.complete_columns`, which
+        :func:`~acoustisim.propagation.solve` applies to every mechanism's rows, derives the
+        delay, angles, directivities, absorption and amplitude.
     """
     if int(config.diffuse_rays) <= 0:
         return empty_paths_array(0)
@@ -381,7 +383,7 @@ def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
         level = level - 1
     rows["object_ids"] = surfaces
     rows["points_m"] = points
-    return complete_columns(rows, context)
+    return rows
 
 
 __all__ = [

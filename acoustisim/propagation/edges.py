@@ -39,7 +39,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.btm import discretise_edges, element_gains
-from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
@@ -89,8 +88,11 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     Returns
     -------
     structured ndarray of PATH_DTYPE, shape (n,)
-        Rows with every column filled (:func:`~acoustisim.propagation.columns.complete_columns`);
-        ``path_id`` from ``context.first_path_id`` upwards, one per (edge chain, receiver).
+        The mechanism's columns (``path_id`` from ``context.first_path_id`` upwards, one per
+        (edge chain, receiver), ``path_length_m``, ``geometric_gain``, directions, object and
+        point); :func:`~acoustisim.propagation.columns.complete_columns`, which
+        :func:`~acoustisim.propagation.solve` applies to every mechanism's rows, derives the
+        delay, angles, directivities, absorption and amplitude.
     """
     if edges is None:
         edges = sharp_edges(context.raycaster, context.scene)
@@ -166,7 +168,7 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     rows["arrival_dir"] = leg2 / np.linalg.norm(leg2, axis=1, keepdims=True)
     rows["object_ids"][:, 0] = edges.surface[e]
     rows["points_m"][:, 0, :] = points
-    return complete_columns(rows, context)
+    return rows
 
 
 __all__ = ["DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR", "diffracting_edges", "edge_paths"]
