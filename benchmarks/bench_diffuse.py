@@ -14,7 +14,9 @@ at its default sonar pose, with the same ray directions (the tracer's own draw f
   call on the hit -> receiver segments of every hit facing a receiver);
 * ``tracer``: :func:`acoustisim.propagation.diffuse.trace_diffuse` (sampling, intersect,
   Lambert next-event estimation with occlusion to the three receivers, speckle);
-* ``diffuse_paths``: the tracer plus packing into ``PATH_DTYPE`` rows and the common columns.
+* ``diffuse_paths``: the tracer plus packing into ``PATH_DTYPE`` rows;
+* ``+ columns``: that plus :func:`~acoustisim.propagation.columns.complete_columns` (what
+  :func:`~acoustisim.propagation.solve` adds to every mechanism's rows).
 
 Printed: the median seconds and rays per second of each, and the ratios of the tracer to the
 two baselines (goals: >= 5 million rays/s; within 2x of raw intersect).
@@ -33,6 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from acoustisim.propagation.columns import complete_columns  # noqa: E402
 from acoustisim.propagation.config import SolverConfig  # noqa: E402
 from acoustisim.propagation.context import SolveContext  # noqa: E402
 from acoustisim.propagation.diffuse import diffuse_paths, sample_directions, trace_diffuse  # noqa: E402
@@ -101,6 +104,7 @@ def main() -> int:
         "raw same work": median_time(raw_same_work, args.repeats),
         "tracer": median_time(lambda: trace_diffuse(context, config), args.repeats),
         "diffuse_paths": median_time(lambda: diffuse_paths(context, config), args.repeats),
+        "+ columns": median_time(lambda: complete_columns(diffuse_paths(context, config), context), args.repeats),
     }
     events = trace_diffuse(context, config)
     print(f"thesis tank: {raycaster.triangle_count} triangles, {n} rays, {args.bounces} bounce(s), "
