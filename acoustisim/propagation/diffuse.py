@@ -285,16 +285,20 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         ev["departure"].append(departure)
 
         # next-event estimation to every receiver
+        n_rx = rx.shape[0]
         to_rx = rx[None, :, :] - points[:, None, :]  # (n_hits, n_rx, 3)
         r2 = np.sqrt(np.einsum("ijk,ijk->ij", to_rx, to_rx))
         sin_gs = np.einsum("ijk,ik->ij", to_rx, normal) / r2
         magnitude, phase = speckle_polar(points, config.seed)
         gain = (magnitude * np.sqrt(weight * mu))[:, None] * np.sqrt(np.maximum(sin_gs, 0.0)) / r2
-        flat = np.flatnonzero(sin_gs > 0.0)  # (hit, receiver) pairs in front of the face
-        n_rx = rx.shape[0]
+        facing = (sin_gs > 0.0).reshape(-1)
+        # (hit, receiver) pairs in front of the face; in a tank nearly all, so skip the gathers
+        flat = None if facing.all() else np.flatnonzero(facing)
+        origins_nee = np.repeat(points, n_rx, axis=0) if flat is None else points[flat // n_rx]
+        targets_nee = np.tile(rx, (n_hits, 1)) if flat is None else rx[flat % n_rx]
+        clear = ~raycaster.occluded(origins_nee, targets_nee)
+        flat = np.flatnonzero(clear) if flat is None else flat[clear]
         hit_idx, rx_idx = flat // n_rx, flat % n_rx
-        clear = ~raycaster.occluded(points[hit_idx], rx[rx_idx])
-        flat, hit_idx, rx_idx = flat[clear], hit_idx[clear], rx_idx[clear]
         r2_sel = r2.reshape(-1)[flat]
         rc["event"].append(next_event + hit_idx)
         rc["channel"].append(rx_idx)
