@@ -6,15 +6,17 @@
    2E/N0 = 20 dB, while the energy over the pulse's length gains much of the matched filter's
    SNR). Their lags are those samples minus the index of the template's envelope maximum.
 2. The analytic correlation with the template is computed only for the lags within half a
-   template length of each coarse lag, i.e. over a stretch of record about twice the
-   template's length (short FFTs of those stretches; no FFT of the record).
-3. The candidate with the largest |z| wins; the log-parabolic vertex of |z|^2 around its
-   maximum gives the sub-sample lag. The window's offset is calibrated out exactly: lags are
-   counted from sample 0 of the record (the window's start index is added back), and the
-   template's own t0_s is subtracted as for the full matched filter, so both give the same
-   TOF whenever the echo is among the candidates.
+   template length of the best coarse lag (see 3), i.e. over a stretch of record about twice
+   the template's length (a short FFT of that stretch; no FFT of the record).
+3. The candidates are ranked by |z| at five lags around each (direct dot products); around
+   the best, the log-parabolic vertex of |z|^2 at its maximum gives the sub-sample lag. The
+   window's offset is calibrated out exactly: lags are counted from sample 0 of the record
+   (the window's start index is added back), and the template's own t0_s is subtracted as
+   for the full matched filter, so both give the same TOF whenever the echo is among the
+   candidates.
 
-Cost per channel: one pass over the samples (block energies) plus a few FFTs of ~2 m samples.
+Cost per channel: one pass over the samples (block energies), a few dot products of the
+analytic template's length, and one FFT of ~2 template lengths.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from binsonar.detection.matched import MatchedPlan, check_pfa, echo_values, lags_by_fft, refine
+from binsonar.detection.matched import MatchedPlan, check_pfa, echo_values, lags_by_fft, lags_time_domain, refine
 from binsonar.detection.noise import noise_sigma
 from binsonar.recording import RecordingError
 
@@ -56,7 +58,7 @@ def detect_local_matched(
         Noise-only window for the noise floor (default: robust estimate over the record).
     candidates : int
         Number of coarse peaks (the most energetic windows, a template length apart) tried;
-        the one with the strongest correlation wins.
+        the one with the strongest correlation near it wins.
 
     Returns
     -------
@@ -98,14 +100,21 @@ def detect_local_matched(
     coarse = start + picks * block + (span * block) // 2  # (n_rows, candidates)
     taps = plan.analytic_template_conj
     reference = int(np.argmax(np.abs(taps))) - plan.analytic_offset  # template envelope maximum
-    coarse_lag = (coarse - reference).ravel()
+    coarse_lag = coarse - reference  # (n_rows, candidates)
+    if candidates > 1:
+        # Rank the candidates by |z| at a few lags around each (spaced by a quarter of the
+        # coarse window, well inside the response's main lobe), then keep the best.
+        probe = np.arange(-2, 3) * max(1, (span * block) // 4)
+        probe_lags = coarse_lag.reshape(-1, 1) + probe
+        probe_values = lags_time_domain(plan, rows, np.repeat(r, int(candidates)), probe_lags)
+        strength = np.max(np.abs(probe_values), axis=1).reshape(n_rows, int(candidates))
+        coarse_lag = coarse_lag[r, np.argmax(strength, axis=1)]
+    else:
+        coarse_lag = coarse_lag[:, 0]
     half = m // 2
     lags = coarse_lag[:, np.newaxis] + np.arange(-half, half + 1)
-    values = lags_by_fft(plan, rows, np.repeat(r, int(candidates)), lags)
-    all_lags, all_power = refine(values, lags)
-    best = np.argmax(all_power.reshape(n_rows, int(candidates)), axis=1)
-    lag = all_lags.reshape(n_rows, -1)[r, best]
-    power = all_power.reshape(n_rows, -1)[r, best]
+    values = lags_by_fft(plan, rows, r, lags)
+    lag, power = refine(values, lags)
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where)
     energy = float(np.sum(plan.template.samples ** 2))
     noise_mean = 2.0 * sigma ** 2 * energy  # mean |z|^2 of white noise through the filter
