@@ -3,7 +3,10 @@
 :func:`acoustisim.propagation.solve` builds one :class:`SolveContext` per call and hands it to
 each mechanism (direct, specular, and the edge and diffuse modules), each of which returns an
 array of ``PATH_DTYPE`` rows. Path ids of a mechanism start at ``first_path_id``; the solver
-renumbers nothing, it passes each mechanism the next free id.
+renumbers nothing, it passes each mechanism the next free id. Mechanisms fill the geometric
+columns (ids, channel, kind, order, ``path_length_m``, ``geometric_gain``, ``phase_rad``,
+directions, ``object_ids``, ``points_m``); the solver then fills the derived ones with
+:func:`acoustisim.propagation.columns.complete_columns`.
 """
 
 from __future__ import annotations

@@ -7,7 +7,13 @@ Chains, for every receiver at once (numpy over candidates, no loop over rays):
   mirrors, of total order <= ``max_order``. The transmitter is unfolded across the mirrors
   before the object, the receiver across the mirrors after it (in reverse), the specular point
   is solved on the true surface between the two images (:mod:`.curved`), and the planar
-  reflection points are back-traced from it.
+  reflection points are back-traced from it;
+* first-order echoes of smooth user meshes (no primitive, not polyhedral), on their
+  interpolated normals (:mod:`.smooth_mesh`), with the stationary point's phase (saddles,
+  focusing concave patches).
+
+Paths through a right-angle corner line (tank corners, a post meeting the surface or the floor)
+are found in both reflection orders with coincident points and kept once.
 
 Every leg of every valid candidate is checked for occlusion in one batched Embree query; legs
 ending on a mirror or a curved object ignore that patch (see :mod:`.raycast`).
