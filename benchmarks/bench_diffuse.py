@@ -43,13 +43,15 @@ from acoustisim.propagation.raycast import RayCaster  # noqa: E402
 from scenes.builtin import builtin_scene  # noqa: E402
 
 
-def median_time(function, repeats: int) -> float:
-    times = []
+def median_time(function, repeats: int) -> tuple[float, float]:
+    """Median wall-clock and CPU (process) seconds of ``repeats`` calls."""
+    wall, cpu = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         function()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+        wall.append(time.perf_counter() - start)
+        cpu.append(time.process_time() - start_cpu)
+    return statistics.median(wall), statistics.median(cpu)
 
 
 def main() -> int:
@@ -110,14 +112,19 @@ def main() -> int:
     print(f"thesis tank: {raycaster.triangle_count} triangles, {n} rays, {args.bounces} bounce(s), "
           f"{int(hit.sum())} first hits, {seg_t32.size} NEE segments, {events.event.size} rows; "
           f"medians of {args.repeats}")
-    for name, seconds in results.items():
-        print(f"  {name:14s} {seconds * 1e3:9.2f} ms   {n / seconds / 1e6:7.3f} M rays/s")
+    print("  (wall-clock medians; CPU-time medians in brackets: on a shared machine the CPU time is the")
+    print("   fairer comparison, every stage being single-threaded)")
+    for name, (wall, cpu) in results.items():
+        print(f"  {name:14s} {wall * 1e3:9.2f} ms [{cpu * 1e3:8.2f}]   {n / wall / 1e6:7.3f} M rays/s "
+              f"[{n / cpu / 1e6:7.3f}]")
     queries = n + seg_t32.size
-    print(f"  tracer Embree queries (rays + NEE segments): {queries / results['tracer'] / 1e6:.3f} M/s, "
-          f"raw: {queries / results['raw same work'] / 1e6:.3f} M/s")
-    print(f"  tracer / raw intersect = {results['tracer'] / results['raw intersect']:.2f}x   (goal <= 2x)")
-    print(f"  tracer / raw same work = {results['tracer'] / results['raw same work']:.2f}x")
-    print(f"  diffuse_paths / tracer = {results['diffuse_paths'] / results['tracer']:.2f}x")
+    for index, label in ((0, "wall"), (1, "CPU")):
+        tracer = results["tracer"][index]
+        print(f"  {label}: tracer Embree queries (rays + NEE segments) {queries / tracer / 1e6:.3f} M/s, raw "
+              f"{queries / results['raw same work'][index] / 1e6:.3f} M/s; tracer / raw intersect = "
+              f"{tracer / results['raw intersect'][index]:.2f}x (goal <= 2x), tracer / raw same work = "
+              f"{tracer / results['raw same work'][index]:.2f}x, diffuse_paths / tracer = "
+              f"{results['diffuse_paths'][index] / tracer:.2f}x")
     return 0
 
 
