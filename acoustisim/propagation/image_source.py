@@ -325,7 +325,8 @@ def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: ND
         denom = np.where(valid, d_cur - d_src, 1.0)
         t = np.maximum(d_cur, 0.0) / denom
         x = current + t[:, None] * (source - current)
-        valid &= mirrors.contains(x, m)
+        live = np.flatnonzero(valid)  # the polygon test only where the chain is still alive
+        valid[live] = mirrors.contains(x[live], m[live])
         points[:, j] = x
         current = x
     return points, valid

@@ -94,10 +94,9 @@ def _receivers_in_front(context: SolveContext, mirrors: PlanarMirrors) -> NDArra
         [mirrors.signed_distance(np.broadcast_to(r, (mirrors.count, 3)), ids) > 0 for r in context.receivers_m], axis=0)
 
 
-def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, chain_base: int) -> tuple[_Chains, int]:
+def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, chain_base: int,
+                   first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
     tx = context.transmitter_m
-    first = mirrors.signed_distance(np.broadcast_to(tx, (mirrors.count, 3)), np.arange(mirrors.count)) > 0
-    last = _receivers_in_front(context, mirrors)
     seqs = mirror_sequences(mirrors.sees, order, first, last)
     images, ok = unfold(mirrors, np.broadcast_to(tx, (seqs.shape[0], 3)), seqs)
     chain_ids = np.flatnonzero(ok)
@@ -128,19 +127,17 @@ def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, ch
 
 
 def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
-                  chain_base: int) -> tuple[_Chains, int]:
+                  chain_base: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
     """Chains [n_before mirrors, one curved reflector, n_after mirrors], every reflector at once."""
     mirrors = prepared.mirrors
     seen_by = prepared.curved_seen_by  # (r, m)
     n_refl = seen_by.shape[0]
     tx = context.transmitter_m
     n_rx = context.receivers_m.shape[0]
-    ids = np.arange(mirrors.count)
     any_seen = np.any(seen_by, axis=0)
-    first = mirrors.signed_distance(np.broadcast_to(tx, (mirrors.count, 3)), ids) > 0
     seq_b = mirror_sequences(mirrors.sees, n_before, first, any_seen)
     # in path order, from the object to the receiver
-    seq_a = mirror_sequences(mirrors.sees, n_after, any_seen, _receivers_in_front(context, mirrors))
+    seq_a = mirror_sequences(mirrors.sees, n_after, any_seen, last)
     images_b, ok_b = unfold(mirrors, np.broadcast_to(tx, (seq_b.shape[0], 3)), seq_b)
     # receiver-side images, once per (after sequence, receiver)
     ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)
@@ -253,23 +250,31 @@ def _reflection_product(chains: _Chains, prepared: PreparedScene, context: Solve
     return total
 
 
-def _rows_from_chains(chains: _Chains, blocked: NDArray[np.bool_], reflection: NDArray[np.complex128],
-                      path_id_base: int) -> NDArray[Any]:
-    keep = ~blocked
+def _select(chains: _Chains, keep: NDArray[np.bool_]) -> _Chains:
+    """The chains where ``keep`` is true."""
+    return _Chains(
+        chains.vertices[keep], chains.surface[keep], chains.patch[keep], chains.normal[keep],
+        [(source, index[keep]) for source, index in chains.material], chains.length[keep],
+        chains.spreading[keep], chains.channel[keep], chains.chain[keep],
+        None if chains.phase is None else chains.phase[keep],
+    )
+
+
+def _rows_from_chains(chains: _Chains, reflection: NDArray[np.complex128], path_id_base: int) -> NDArray[Any]:
     k = chains.surface.shape[1]
-    n = int(keep.sum())
+    n = chains.length.shape[0]
     rows = empty_paths_array(n)
     if n == 0:
         return rows
-    v = chains.vertices[keep]
-    r = reflection[keep]
+    v = chains.vertices
+    r = reflection
     real = np.abs(r.imag) <= _REAL_TOL * np.abs(r)
-    gain = chains.spreading[keep]
-    rows["path_id"] = path_id_base + chains.chain[keep]
-    rows["channel"] = chains.channel[keep]
+    gain = chains.spreading
+    rows["path_id"] = path_id_base + chains.chain
+    rows["channel"] = chains.channel
     rows["kind"] = PathKind.SPECULAR
     rows["order"] = k
-    rows["path_length_m"] = chains.length[keep]
+    rows["path_length_m"] = chains.length
     rows["geometric_gain"] = np.where(real, gain * r.real, gain * np.abs(r))
     rows["phase_rad"] = np.where(real, 0.0, -np.angle(r))
     dep = v[:, 1] - v[:, 0]
@@ -277,7 +282,7 @@ def _rows_from_chains(chains: _Chains, blocked: NDArray[np.bool_], reflection: N
     rows["departure_dir"] = dep / np.linalg.norm(dep, axis=1, keepdims=True)
     rows["arrival_dir"] = arr / np.linalg.norm(arr, axis=1, keepdims=True)
     m = min(k, MAX_INTERACTIONS)
-    rows["object_ids"][:, :m] = chains.surface[keep][:, :m]
+    rows["object_ids"][:, :m] = chains.surface[:, :m]
     rows["points_m"][:, :m] = v[:, 1:1 + m]
     return rows
 
@@ -301,13 +306,17 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     mirrors = prepared.mirrors
     groups: list[_Chains] = []
     chain_base = 0
+    # mirrors the transmitter can reach first, and those some receiver can be reached from last
+    first = mirrors.signed_distance(np.broadcast_to(context.transmitter_m, (mirrors.count, 3)),
+                                    np.arange(mirrors.count)) > 0
+    last = _receivers_in_front(context, mirrors)
     for order in range(1, max_order + 1):
-        chains, chain_base = _planar_chains(context, mirrors, order, chain_base)
+        chains, chain_base = _planar_chains(context, mirrors, order, chain_base, first, last)
         groups.append(chains)
     if prepared.curved:
         for n_before in range(max_order):
             for n_after in range(max_order - n_before):
-                chains, chain_base = _mixed_chains(context, prepared, n_before, n_after, chain_base)
+                chains, chain_base = _mixed_chains(context, prepared, n_before, n_after, chain_base, first, last)
                 groups.append(chains)
     if prepared.smooth:
         chains, chain_base = _smooth_chains(context, prepared, chain_base)
@@ -335,12 +344,13 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
             continue
         blocked = blocked_legs[offset:offset + n * legs].reshape(n, legs).any(axis=1)
         offset += n * legs
+        chains = _select(chains, ~blocked)
         reflection = _reflection_product(chains, prepared, context)
         if chains.phase is not None:
             # R in the physics convention exp(-i omega t) and the stationary-point phase in the
             # engineering one: convert the latter back before multiplying
             reflection = reflection * np.exp(-1j * chains.phase)
-        out.append(_rows_from_chains(chains, blocked, reflection, context.first_path_id))
+        out.append(_rows_from_chains(chains, reflection, context.first_path_id))
     return _deduplicate_rows(np.concatenate(out))
 
 
