@@ -184,3 +184,12 @@ def test_bounce_energies_inside_a_lambert_sphere():
     # every path is tx -> wall -> ... -> centre: (k + 1) R to within the facets' sag
     lengths = events.path_length_m
     assert np.all(np.abs(lengths[bounce == 1] - 2 * radius) < 0.01)
+
+
+def test_absurd_ray_count_is_refused_not_allocated():
+    from acoustisim.errors import InputError
+
+    scene = builtin_scene("thesis-tank")
+    context = SolveContext.build(scene, scene.sonar, RayCaster.from_scene(scene))
+    with pytest.raises(InputError, match="solver.diffuse_rays = 2000000000"):
+        diffuse_paths(context, SolverConfig(diffuse_rays=2_000_000_000))

@@ -176,3 +176,11 @@ def test_solve_runs_the_edge_and_diffuse_mechanisms():
     table = paths.arrivals_table()
     assert {"edge", "diffuse"} == {row["kind"] for row in table}
     assert any(row["objects"] == ["edge-1"] and row["kind"] == "edge" for row in table)
+
+
+def test_absurd_element_length_is_refused_not_allocated():
+    from acoustisim.errors import InputError
+
+    scene = builtin_scene("free-edge")
+    with pytest.raises(InputError, match="solver.edge_segment_m = 1e-09"):
+        edge_rows(scene, config=SolverConfig(edge_segment_m=1e-9))

@@ -254,6 +254,7 @@ def discretise_edges(
     z_r: ArrayLike,
     path_step_m: float,
     max_element_m: float,
+    max_elements: int | None = None,
 ) -> EdgeElements:
     """Cut edges into elements of equal path-length increments about the least-time point.
 
@@ -268,11 +269,18 @@ def discretise_edges(
         delay step times c.
     max_element_m : float
         Longest element along the edge (m); longer ones are split evenly.
+    max_elements : int, optional
+        Refuse (``ValueError``) to make more elements than this.
 
     Returns
     -------
     EdgeElements
         Elements ordered by pair, then branch (z decreasing from the apex, then increasing).
+
+    Raises
+    ------
+    ValueError
+        Non-positive steps, or more than ``max_elements`` elements.
     """
     if not (path_step_m > 0.0 and max_element_m > 0.0):
         raise ValueError(f"path_step_m and max_element_m must be > 0, got {path_step_m!r}, {max_element_m!r}")
@@ -300,6 +308,12 @@ def discretise_edges(
     n_regular = np.maximum(n_regular, 0)
     n_onset = (has & (span > onset)).astype(np.int64)
     n_nodes = np.where(has, 2 + n_onset + n_regular, 0)  # including both ends
+    if max_elements is not None:
+        # a lower bound on the element count before allocating: nodes, and the length cap
+        cap_count = np.ceil(np.abs(b_end - b_start) / max_element_m)
+        estimate = float(np.sum(np.maximum(n_nodes - 1, cap_count)))
+        if estimate > max_elements:
+            raise ValueError(f"the edges need at least {estimate:.3g} elements (limit {max_elements})")
     node_branch, k = _group_arange(n_nodes)
     last = k == n_nodes[node_branch] - 1
     offset = np.where(

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from acoustisim.errors import InputError
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
@@ -51,6 +52,10 @@ SPECKLE_CELL_M = 1e-3
 
 OFFSET_M = 2e-5
 """A continuing ray starts this far off its surface (40 float32 ulps in the tank)."""
+
+MAX_RAY_EVENTS = 10_000_000
+"""Most rays x bounces one solve may trace (up to three rows each, about 250 bytes a row):
+beyond it the configuration is refused rather than exhausting memory."""
 
 _COS_CELLS = 1 << 13
 """Cells of the tabulated lobe density: 2.4e-4 wide in cos(theta), 1.3 degrees at the axis
@@ -243,8 +248,18 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     Returns
     -------
     DiffuseEvents
+
+    Raises
+    ------
+    InputError
+        If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`.
     """
     n_rays = int(config.diffuse_rays)
+    if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
+        raise InputError(
+            f"solver.diffuse_rays = {config.diffuse_rays!r} with diffuse_bounces = {config.diffuse_bounces!r}: "
+            f"more than {MAX_RAY_EVENTS} scattering events; use fewer rays"
+        )
     rng = np.random.default_rng(config.seed)
     raycaster = context.raycaster
     scene = context.scene
@@ -392,6 +407,7 @@ def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
 
 __all__ = [
     "DiffuseEvents",
+    "MAX_RAY_EVENTS",
     "OFFSET_M",
     "SPECKLE_CELL_M",
     "UNIFORM_FRACTION",

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from acoustisim.errors import InputError
 from acoustisim.propagation.btm import discretise_edges, element_gains
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
@@ -54,6 +55,10 @@ VISIBILITY_OFFSET_M = 2e-4
 """Element points are moved this far into the water along the wedge bisector before the
 visibility tests, so that the wedge's own faces never block a leg (float32 Embree round-off is
 about 5e-7 m in the tank)."""
+
+MAX_ELEMENTS = 20_000_000
+"""Most edge elements one solve may make (about 4 GB of rows): beyond it the configuration is
+refused rather than exhausting memory."""
 
 _MIN_DISTANCE_M = 1e-6
 _ON_PLANE_M = 1e-6
@@ -93,6 +98,11 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
         point); :func:`~acoustisim.propagation.columns.complete_columns`, which
         :func:`~acoustisim.propagation.solve` applies to every mechanism's rows, derives the
         delay, angles, directivities, absorption and amplitude.
+
+    Raises
+    ------
+    InputError
+        If ``config.edge_segment_m`` would make more than :data:`MAX_ELEMENTS` elements.
     """
     if edges is None:
         edges = sharp_edges(context.raycaster, context.scene)
@@ -124,7 +134,12 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     rs, ts, zs = r_s[pair_edge], th_s[pair_edge], z_s[pair_edge]
 
     step = c / (DELAY_STEPS_PER_PERIOD * context.centre_frequency_hz)
-    elements = discretise_edges(edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m)
+    try:
+        elements = discretise_edges(
+            edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m, MAX_ELEMENTS
+        )
+    except ValueError as error:
+        raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
     gains = element_gains(
         elements, edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge]
     )
@@ -171,4 +186,4 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     return rows
 
 
-__all__ = ["DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR", "diffracting_edges", "edge_paths"]
+__all__ = ["DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR", "MAX_ELEMENTS", "diffracting_edges", "edge_paths"]
