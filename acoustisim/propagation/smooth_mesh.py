@@ -17,9 +17,13 @@ the smooth surface's as O(h^2) in the mesh spacing h.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    import trimesh
 
 CREASE_DEG = 30.0
 """Dihedral angle (degrees) above which an edge is a crease: normals are not interpolated across it."""
@@ -62,8 +66,8 @@ class SmoothMesh:
     source_face: NDArray[np.int64] = field(repr=False)
 
     @classmethod
-    def from_mesh(cls, mesh) -> "SmoothMesh":  # type: ignore[no-untyped-def]
-        """Interpolated normals of a trimesh (faces keep their order)."""
+    def from_mesh(cls, mesh: "trimesh.Trimesh") -> "SmoothMesh":
+        """Interpolated normals of a mesh, split at creases (``source_face`` maps the faces back)."""
         import trimesh
 
         smooth = trimesh.graph.smooth_shade(mesh, angle=np.radians(CREASE_DEG), facet_minarea=None)
@@ -101,7 +105,7 @@ class SmoothMesh:
         p = self.triangles[tri]
         return p[:, 0] + u[:, None] * (p[:, 1] - p[:, 0]) + v[:, None] * (p[:, 2] - p[:, 0])
 
-    def specular_points(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray, ...]:
+    def specular_points(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
         """All specular points of pairs (a[i], b[i]).
 
         Parameters
