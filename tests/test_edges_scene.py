@@ -184,3 +184,19 @@ def test_absurd_element_length_is_refused_not_allocated():
     scene = builtin_scene("free-edge")
     with pytest.raises(InputError, match="solver.edge_segment_m = 1e-09"):
         edge_rows(scene, config=SolverConfig(edge_segment_m=1e-9))
+
+
+def test_sharp_edge_echo_falls_as_range_to_the_minus_three_halves():
+    """A long sharp edge is a point target in 2-D: cylindrical spreading out and back, r^-3/2
+    in pressure (physics.md section 4), against r^-1 for a plane."""
+    scene = builtin_scene("free-edge")
+    peaks = []
+    for r in (1.0, 2.0):
+        rows, context = edge_rows(scene, position=(1.0 - r, 0.0, 0.0))
+        names = np.asarray(scene.surface_names)
+        centre = rows[(rows["channel"] == 1) & (names[rows["object_ids"][:, 0]] == "edge")]
+        front = centre[centre["delay_s"] < 2 * r / context.sound_speed_m_s + 20e-6]
+        peaks.append(envelope_peak(front["geometric_gain"], front["delay_s"], context.sonar.pulse))
+    # -9.03 dB per doubling; the 1 m edge is 'long' at both ranges (its ends' branches start
+    # 159 and 83 us after the onset, far beyond the 5 us pulse): 0.1 dB
+    assert 20 * np.log10(peaks[1] / peaks[0]) == pytest.approx(-30 * np.log10(2), abs=0.1)
