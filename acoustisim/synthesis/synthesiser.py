@@ -19,8 +19,10 @@ For a chunk of rows, a (rows, bins) matrix of short-kernel spectra on an ``Lk``-
 fractional-delay phase ramp against the fraction of a sample), inverse FFT'd to (rows, Lk)
 kernels holding each echo sampled at its fractional delay, and scatter-added (``np.bincount``
 on flat indices) into the decimated record. One FFT of that record, zero-padded in frequency
-by ``q``, gives the full-rate spectrum that the receiver chain then shapes. Memory:
-O(chunk x Lk) plus O(record) plus the tables (a few MB).
+by ``q``, gives the full-rate spectrum that the receiver chain then shapes. Rows on one
+channel that start on the same sample with nearly the same shape (the close-spaced elements
+of a diffracting edge) share one kernel, each keeping its exact weight and delay (see
+``decimated_record``). Memory: O(chunk x Lk) plus O(record) plus the tables (a few MB).
 
 Table resolutions (nearest entry): sin(theta) in steps of 1/8192 (directivity error below
 7e-4 absolute at the centre frequency, 0.02 dB where D = 0.3), path length in 1 cm steps
