@@ -153,9 +153,9 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     points = edges.start_m[e] + elements.z_mid_m[keep][:, None] * edges.direction[e]
 
     # visibility of each element from the transmitter and from its receiver, one batch
-    half = 0.5 * edges.wedge_angle_rad[e]
-    bisector = np.cos(half)[:, None] * edges.face_dir[e] + np.sin(half)[:, None] * edges.face_normal[e]
-    probe = points + VISIBILITY_OFFSET_M * bisector
+    half = 0.5 * edges.wedge_angle_rad
+    bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
+    probe = points + VISIBILITY_OFFSET_M * bisector[e]
     receivers = rx[pair_rx[pair]]
     n = points.shape[0]
     blocked = context.raycaster.occluded(
