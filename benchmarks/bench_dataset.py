@@ -105,7 +105,7 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
           f"CPU overhead vs baseline {(cpu / loop_cpu - 1) * 100:+.1f} %, wall {(base_rate / report.samples_per_s - 1) * 100:+.1f} %")
     rates, overheads = {}, {}
     for workers in (1, 2):
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
         with Client(cluster) as client:
             warm = dataclasses.replace(spec, n_samples=2 * workers)
