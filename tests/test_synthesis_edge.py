@@ -43,7 +43,9 @@ def test_edge_echo_is_the_half_integrated_pulse(edge_echo):
     window = pressure[first : int((onset + 100e-6) * FS)]
     n = 1 << 15
     f = np.fft.rfftfreq(n, 1.0 / FS)
-    spectrum = np.fft.rfft(window, n) / FS * np.exp(2j * np.pi * f * (onset - first / FS))
+    keep = (f > 100e3) & (f < 1.2e6)  # where the pulse's spectrum is not negligible
+    f = f[keep]
+    spectrum = np.fft.rfft(window, n)[keep] / FS * np.exp(2j * np.pi * f * (onset - first / FS))
     absorption = 10 ** (-scene.medium.absorption_db_per_m(f) * 2.0 / 20.0)  # 2 m there and back
     transfer = spectrum / (sonar.pulse.spectrum(f) * absorption)
     for low, high in ((300e3, 600e3), (400e3, 800e3)):
