@@ -64,12 +64,15 @@ class SmoothReflector:
     mesh : SmoothMesh
     patch : ndarray of int64, shape (t,)
         The ray caster's patch label of each of ``mesh``'s triangles.
+    seen_by : ndarray of bool, shape (n_mirrors,)
+        Mirrors with some vertex of the mesh strictly in front of them.
     """
 
     surface: int
     material: Material
     mesh: SmoothMesh
     patch: NDArray[np.int64] = field(repr=False)
+    seen_by: NDArray[np.bool_] = field(repr=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,6 +117,14 @@ def check_mesh(obj: SceneObject) -> None:
         raise InputError(f"object {obj.name!r}: mesh is not a closed shell (open edges); close it or give it thickness")
 
 
+def _seen_by(mirrors: PlanarMirrors, vertices: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Mirrors (m,) with some of ``vertices`` (v, 3) strictly (1e-9 m) in front of them."""
+    if mirrors.count == 0:
+        return np.zeros(0, dtype=bool)
+    height = vertices @ mirrors.normal.T - np.einsum("ik,ik->i", mirrors.point, mirrors.normal)
+    return np.any(height > 1e-9, axis=0)
+
+
 def prepare(scene: Scene) -> PreparedScene:
     """Validate ``scene``'s meshes and build everything the solver reuses across poses.
 
@@ -134,9 +145,7 @@ def prepare(scene: Scene) -> PreparedScene:
         if isinstance(obj.primitive, (SpherePrimitive, CylinderPrimitive)):
             s = n_boundaries + j
             faces = np.flatnonzero(raycaster.surface_index == s)
-            vertices = raycaster.vertices[np.unique(raycaster.faces[faces])]
-            height = vertices @ mirrors.normal.T - np.einsum("ik,ik->i", mirrors.point, mirrors.normal)
-            seen_by = np.any(height > 1e-9, axis=0)
+            seen_by = _seen_by(mirrors, raycaster.vertices[np.unique(raycaster.faces[faces])])
             curved.append(
                 CurvedReflector(s, int(raycaster.patch_index[faces[0]]), obj.primitive, obj.material, seen_by))
     seen_by = np.array([r.seen_by for r in curved], dtype=bool).reshape(len(curved), mirrors.count)
@@ -147,7 +156,8 @@ def prepare(scene: Scene) -> PreparedScene:
         if obj.primitive is None and not is_polyhedral(obj, raycaster, s):
             offset = int(np.flatnonzero(raycaster.surface_index == s)[0])
             mesh = SmoothMesh.from_mesh(obj.mesh)
-            smooth.append(SmoothReflector(s, obj.material, mesh, raycaster.patch_index[offset + mesh.source_face]))
+            smooth.append(SmoothReflector(s, obj.material, mesh, raycaster.patch_index[offset + mesh.source_face],
+                                          _seen_by(mirrors, np.asarray(obj.mesh.vertices, dtype=float))))
     bounds = np.array([obj.bounds_m for obj in scene.objects], dtype=float).reshape(-1, 2, 3)
     return PreparedScene(scene, raycaster, mirrors, tuple(curved), curved_set, seen_by, tuple(smooth), bounds)
 

@@ -31,6 +31,9 @@ CREASE_DEG = 30.0
 _NEWTON_STEPS = 12
 """Newton iterations in barycentric coordinates (quadratic convergence; 6-8 suffice from the centroid)."""
 
+_CHUNK = 2_000_000
+"""(pair, triangle) combinations screened per vectorised block (bounds the memory to ~0.5 GB)."""
+
 _BARY_TOL = 1e-9
 """Barycentric slack at the triangle's edges (points on a shared edge belong to both triangles)."""
 
@@ -127,21 +130,27 @@ class SmoothMesh:
         """
         centroid = self.triangles.mean(axis=1)
         # candidate (pair, triangle) combinations whose normal cone can contain the bisector: the
-        # bisector turns by at most ~ size / distance across a triangle; 3x margins
+        # bisector turns by at most ~ size / distance across a triangle; 3x margins. Vectorised
+        # over pairs x triangles, in chunks of about 2 million combinations.
         pair_list, tri_list = [], []
-        for i in range(a.shape[0]):  # loop over pairs (a handful), vectorised over triangles
-            da = a[i] - centroid
-            db = b[i] - centroid
-            ra = np.linalg.norm(da, axis=1)
-            rb = np.linalg.norm(db, axis=1)
-            h = _unit(da / ra[:, None] + db / rb[:, None])
-            cos_h = np.einsum("tk,tk->t", h, self.face_normals)
-            slack = 3.0 * self.spread + 3.0 * self.size / np.minimum(ra, rb) + 1e-6
-            lit = (np.einsum("tk,tk->t", da, self.face_normals) > 0) & (np.einsum("tk,tk->t", db, self.face_normals) > 0)
+        chunk = max(1, _CHUNK // max(1, centroid.shape[0]))
+        for start in range(0, a.shape[0], chunk):  # a loop over chunks of pairs
+            aa = a[start:start + chunk, None, :]
+            bb = b[start:start + chunk, None, :]
+            da = aa - centroid[None]
+            db = bb - centroid[None]
+            ra = np.linalg.norm(da, axis=2)
+            rb = np.linalg.norm(db, axis=2)
+            h = da / ra[..., None] + db / rb[..., None]
+            with np.errstate(invalid="ignore", divide="ignore"):  # opposite ends: no bisector, NaN fails below
+                cos_h = np.einsum("ptk,tk->pt", h, self.face_normals) / np.linalg.norm(h, axis=2)
+            slack = 3.0 * self.spread[None] + 3.0 * self.size[None] / np.minimum(ra, rb) + 1e-6
+            lit = (np.einsum("ptk,tk->pt", da, self.face_normals) > 0) & (
+                np.einsum("ptk,tk->pt", db, self.face_normals) > 0)
             near = lit & (cos_h > np.cos(np.minimum(slack, np.pi / 2)))
-            idx = np.flatnonzero(near)
-            pair_list.append(np.full(idx.size, i))
-            tri_list.append(idx)
+            p_idx, t_idx = np.nonzero(near)
+            pair_list.append(p_idx + start)
+            tri_list.append(t_idx)
         pair = np.concatenate(pair_list).astype(np.int64) if pair_list else np.zeros(0, np.int64)
         tri = np.concatenate(tri_list).astype(np.int64) if tri_list else np.zeros(0, np.int64)
         empty = np.zeros((0, 3))

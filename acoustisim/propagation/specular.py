@@ -126,11 +126,24 @@ def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, ch
     return chains, chain_base + len(ok)
 
 
-def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
-                  chain_base: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
-    """Chains [n_before mirrors, one curved reflector, n_after mirrors], every reflector at once."""
-    mirrors = prepared.mirrors
-    seen_by = prepared.curved_seen_by  # (r, m)
+@dataclass
+class _Candidates:
+    """Unfolded (image) ends of chains [n_before mirrors, reflector, n_after mirrors]."""
+
+    reflector: NDArray[np.int64]  # (n,) which reflector
+    channel: NDArray[np.int64]  # (n,)
+    chain: NDArray[np.int64]  # (n,) chain number (before, after, reflector), from 0
+    images_before: NDArray[np.float64]  # (n, n_before + 1, 3) transmitter and its images
+    images_after: NDArray[np.float64]  # (n, n_after + 1, 3) receiver and its images (reversed order)
+    seq_before: NDArray[np.int64]  # (n, n_before) mirrors in path order
+    seq_after: NDArray[np.int64]  # (n, n_after) mirrors in path order
+    n_chains: int  # number of chain numbers used
+
+
+def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bool_], n_before: int,
+                n_after: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> _Candidates:
+    """Every (before sequence, after sequence, receiver, reflector) whose images are valid, pruned
+    by the mirror/reflector visibility table ``seen_by`` (r, m)."""
     n_refl = seen_by.shape[0]
     tx = context.transmitter_m
     n_rx = context.receivers_m.shape[0]
@@ -143,8 +156,6 @@ def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int,
     ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)
     rr = np.tile(np.arange(n_rx), seq_a.shape[0])
     images_a, ok_a = unfold(mirrors, context.receivers_m[rr], seq_a[ra][:, ::-1])
-    n_chain = seq_b.shape[0] * seq_a.shape[0] * n_refl
-    # candidates: (before, after x receiver, reflector), pruned by the visibility tables
     ib = np.flatnonzero(ok_b)
     iar = np.flatnonzero(ok_a)
     gb, gar, gr = (g.ravel() for g in np.meshgrid(ib, iar, np.arange(n_refl), indexing="ij"))
@@ -154,68 +165,100 @@ def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int,
     if n_after:
         keep &= seen_by[gr, seq_a[ra[gar], 0]]
     gb, gar, gr = gb[keep], gar[keep], gr[keep]
-    ga, channel = ra[gar], rr[gar]
-    chain = chain_base + (gb * seq_a.shape[0] + ga) * n_refl + gr
-    img_b = images_b[gb]
-    img_a = images_a[gar]
-    a_pt = img_b[:, -1]
-    b_pt = img_a[:, -1]
-    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, gr, a_pt, b_pt)
-    sb, sa = seq_b[gb], seq_a[ga]
-    pts_b, ok1 = backtrace(mirrors, img_b, sb, x)
-    pts_a_rev, ok2 = backtrace(mirrors, img_a, sa[:, ::-1], x)
-    valid &= ok1 & ok2
-    idx = np.flatnonzero(valid)
+    ga = ra[gar]
+    return _Candidates(
+        reflector=gr, channel=rr[gar], chain=(gb * seq_a.shape[0] + ga) * n_refl + gr,
+        images_before=images_b[gb], images_after=images_a[gar], seq_before=seq_b[gb], seq_after=seq_a[ga],
+        n_chains=seq_b.shape[0] * seq_a.shape[0] * n_refl,
+    )
+
+
+def _assemble(context: SolveContext, mirrors: PlanarMirrors, cand: _Candidates, x: NDArray[np.float64],
+              normal: NDArray[np.float64], valid: NDArray[np.bool_], surface_of: NDArray[np.int64],
+              patch_of: NDArray[np.int64], source: str, chain: NDArray[np.int64]
+              ) -> tuple[_Chains, NDArray[np.int64]]:
+    """Back-trace the planar points of candidates with a reflector point ``x`` and build the chains.
+
+    Returns the chains and the candidate rows they came from (to pick the amplitudes).
+    """
+    n_before = cand.seq_before.shape[1]
+    n_after = cand.seq_after.shape[1]
+    pts_b, ok1 = backtrace(mirrors, cand.images_before, cand.seq_before, x)
+    pts_a_rev, ok2 = backtrace(mirrors, cand.images_after, cand.seq_after[:, ::-1], x)
+    idx = np.flatnonzero(valid & ok1 & ok2)
     n = idx.size
-    rx = context.receivers_m[channel[idx]]
+    tx = context.transmitter_m
+    rx = context.receivers_m[cand.channel[idx]]
     vertices = np.concatenate(
         [np.broadcast_to(tx, (n, 1, 3)), pts_b[idx], x[idx][:, None, :], pts_a_rev[idx][:, ::-1], rx[:, None, :]],
         axis=1)
-    a_v, b_v, x_v, n_v = a_pt[idx], b_pt[idx], x[idx], normal[idx]
-    spreading = go_amplitude(a_v, b_v, x_v, n_v, e1[idx], e2[idx], k1[idx], k2[idx])
+    a_v, b_v, x_v = cand.images_before[idx, -1], cand.images_after[idx, -1], x[idx]
     length = np.linalg.norm(x_v - a_v, axis=1) + np.linalg.norm(x_v - b_v, axis=1)
-    sb_v, sa_v, refl = sb[idx], sa[idx], gr[idx]
+    sb_v, sa_v, refl = cand.seq_before[idx], cand.seq_after[idx], cand.reflector[idx]
+    surface = np.concatenate([mirrors.surface[sb_v], surface_of[idx][:, None], mirrors.surface[sa_v]], axis=1)
+    patch = np.concatenate([mirrors.patch[sb_v], patch_of[idx][:, None], mirrors.patch[sa_v]], axis=1)
+    normals = np.concatenate([mirrors.normal[sb_v], normal[idx][:, None, :], mirrors.normal[sa_v]], axis=1)
+    material = ([("mirror", mirrors.material[sb_v[:, j]]) for j in range(n_before)]
+                + [(source, refl)]
+                + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
+    chains = _Chains(vertices, surface, patch, normals, material, length, np.zeros(n), cand.channel[idx], chain[idx])
+    return chains, idx
+
+
+def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
+                  chain_base: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
+    """Chains [n_before mirrors, one curved primitive, n_after mirrors], every primitive at once."""
+    mirrors = prepared.mirrors
+    cand = _candidates(context, mirrors, prepared.curved_seen_by, n_before, n_after, first, last)
+    a_pt = cand.images_before[:, -1]
+    b_pt = cand.images_after[:, -1]
+    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, cand.reflector, a_pt, b_pt)
     surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)
     patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)
-    surface = np.concatenate([mirrors.surface[sb_v], surfaces[refl][:, None], mirrors.surface[sa_v]], axis=1)
-    patch = np.concatenate([mirrors.patch[sb_v], patches[refl][:, None], mirrors.patch[sa_v]], axis=1)
-    normals = np.concatenate([mirrors.normal[sb_v], n_v[:, None, :], mirrors.normal[sa_v]], axis=1)
-    material = ([("mirror", mirrors.material[sb_v[:, j]]) for j in range(n_before)]
-                + [("curved", refl)]
-                + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
-    chains = _Chains(vertices, surface, patch, normals, material, length, spreading, channel[idx], chain[idx])
-    return chains, chain_base + n_chain
+    chains, idx = _assemble(context, mirrors, cand, x, normal, valid, surfaces[cand.reflector],
+                            patches[cand.reflector], "curved", chain_base + cand.chain)
+    chains.spreading = go_amplitude(a_pt[idx], b_pt[idx], x[idx], normal[idx], e1[idx], e2[idx], k1[idx], k2[idx])
+    return chains, chain_base + cand.n_chains
 
 
-def _smooth_chains(context: SolveContext, prepared: PreparedScene, chain_base: int) -> tuple[_Chains, int]:
-    """First-order echoes of smooth meshes (transmitter -> mesh -> each receiver)."""
-    tx = context.transmitter_m
-    rx = context.receivers_m
-    n_rx = rx.shape[0]
+def _smooth_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
+                   chain_base: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
+    """Chains [n_before mirrors, one smooth mesh, n_after mirrors]; a pair may have several
+    specular points on a non-convex mesh, each its own path."""
+    mirrors = prepared.mirrors
+    seen_by = np.array([r.seen_by for r in prepared.smooth], dtype=bool).reshape(len(prepared.smooth), mirrors.count)
+    cand = _candidates(context, mirrors, seen_by, n_before, n_after, first, last)
     parts = []
-    for i, reflector in enumerate(prepared.smooth):
-        a = np.broadcast_to(tx, (n_rx, 3))
-        pair, tri, x, normal, e1, e2, k11, k22, k12 = reflector.mesh.specular_points(np.array(a), rx)
-        spreading, phase = go_amplitude_general(a[pair], rx[pair], x, normal, e1, e2, k11, k22, k12)
-        n = pair.size
-        vertices = np.stack([np.broadcast_to(tx, (n, 3)), x, rx[pair]], axis=1)
-        length = np.linalg.norm(x - tx, axis=1) + np.linalg.norm(rx[pair] - x, axis=1)
-        # path ids: one per (mesh, specular point), shared by receivers only by coincidence
-        chain = chain_base + np.arange(n)
-        chain_base += n
-        parts.append(_Chains(vertices, np.full((n, 1), reflector.surface), reflector.patch[tri][:, None],
-                             normal[:, None, :], [("smooth", np.full(n, i))], length, spreading, pair, chain, phase))
+    for i, reflector in enumerate(prepared.smooth):  # a loop over meshes (a few), vectorised inside
+        rows = np.flatnonzero(cand.reflector == i)
+        a_pt = cand.images_before[rows, -1]
+        b_pt = cand.images_after[rows, -1]
+        pair, tri, x, normal, e1, e2, k11, k22, k12 = reflector.mesh.specular_points(a_pt, b_pt)
+        sub = _Candidates(cand.reflector[rows[pair]], cand.channel[rows[pair]], cand.chain[rows[pair]],
+                          cand.images_before[rows[pair]], cand.images_after[rows[pair]],
+                          cand.seq_before[rows[pair]], cand.seq_after[rows[pair]], 0)
+        chain = chain_base + np.arange(pair.size)  # one id per specular point
+        chain_base += pair.size
+        chains, idx = _assemble(context, mirrors, sub, x, normal, np.ones(pair.size, dtype=bool),
+                                np.full(pair.size, reflector.surface), reflector.patch[tri], "smooth", chain)
+        chains.spreading, chains.phase = go_amplitude_general(
+            a_pt[pair][idx], b_pt[pair][idx], x[idx], normal[idx], e1[idx], e2[idx], k11[idx], k22[idx], k12[idx])
+        parts.append(chains)
+    order = n_before + 1 + n_after
     if not parts:
-        return _Chains(np.zeros((0, 3, 3)), np.zeros((0, 1), np.int64), np.zeros((0, 1), np.int64),
-                       np.zeros((0, 1, 3)), [("smooth", np.zeros(0, np.int64))], np.zeros(0), np.zeros(0),
-                       np.zeros(0, np.int64), np.zeros(0, np.int64)), chain_base
-    return _Chains(
+        parts.append(_Chains(np.zeros((0, order + 2, 3)), np.zeros((0, order), np.int64),
+                             np.zeros((0, order), np.int64), np.zeros((0, order, 3)),
+                             [("mirror", np.zeros(0, np.int64))] * order, np.zeros(0), np.zeros(0),
+                             np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)))
+    merged = _Chains(
         np.concatenate([p.vertices for p in parts]), np.concatenate([p.surface for p in parts]),
         np.concatenate([p.patch for p in parts]), np.concatenate([p.normal for p in parts]),
-        [("smooth", np.concatenate([p.material[0][1] for p in parts]))], np.concatenate([p.length for p in parts]),
-        np.concatenate([p.spreading for p in parts]), np.concatenate([p.channel for p in parts]),
-        np.concatenate([p.chain for p in parts]), np.concatenate([p.phase for p in parts]),
-    ), chain_base
+        [(parts[0].material[j][0], np.concatenate([p.material[j][1] for p in parts])) for j in range(order)],
+        np.concatenate([p.length for p in parts]), np.concatenate([p.spreading for p in parts]),
+        np.concatenate([p.channel for p in parts]), np.concatenate([p.chain for p in parts]),
+        np.concatenate([p.phase for p in parts]),
+    )
+    return merged, chain_base
 
 
 def _reflection_product(chains: _Chains, prepared: PreparedScene, context: SolveContext) -> NDArray[np.complex128]:
@@ -319,8 +362,10 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
                 chains, chain_base = _mixed_chains(context, prepared, n_before, n_after, chain_base, first, last)
                 groups.append(chains)
     if prepared.smooth:
-        chains, chain_base = _smooth_chains(context, prepared, chain_base)
-        groups.append(chains)
+        for n_before in range(max_order):
+            for n_after in range(max_order - n_before):
+                chains, chain_base = _smooth_chains(context, prepared, n_before, n_after, chain_base, first, last)
+                groups.append(chains)
     # one batched occlusion query over every leg of every candidate
     origins, targets, excludes = [], [], []
     for chains in groups:
