@@ -27,10 +27,12 @@ from numpy.typing import NDArray
 
 from binsonar.detection.matched import (
     MatchedPlan,
+    cell_mask,
     check_pfa,
     echo_values,
     envelope,
     filtered_spectrum,
+    lag_range,
     noise_mean_power,
     refine_peaks,
 )
@@ -171,6 +173,7 @@ def detect_cfar(
     sidelobe_margin_db: float = 6.0,
     max_echoes: int = 64,
     censor: bool = True,
+    search_window_s: tuple[float, float] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """All echoes above the CFAR threshold in each row.
 
@@ -197,6 +200,8 @@ def detect_cfar(
     censor : bool
         CA-CFAR: censor first-pass detections (+/- one main-lobe FWHM) from the reference
         cells in a second pass, so a strong echo does not mask a weaker one nearby.
+    search_window_s : (start_s, stop_s), optional
+        Only report TOFs in this window (s after the trigger).
 
     Returns
     -------
@@ -216,13 +221,14 @@ def detect_cfar(
     censor = int(math.ceil(plan.mainlobe_fwhm_s / cell_s)) if censor else 0
     threshold = cfar_threshold(power, offsets, kind, pfa, order, censor)
     noise = noise_mean_power(power)
+    inside = cell_mask(plan, power.shape[1], lag_range(plan, t0_s, search_window_s))
     sidelobes = plan.sidelobes()
     margin = 10.0 ** (sidelobe_margin_db / 10.0)
     peak_rows: list[NDArray[np.intp]] = []
     peak_cells: list[NDArray[np.intp]] = []
     peak_thresholds: list[NDArray[np.float64]] = []
     for r in range(rows.shape[0]):  # per channel: peak picking on its few candidates
-        candidates = local_maxima(power[r], power[r] > threshold[r])
+        candidates = local_maxima(power[r], (power[r] > threshold[r]) & inside)
         if candidates.size == 0:
             continue
         kept = candidates[select_peaks(candidates * cell_s, power[r, candidates], separation, sidelobes, margin)]

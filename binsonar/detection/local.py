@@ -21,12 +21,18 @@ analytic template's length, and one FFT of ~2 template lengths.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
-from binsonar.detection.matched import MatchedPlan, check_pfa, echo_values, lags_by_fft, lags_time_domain, refine
+from binsonar.detection.matched import (
+    MatchedPlan,
+    check_pfa,
+    echo_values,
+    lag_range,
+    lags_any,
+    lags_by_fft,
+    refine,
+)
 from binsonar.detection.noise import noise_sigma
 from binsonar.recording import RecordingError
 
@@ -53,7 +59,8 @@ def detect_local_matched(
     pfa : float
         Design false-alarm probability per record (same threshold as ``detect_matched``).
     search_window_s : (start_s, stop_s), optional
-        Only look for the coarse peak between these times (s after the trigger).
+        Only TOFs in this window (s after the trigger); as for ``detect_matched``, lags where
+        the template would stick out of the record are never searched.
     noise_window_s : (start_s, stop_s), optional
         Noise-only window for the noise floor (default: robust estimate over the record).
     candidates : int
@@ -67,26 +74,25 @@ def detect_local_matched(
     pfa = check_pfa(pfa)
     fs = plan.sample_rate_hz
     n_rows, n = rows.shape
-    start, stop = 0, n
-    if search_window_s is not None:
-        start = max(0, int(math.floor((search_window_s[0] - t0_s) * fs)))
-        stop = min(n, int(math.ceil((search_window_s[1] - t0_s) * fs)))
-        if stop - start < 1:
-            raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds no samples of the record")
     if not (isinstance(candidates, (int, np.integer)) and 1 <= candidates <= 16):
         raise RecordingError(f"{where}: candidates must be an integer in [1, 16], got {candidates!r}")
     m = plan.template_length
+    lag_lo, lag_hi = lag_range(plan, t0_s, search_window_s, where)
     # Blocks of ~m/16 samples, windows of 4 blocks (~m/4, about 4 RMS durations of a Gaussian
     # pulse truncated at 1e-6, i.e. most of its energy and little more noise).
     block = max(1, m // 16)
-    n_blocks = (stop - start) // block
-    if n_blocks < 1:
-        raise RecordingError(f"{where}: the search window is shorter than {block} samples")
-    part = rows[:, start:start + n_blocks * block].reshape(n_rows, n_blocks, block)
+    n_blocks = n // block
+    part = rows[:, : n_blocks * block].reshape(n_rows, n_blocks, block)
     energy = np.einsum("rbk,rbk->rb", part, part)
     span = min(4, n_blocks)
     cumulative = np.cumsum(np.pad(energy, ((0, 0), (1, 0))), axis=1)
     window_energy = cumulative[:, span:] - cumulative[:, :-span]
+    taps = plan.analytic_template_conj
+    reference = int(np.argmax(np.abs(taps))) - plan.analytic_offset  # template envelope maximum
+    # Lag of each window (its centre minus the template's envelope maximum): only those where
+    # the full matched filter looks too (the template inside the record, in the search window).
+    window_lag = np.arange(window_energy.shape[1]) * block + (span * block) // 2 - reference
+    window_energy[:, (window_lag < lag_lo) | (window_lag > lag_hi)] = -np.inf
     # The strongest few windows at least a template length apart: the echo need only be among
     # them (noise alone can top the energy at 20 dB in a 250,000-sample record).
     exclusion = max(1, m // block)
@@ -97,16 +103,13 @@ def detect_local_matched(
         picks[:, k] = best
         for row, b in enumerate(best):  # blank the neighbourhood of each pick (a slice per row)
             window_energy[row, max(b - exclusion, 0): b + exclusion + 1] = -np.inf
-    coarse = start + picks * block + (span * block) // 2  # (n_rows, candidates)
-    taps = plan.analytic_template_conj
-    reference = int(np.argmax(np.abs(taps))) - plan.analytic_offset  # template envelope maximum
-    coarse_lag = coarse - reference  # (n_rows, candidates)
+    coarse_lag = np.clip(window_lag[picks], lag_lo, lag_hi)  # (n_rows, candidates)
     if candidates > 1:
         # Rank the candidates by |z| at a few lags around each (spaced by a quarter of the
         # coarse window, well inside the response's main lobe), then keep the best.
         probe = np.arange(-2, 3) * max(1, (span * block) // 4)
         probe_lags = coarse_lag.reshape(-1, 1) + probe
-        probe_values = lags_time_domain(plan, rows, np.repeat(r, int(candidates)), probe_lags)
+        probe_values = lags_any(plan, rows, np.repeat(r, int(candidates)), probe_lags)
         strength = np.max(np.abs(probe_values), axis=1).reshape(n_rows, int(candidates))
         coarse_lag = coarse_lag[r, np.argmax(strength, axis=1)]
     else:
@@ -114,6 +117,7 @@ def detect_local_matched(
     half = m // 2
     lags = coarse_lag[:, np.newaxis] + np.arange(-half, half + 1)
     values = lags_by_fft(plan, rows, r, lags)
+    values[(lags < lag_lo) | (lags > lag_hi)] = 0.0  # the same lags as the full filter
     lag, power = refine(values, lags)
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where)
     energy = float(np.sum(plan.template.samples ** 2))

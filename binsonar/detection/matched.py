@@ -345,6 +345,33 @@ def lags_time_domain(
     return parts[..., 0] + 1j * parts[..., 1]
 
 
+def lags_any(
+    plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
+) -> NDArray[np.complex128]:
+    """Analytic correlation z at arbitrary integer lags (not necessarily consecutive).
+
+    Same value as ``lags_time_domain``; gathers one record stretch per lag, so it suits a few
+    scattered lags.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    row_index : ndarray of int, shape (k,)
+    lags : ndarray of int, shape (k, w)
+
+    Returns
+    -------
+    ndarray, shape (k, w), complex
+    """
+    taps = plan.analytic_template_conj
+    n = rows.shape[1]
+    index = (lags - plan.analytic_offset)[..., np.newaxis] + np.arange(taps.size)  # (k, w, m_a)
+    inside = (index >= 0) & (index < n)
+    values = np.where(inside, rows[row_index[:, np.newaxis, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
+    parts = values @ np.stack([taps.real, taps.imag], axis=1)
+    return parts[..., 0] + 1j * parts[..., 1]
+
+
 def lags_by_fft(
     plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
 ) -> NDArray[np.complex128]:
@@ -495,12 +522,46 @@ def check_pfa(pfa: float) -> float:
     return float(pfa)
 
 
+def lag_range(
+    plan: MatchedPlan, t0_s: float, search_window_s: tuple[float, float] | None = None, where: str = "record"
+) -> tuple[int, int]:
+    """Inclusive range [lo, hi] of full-overlap lags (full-rate samples) whose TOF lies in the
+    search window (s after the trigger; None: every full-overlap lag, [0, n - m]).
+
+    Raises
+    ------
+    RecordingError
+        A malformed window or one that holds no lag.
+    """
+    lo, hi = 0, plan.n_samples - plan.template_length
+    if search_window_s is not None:
+        try:
+            start_s, stop_s = (float(v) for v in search_window_s)
+        except (TypeError, ValueError):
+            raise RecordingError(f"{where}: search_window_s must be (start_s, stop_s), got {search_window_s!r}") from None
+        shift = plan.template.t0_s - t0_s
+        if math.isfinite(start_s):
+            lo = max(lo, int(math.ceil((start_s + shift) * plan.sample_rate_hz)))
+        if math.isfinite(stop_s):
+            hi = min(hi, int(math.floor((stop_s + shift) * plan.sample_rate_hz)))
+        if hi < lo:
+            raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds no time of flight of the record")
+    return lo, hi
+
+
+def cell_mask(plan: MatchedPlan, n_cells: int, lags: tuple[int, int]) -> NDArray[np.bool_]:
+    """True for the decimated envelope cells whose lag lies in the inclusive range ``lags``."""
+    lag = np.arange(n_cells) * plan.decimation
+    return (lag >= lags[0] - 0.5 * plan.decimation) & (lag <= lags[1] + 0.5 * plan.decimation)
+
+
 def detect_matched(
     rows: NDArray[np.float64],
     plan: MatchedPlan,
     *,
     t0_s: float,
     pfa: float = 1e-3,
+    search_window_s: tuple[float, float] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Strongest matched-filter echo of each row (the seed's global-maximum peak detection).
 
@@ -513,6 +574,9 @@ def detect_matched(
     pfa : float
         Design false-alarm probability per record: a row whose peak is below the threshold for
         it reports no echo.
+    search_window_s : (start_s, stop_s), optional
+        Only TOFs in this window (s after the trigger), e.g. to skip the transmitter's direct
+        cross-talk; default: every lag where the template lies inside the record.
 
     Returns
     -------
@@ -523,7 +587,8 @@ def detect_matched(
     z = envelope(plan, spectrum)
     power = z.real ** 2 + z.imag ** 2
     noise = noise_mean_power(power)
-    coarse = np.argmax(power, axis=1)
+    inside = cell_mask(plan, power.shape[1], lag_range(plan, t0_s, search_window_s))
+    coarse = np.argmax(np.where(inside, power, -1.0), axis=1)
     row_index = np.arange(rows.shape[0])
     lag, peak = refine_peaks(plan, rows, spectrum, row_index, coarse * plan.decimation)
     factor = plan.threshold_factor(pfa)

@@ -5,10 +5,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-# Smallest power used before a logarithm (avoids log(0) on an exactly zero envelope).
-_TINY = np.finfo(float).tiny
-
-
 def log_parabolic_offset(
     left: NDArray[np.float64], centre: NDArray[np.float64], right: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -21,7 +17,8 @@ def log_parabolic_offset(
     Parameters
     ----------
     left, centre, right : ndarray, shape (k,)
-        Powers (e.g. |z|^2) at offsets -1, 0, +1, with ``centre`` the largest.
+        Powers (e.g. |z|^2) at offsets -1, 0, +1, normally with ``centre`` the largest (where
+        it is not, or a neighbour is 0, the offset is 0 and the peak is ``centre``).
 
     Returns
     -------
@@ -30,15 +27,20 @@ def log_parabolic_offset(
     peak : ndarray, shape (k,)
         Interpolated power at the vertex.
     """
-    y_l = np.log(np.maximum(left, _TINY))
-    y_c = np.log(np.maximum(centre, _TINY))
-    y_r = np.log(np.maximum(right, _TINY))
+    left = np.asarray(left, dtype=float)
+    centre = np.asarray(centre, dtype=float)
+    right = np.asarray(right, dtype=float)
+    # Interpolate only around a true local maximum with positive neighbours (not, e.g., at the
+    # edge of the searched lags, where a neighbour is 0): elsewhere keep the sample itself.
+    usable = (left > 0) & (right > 0) & (centre >= left) & (centre >= right)
+    y_l = np.log(np.where(usable, left, 1.0))
+    y_c = np.log(np.where(usable, centre, 1.0))
+    y_r = np.log(np.where(usable, right, 1.0))
     curvature = y_l - 2.0 * y_c + y_r
-    safe = np.where(curvature < 0.0, curvature, -1.0)
-    offset = np.where(curvature < 0.0, 0.5 * (y_l - y_r) / safe, 0.0)
-    offset = np.clip(offset, -0.5, 0.5)
-    log_peak = y_c - 0.25 * (y_l - y_r) * offset
-    return offset, np.exp(log_peak)
+    ok = usable & (curvature < 0.0)
+    offset = np.clip(np.where(ok, 0.5 * (y_l - y_r) / np.where(ok, curvature, -1.0), 0.0), -0.5, 0.5)
+    peak = np.where(ok, np.exp(y_c - 0.25 * (y_l - y_r) * offset), centre)
+    return offset, peak
 
 
 def parabolic_offset(

@@ -88,6 +88,7 @@ def detect_threshold(
     noise_window_s: tuple[float, float] | None = None,
     offset_s: float = 0.0,
     calibrate_amplitude_v: float | None = None,
+    search_window_s: tuple[float, float] | None = None,
     where: str = "record",
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """First threshold crossing of each row.
@@ -112,6 +113,9 @@ def detect_threshold(
     calibrate_amplitude_v : float, optional
         Instead of ``offset_s``: the offset of the template scaled to this peak amplitude (V);
         needs ``level_v``.
+    search_window_s : (start_s, stop_s), optional
+        Only crossings between these times (s after the trigger), e.g. after the
+        transmitter's direct cross-talk.
 
     Returns
     -------
@@ -135,8 +139,19 @@ def detect_threshold(
             raise RecordingError(f"{where}: calibrate_amplitude_v needs a template and an absolute level_v")
         offset_s = crossing_time_offset(template, float(calibrate_amplitude_v), float(level_v))
     window = template.samples.size if template is not None else max(16, int(round(10e-6 * fs)))
-    found = first_crossings(rows, level)
     n_rows, n = rows.shape
+    first, stop = 0, n
+    if search_window_s is not None:
+        try:
+            start_s, stop_s = (float(v) for v in search_window_s)
+        except (TypeError, ValueError):
+            raise RecordingError(f"{where}: search_window_s must be (start_s, stop_s), got {search_window_s!r}") from None
+        first = max(0, int(math.ceil((start_s - t0_s) * fs))) if math.isfinite(start_s) else 0
+        stop = min(n, int(math.floor((stop_s - t0_s) * fs)) + 1) if math.isfinite(stop_s) else n
+        if stop - first < 2:
+            raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
+    found = first_crossings(rows[:, first:stop], level)
+    found = np.where(found >= 0, found + first, -1)
     out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
     hit = np.flatnonzero(found >= 0)
     if hit.size == 0:
