@@ -168,3 +168,18 @@ def test_traced_free_sphere_echo_lands_at_its_delay(scene):
     window = slice(int((delay - 20e-6) * 20e6), int((delay + 20e-6) * 20e6))
     tof, _ = matched_filter(sim.clean[1, window], template.samples, 20e6, template.t0_s)
     assert abs(tof + window.start / 20e6 - delay) < 2e-9  # 2 ns: the sphere's echo is its own shape
+
+
+def test_a_planned_synthesiser_is_reused_across_poses(tank_scene):
+    from acoustisim.synthesis import PingSynthesiser
+
+    paths = hand_made_paths(tank_scene)
+    planned = PingSynthesiser.create(tank_scene.sonar, tank_scene.medium)
+    moved = tank_scene.sonar.with_pose((2.0, 1.0, 0.4), yaw_deg=30.0)
+    reused = simulate(tank_scene, moved, paths=paths, synthesiser=planned, seed=2)
+    fresh = simulate(tank_scene, moved, paths=paths, seed=2)
+    assert np.array_equal(reused.recording.waveforms, fresh.recording.waveforms)
+    assert reused.recording.pose[0, 3] == 30.0
+    other = PingSynthesiser.create(SonarHead(record_length_s=1e-3), tank_scene.medium)
+    with pytest.raises(InputError, match="another sonar"):
+        simulate(tank_scene, paths=paths, synthesiser=other)

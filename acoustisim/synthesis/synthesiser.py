@@ -158,10 +158,14 @@ class KernelPlan:
         medium: Medium, radius_m: float, fs_dec: float, max_length_m: float,
     ) -> "KernelPlan":
         """Tabulate the factors of a kernel's spectrum on its bins ``bins_hz`` (Hz)."""
-        k = np.arange(bins_hz.size)
         delay_steps = 1 << int(math.ceil(math.log2(1.0 / (fs_dec * DELAY_RESOLUTION_S))))
-        shift = centre + np.arange(delay_steps + 1)[:, None] / delay_steps
-        phase = (fs_dec * pulse_spectrum(pulse, bins_hz))[None, :] * np.exp(-2j * np.pi * shift * k / length)
+        # exp(-j 2 pi k shift / Lk) as running powers over k (one multiply per entry).
+        shift = centre + np.arange(delay_steps + 1) / delay_steps
+        phase = np.empty((delay_steps + 1, bins_hz.size), dtype=complex)
+        phase[:, :1] = 1.0
+        phase[:, 1:] = np.exp(-2j * np.pi * shift / length)[:, None]
+        np.cumprod(phase, axis=1, out=phase)
+        phase *= fs_dec * pulse_spectrum(pulse, bins_hz)
         # 2 J1(x)/x on a fine x grid (64 per unit: linear interpolation error h^2/32 < 1e-5),
         # through the shared piston model (x = k a sin(theta) with f = x / (2 pi), a = c = 1).
         kappa = 2.0 * np.pi * bins_hz * radius_m / medium.sound_speed
