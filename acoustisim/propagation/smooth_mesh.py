@@ -32,7 +32,10 @@ _NEWTON_STEPS = 12
 """Newton iterations in barycentric coordinates (quadratic convergence; 6-8 suffice from the centroid)."""
 
 _CHUNK = 2_000_000
-"""(pair, triangle) combinations screened per vectorised block (bounds the memory to ~0.5 GB)."""
+"""(pair, cluster) combinations screened per vectorised block (bounds the memory to ~0.5 GB)."""
+
+_CLUSTERS_PER_AXIS = 24
+"""Voxel cells per axis of the triangle clusters (at most 24^3; about 1000 on a closed surface)."""
 
 _BARY_TOL = 1e-9
 """Barycentric slack at the triangle's edges (points on a shared edge belong to both triangles)."""
@@ -59,6 +62,13 @@ class SmoothMesh:
         Longest edge (m).
     source_face : ndarray of int64, shape (t,)
         Index of each triangle in the original mesh (crease splitting may reorder faces).
+    cluster_order : ndarray of int64, shape (t,)
+        Triangles sorted by cluster (a voxel grid of about :data:`_CLUSTERS_PER_AXIS`^3 cells).
+    cluster_start : ndarray of int64, shape (c + 1,)
+        Offsets of each cluster in ``cluster_order``.
+    cluster_centre, cluster_radius, cluster_axis, cluster_cone : ndarray
+        Bounding sphere (c, 3), (c,) (m) and normal cone (unit axis (c, 3), half-angle (c,) rad)
+        of each cluster, for a coarse screening before the triangles.
     """
 
     triangles: NDArray[np.float64] = field(repr=False)
@@ -67,6 +77,12 @@ class SmoothMesh:
     spread: NDArray[np.float64] = field(repr=False)
     size: NDArray[np.float64] = field(repr=False)
     source_face: NDArray[np.int64] = field(repr=False)
+    cluster_order: NDArray[np.int64] = field(repr=False)
+    cluster_start: NDArray[np.int64] = field(repr=False)
+    cluster_centre: NDArray[np.float64] = field(repr=False)
+    cluster_radius: NDArray[np.float64] = field(repr=False)
+    cluster_axis: NDArray[np.float64] = field(repr=False)
+    cluster_cone: NDArray[np.float64] = field(repr=False)
 
     @classmethod
     def from_mesh(cls, mesh: "trimesh.Trimesh") -> "SmoothMesh":
@@ -98,7 +114,33 @@ class SmoothMesh:
         from scipy.spatial import cKDTree
 
         _, source_face = cKDTree(np.asarray(mesh.triangles_center)).query(triangles.mean(axis=1))
-        return cls(triangles, corner_normals, face_normals, spread, size, np.asarray(source_face, dtype=np.int64))
+        # clusters: a voxel grid over the triangle centroids
+        centroid = triangles.mean(axis=1)
+        lo, hi = centroid.min(axis=0), centroid.max(axis=0)
+        cell = max(float(np.max(hi - lo)) / _CLUSTERS_PER_AXIS, 1e-12)
+        ijk = np.floor((centroid - lo) / cell).astype(np.int64)
+        key = (ijk[:, 0] * (_CLUSTERS_PER_AXIS + 1) + ijk[:, 1]) * (_CLUSTERS_PER_AXIS + 1) + ijk[:, 2]
+        _, cluster = np.unique(key, return_inverse=True)
+        order = np.argsort(cluster, kind="stable")
+        counts = np.bincount(cluster)
+        start = np.concatenate([[0], np.cumsum(counts)])
+        n_clusters = counts.size
+
+        def per_cluster_sum(values: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.stack([np.bincount(cluster, values[:, k], minlength=n_clusters) for k in range(3)], axis=1)
+
+        centre = per_cluster_sum(centroid) / counts[:, None]
+        corner_dist = np.linalg.norm(triangles - centre[cluster][:, None, :], axis=2).max(axis=1)
+        radius = np.zeros(n_clusters)
+        np.maximum.at(radius, cluster, corner_dist)
+        axis = per_cluster_sum(face_normals)
+        axis_norm = np.linalg.norm(axis, axis=1, keepdims=True)
+        axis = np.where(axis_norm > 1e-12, axis / np.where(axis_norm > 0, axis_norm, 1.0), np.array([[0.0, 0.0, 1.0]]))
+        corner_angle = np.arccos(np.clip(np.einsum("tjk,tk->tj", corner_normals, axis[cluster]), -1.0, 1.0)).max(axis=1)
+        cone = np.zeros(n_clusters)
+        np.maximum.at(cone, cluster, corner_angle)
+        return cls(triangles, corner_normals, face_normals, spread, size, np.asarray(source_face, dtype=np.int64),
+                   order.astype(np.int64), start.astype(np.int64), centre, radius, axis, cone)
 
     def _normal(self, tri: NDArray[np.int64], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
         n = self.corner_normals[tri]
@@ -128,29 +170,46 @@ class SmoothMesh:
         k11, k22, k12 : ndarray, shape (m,)
             Shape operator in (e1, e2) (1/m, convex > 0), symmetrised.
         """
-        centroid = self.triangles.mean(axis=1)
-        # candidate (pair, triangle) combinations whose normal cone can contain the bisector: the
-        # bisector turns by at most ~ size / distance across a triangle; 3x margins. Vectorised
-        # over pairs x triangles, in chunks of about 2 million combinations.
-        pair_list, tri_list = [], []
-        chunk = max(1, _CHUNK // max(1, centroid.shape[0]))
+        if a.shape[0] == 0:
+            z0, e0 = np.zeros(0), np.zeros((0, 3))
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), e0, e0, e0, e0, z0, z0, z0
+        # 1. clusters whose normal cone can hold the bisector (which turns by at most ~ 2 R / r
+        #    across a cluster of radius R seen from r), vectorised over pairs x clusters in chunks
+        n_clusters = self.cluster_radius.size
+        pair_list, cluster_list = [], []
+        chunk = max(1, _CHUNK // max(1, n_clusters))
         for start in range(0, a.shape[0], chunk):  # a loop over chunks of pairs
-            aa = a[start:start + chunk, None, :]
-            bb = b[start:start + chunk, None, :]
-            da = aa - centroid[None]
-            db = bb - centroid[None]
+            da = a[start:start + chunk, None, :] - self.cluster_centre[None]
+            db = b[start:start + chunk, None, :] - self.cluster_centre[None]
             ra = np.linalg.norm(da, axis=2)
             rb = np.linalg.norm(db, axis=2)
             h = da / ra[..., None] + db / rb[..., None]
             with np.errstate(invalid="ignore", divide="ignore"):  # opposite ends: no bisector, NaN fails below
-                cos_h = np.einsum("ptk,tk->pt", h, self.face_normals) / np.linalg.norm(h, axis=2)
-            slack = 3.0 * self.spread[None] + 3.0 * self.size[None] / np.minimum(ra, rb) + 1e-6
-            lit = (np.einsum("ptk,tk->pt", da, self.face_normals) > 0) & (
-                np.einsum("ptk,tk->pt", db, self.face_normals) > 0)
-            near = lit & (cos_h > np.cos(np.minimum(slack, np.pi / 2)))
-            p_idx, t_idx = np.nonzero(near)
+                cos_h = np.einsum("pck,ck->pc", h, self.cluster_axis) / np.linalg.norm(h, axis=2)
+                turn = 2.0 * self.cluster_radius[None] / np.maximum(np.minimum(ra, rb) - self.cluster_radius[None], 1e-12)
+            slack = np.minimum(self.cluster_cone[None] + 2.0 * turn + 1e-3, np.pi)
+            p_idx, c_idx = np.nonzero(cos_h > np.cos(slack))
             pair_list.append(p_idx + start)
-            tri_list.append(t_idx)
+            cluster_list.append(c_idx)
+        pc = np.concatenate(pair_list).astype(np.int64)
+        cc = np.concatenate(cluster_list).astype(np.int64)
+        # 2. their triangles, screened one by one (3x margins on the bisector's turn)
+        counts = self.cluster_start[cc + 1] - self.cluster_start[cc]
+        first = np.repeat(self.cluster_start[cc] - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+        tri = self.cluster_order[first + np.arange(int(counts.sum()))]
+        pair = np.repeat(pc, counts)
+        centroid = self.triangles[tri].mean(axis=1)
+        da = a[pair] - centroid
+        db = b[pair] - centroid
+        ra = np.linalg.norm(da, axis=1)
+        rb = np.linalg.norm(db, axis=1)
+        fn = self.face_normals[tri]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            h = _unit(da / ra[:, None] + db / rb[:, None])
+        slack = 3.0 * self.spread[tri] + 3.0 * self.size[tri] / np.minimum(ra, rb) + 1e-6
+        lit = (np.einsum("ij,ij->i", da, fn) > 0) & (np.einsum("ij,ij->i", db, fn) > 0)
+        near = lit & (np.einsum("ij,ij->i", h, fn) > np.cos(np.minimum(slack, np.pi / 2)))
+        pair_list, tri_list = [pair[near]], [tri[near]]
         pair = np.concatenate(pair_list).astype(np.int64) if pair_list else np.zeros(0, np.int64)
         tri = np.concatenate(tri_list).astype(np.int64) if tri_list else np.zeros(0, np.int64)
         empty = np.zeros((0, 3))
