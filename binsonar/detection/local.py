@@ -29,8 +29,8 @@ from binsonar.detection.matched import (
     check_pfa,
     echo_values,
     lag_range,
-    lags_any,
     lags_by_fft,
+    lags_time_domain,
     refine,
 )
 from binsonar.detection.noise import noise_sigma
@@ -107,9 +107,9 @@ def detect_local_matched(
     if candidates > 1:
         # Rank the candidates by |z| at a few lags around each (spaced by a quarter of the
         # coarse window, well inside the response's main lobe), then keep the best.
-        probe = np.arange(-2, 3) * max(1, (span * block) // 4)
-        probe_lags = coarse_lag.reshape(-1, 1) + probe
-        probe_values = lags_any(plan, rows, np.repeat(r, int(candidates)), probe_lags)
+        step = max(1, (span * block) // 4)
+        probe_lags = coarse_lag.reshape(-1, 1) + np.arange(-2, 3) * step
+        probe_values = lags_time_domain(plan, rows, np.repeat(r, int(candidates)), probe_lags, stride=step)
         strength = np.max(np.abs(probe_values), axis=1).reshape(n_rows, int(candidates))
         coarse_lag = coarse_lag[r, np.argmax(strength, axis=1)]
     else:

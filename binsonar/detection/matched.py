@@ -315,9 +315,13 @@ def noise_mean_power(power: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def lags_time_domain(
-    plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
+    plan: MatchedPlan,
+    rows: NDArray[np.float64],
+    row_index: NDArray[np.intp],
+    lags: NDArray[np.intp],
+    stride: int = 1,
 ) -> NDArray[np.complex128]:
-    """Analytic correlation z at integer lags, computed directly (plain matched filter).
+    """Analytic correlation z at equally spaced integer lags, computed directly (plain filter).
 
     Parameters
     ----------
@@ -325,7 +329,9 @@ def lags_time_domain(
     row_index : ndarray of int, shape (k,)
         Row of each peak.
     lags : ndarray of int, shape (k, w)
-        Consecutive lags (full-rate samples) to evaluate for each peak.
+        Lags (full-rate samples) to evaluate for each peak: lags[:, 0] + stride * arange(w).
+    stride : int
+        Spacing of the lags.
 
     Returns
     -------
@@ -336,39 +342,12 @@ def lags_time_domain(
     taps = plan.analytic_template_conj
     n = rows.shape[1]
     w = lags.shape[1]
-    start = lags[:, 0] - plan.analytic_offset  # first record sample under the template at lag 0
-    index = start[:, np.newaxis] + np.arange(w + taps.size - 1)  # (k, w + m_a - 1)
+    start = lags[:, 0] - plan.analytic_offset  # first record sample under the template at the first lag
+    index = start[:, np.newaxis] + np.arange((w - 1) * stride + taps.size)
     inside = (index >= 0) & (index < n)
     segment = np.where(inside, rows[row_index[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
-    windows = np.ascontiguousarray(sliding_window_view(segment, taps.size, axis=-1))  # (k, w, m_a)
+    windows = np.ascontiguousarray(sliding_window_view(segment, taps.size, axis=-1)[:, ::stride])  # (k, w, m_a)
     parts = windows @ np.stack([taps.real, taps.imag], axis=1)  # (k, w, 2), BLAS
-    return parts[..., 0] + 1j * parts[..., 1]
-
-
-def lags_any(
-    plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
-) -> NDArray[np.complex128]:
-    """Analytic correlation z at arbitrary integer lags (not necessarily consecutive).
-
-    Same value as ``lags_time_domain``; gathers one record stretch per lag, so it suits a few
-    scattered lags.
-
-    Parameters
-    ----------
-    rows : ndarray, shape (n_rows, n_samples)
-    row_index : ndarray of int, shape (k,)
-    lags : ndarray of int, shape (k, w)
-
-    Returns
-    -------
-    ndarray, shape (k, w), complex
-    """
-    taps = plan.analytic_template_conj
-    n = rows.shape[1]
-    index = (lags - plan.analytic_offset)[..., np.newaxis] + np.arange(taps.size)  # (k, w, m_a)
-    inside = (index >= 0) & (index < n)
-    values = np.where(inside, rows[row_index[:, np.newaxis, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
-    parts = values @ np.stack([taps.real, taps.imag], axis=1)
     return parts[..., 0] + 1j * parts[..., 1]
 
 
@@ -402,15 +381,16 @@ def lags_from_spectrum(plan: MatchedPlan, spectrum: NDArray[np.complex128], lags
     spectrum : ndarray, shape (k, k_hi)
         ``filtered_spectrum`` rows of the peaks.
     lags : ndarray of int, shape (k, w)
-        Consecutive lags for each peak.
+        Equally spaced lags for each peak (the same spacing for all).
 
     Returns
     -------
     ndarray, shape (k, w), complex
     """
     bins = np.arange(plan.k_hi)
+    stride = int(lags[0, 1] - lags[0, 0]) if lags.shape[1] > 1 else 1
     phasor = np.exp(2j * np.pi * np.outer(lags[:, 0], bins) / plan.n_fft)  # (k, k_hi)
-    step = np.exp(2j * np.pi * bins / plan.n_fft)
+    step = np.exp(2j * np.pi * stride * bins / plan.n_fft)
     out = np.empty(lags.shape, dtype=complex)
     for j in range(lags.shape[1]):  # a few lags around each peak, not samples of the record
         out[:, j] = (spectrum * phasor).sum(axis=-1) / plan.n_fft
