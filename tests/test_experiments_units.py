@@ -91,3 +91,23 @@ def test_bad_input_is_one_line_and_exit_2(argv: list[str], message: str, capsys:
     assert code == 2
     assert message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()  # nothing written
+
+
+def test_a_module_that_fails_to_import_does_not_hide_the_others(monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib
+
+    from acoustisim.experiments import registry
+
+    real = importlib.import_module
+
+    def fake(name: str, package: str | None = None):
+        if name.endswith(".range_sweep"):
+            raise SyntaxError("half-written module")
+        return real(name, package)
+
+    monkeypatch.setattr(registry.importlib, "import_module", fake)
+    modules, broken = registry.discover()
+    assert "range-sweep" not in modules and "angle-sweep" in modules
+    assert broken == {"range_sweep": "SyntaxError: half-written module"}
+    with pytest.raises(InputError, match="failed to import: range_sweep"):
+        registry.experiment_module("range-sweep")

@@ -56,15 +56,18 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``experiment`` verb with one sub-command per registered experiment."""
-    from acoustisim.experiments.registry import experiment_modules
+    from acoustisim.experiments.registry import discover
 
+    modules, broken = discover()
     parser = subparsers.add_parser(
         "experiment", help="run an experiment (range-sweep, angle-sweep, nine-methods, ...)",
         description="Run one of the seed's experiments in the simulated tank; writes results.json, "
-                    "report.md and PNG figures.")
+                    "report.md and PNG figures.",
+        epilog=("modules of acoustisim.experiments that failed to import: "
+                + "; ".join(f"{k}: {v}" for k, v in broken.items())) if broken else None)
     names = parser.add_subparsers(dest="experiment", metavar="NAME")
     names.required = True
-    for name, module in experiment_modules().items():
+    for name, module in modules.items():
         sub = names.add_parser(name, help=getattr(module, "SUMMARY", ""), description=getattr(module, "SUMMARY", ""))
         sub.add_argument("--trials", type=int, default=None,
                          help="the experiment's size (see its report; default: the experiment's own)")

@@ -123,29 +123,33 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     sonar = replace(sonar, record_length_s=stop_s + template_s)
     truth = object_truth(scene, sonar, scene.objects[0])
     half_baseline = float(sonar.separation_m)
-    t = time.perf_counter()
+    t, cpu = time.perf_counter(), time.process_time()
     paths = solve(scene, sonar, solver_config(p))
-    solve_s = time.perf_counter() - t
+    solve_s, solve_cpu_s = time.perf_counter() - t, time.process_time() - cpu
     out: dict[str, Any] = {
         "range_m": range_m, "bearing_deg": bearing_deg,
         "truth_range_m": truth.range_m, "truth_bearing_deg": truth.bearing_deg,
         "sonar_position_m": list(sonar.position_m), "sonar_yaw_deg": sonar.yaw_deg,
-        "gate_s": [start_s, stop_s], "solve_s": solve_s, "n_pings": n_pings,
+        "gate_s": [start_s, stop_s], "solve_s": solve_s, "solve_cpu_s": solve_cpu_s, "n_pings": n_pings,
         "detectors": {m: {k: [] for k in ("range_est_m", "bearing_est_deg", "range_error_m", "bearing_error_deg",
-                                          "detected", "elapsed_s", "snr_db", "bound_range_m", "bound_bearing_deg")}
+                                          "detected", "elapsed_s", "cpu_s", "snr_db", "bound_range_m",
+                                          "bound_bearing_deg")}
                       for m in detectors},
     }
-    sim_s = 0.0
+    sim_s = sim_cpu_s = 0.0
     seeds = np.random.SeedSequence(trial.seed).generate_state(repeats, dtype=np.uint32)
     for k in range(repeats):
-        t = time.perf_counter()
+        t, cpu = time.perf_counter(), time.process_time()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
             sim = simulate(scene, sonar, paths=paths, seed=int(seeds[k]), n_pings=n_pings, average=n_pings > 1)
         sim_s += time.perf_counter() - t
+        sim_cpu_s += time.process_time() - cpu
         recording = gate_recording(sim.recording, start_s, stop_s + template_s)
         for method in detectors:
+            cpu = time.process_time()
             result = detect(recording, method)
+            cpu = time.process_time() - cpu
             echoes = result.first(0)
             r_est, b_est = estimate_point(echoes, c, half_baseline)
             r_sd, b_sd = bound_of(echoes, r_est, b_est, c, half_baseline) if method != "threshold" else (np.nan, np.nan)
@@ -157,10 +161,12 @@ def measure_position(trial: Trial) -> dict[str, Any]:
             rec["bearing_error_deg"].append(b_est - truth.bearing_deg)
             rec["detected"].append(bool(math.isfinite(r_est)))
             rec["elapsed_s"].append(result.elapsed_s)
+            rec["cpu_s"].append(cpu)
             rec["snr_db"].append(float(np.mean(snrs)) if snrs else float("nan"))
             rec["bound_range_m"].append(r_sd)
             rec["bound_bearing_deg"].append(b_sd)
     out["simulate_s_per_ping"] = sim_s / (repeats * n_pings)
+    out["simulate_cpu_s_per_ping"] = sim_cpu_s / (repeats * n_pings)
     return out
 
 
@@ -176,7 +182,9 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
     rows = []
     for pos in positions:
         row: dict[str, Any] = {"range_m": pos["range_m"], "bearing_deg": pos["bearing_deg"],
-                               "simulate_s_per_ping": pos["simulate_s_per_ping"], "solve_s": pos["solve_s"]}
+                               "simulate_s_per_ping": pos["simulate_s_per_ping"],
+                               "simulate_cpu_s_per_ping": pos.get("simulate_cpu_s_per_ping", float("nan")),
+                               "solve_s": pos["solve_s"], "solve_cpu_s": pos.get("solve_cpu_s", float("nan"))}
         bound = pos["detectors"].get("matched", {})
         b_r = float(np.nanmean(bound.get("bound_range_m", [np.nan]))) if bound else float("nan")
         b_b = float(np.nanmean(bound.get("bound_bearing_deg", [np.nan]))) if bound else float("nan")
@@ -190,6 +198,7 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
                 "bearing_mean_error_deg": float(np.nanmean(d["bearing_error_deg"])) if any(d["detected"]) else float("nan"),
                 "detection_rate": float(np.mean(d["detected"])),
                 "elapsed_s": float(np.mean(d["elapsed_s"])),
+                "cpu_s": float(np.mean(d["cpu_s"])) if d.get("cpu_s") else float("nan"),
                 "snr_db": float(np.nanmean(d["snr_db"])) if any(d["detected"]) else float("nan"),
             }
         if "matched" in detectors:
@@ -199,11 +208,14 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
         rows.append(row)
     summary: dict[str, Any] = {
         "simulate_s_per_ping": float(np.mean([r["simulate_s_per_ping"] for r in rows])),
+        "simulate_cpu_s_per_ping": float(np.mean([r["simulate_cpu_s_per_ping"] for r in rows])),
         "solve_s_per_position": float(np.mean([r["solve_s"] for r in rows])),
+        "solve_cpu_s_per_position": float(np.mean([r["solve_cpu_s"] for r in rows])),
     }
     for m in detectors:
         summary[m] = {
             "elapsed_s_per_position": float(np.mean([r[m]["elapsed_s"] for r in rows])),
+            "cpu_s_per_position": float(np.mean([r[m]["cpu_s"] for r in rows])),
             "max_range_rms_m": float(np.nanmax([r[m]["range_rms_m"] for r in rows])) if rows else float("nan"),
             "max_bearing_rms_deg": float(np.nanmax([r[m]["bearing_rms_deg"] for r in rows])) if rows else float("nan"),
             "detection_rate": float(np.mean([r[m]["detection_rate"] for r in rows])),

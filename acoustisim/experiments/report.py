@@ -39,6 +39,16 @@ def write_json_atomic(path: Path, payload: Any) -> Path:
     return path
 
 
+def write_text_atomic(path: Path, text: str) -> Path:
+    """Write text to ``path`` via a temporary file and a rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    with os.fdopen(fd, "w") as handle:
+        handle.write(text)
+    os.replace(tmp, path)
+    return path
+
+
 @dataclass
 class ExperimentReport:
     """Accumulates an experiment's results, figures and text, then writes them to ``out_dir``.
@@ -78,8 +88,7 @@ class ExperimentReport:
             lines += [section, ""]
         for name, caption in self.figures:
             lines += [f"![{caption}]({name})", "", f"*{caption}*", ""]
-        md_path = self.out_dir / "report.md"
-        md_path.write_text("\n".join(lines))
+        md_path = write_text_atomic(self.out_dir / "report.md", "\n".join(lines))
         return {"results": str(json_path), "report": str(md_path)}
 
 
