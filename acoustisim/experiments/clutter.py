@@ -1,0 +1,380 @@
+"""``clutter``: detectors in cluttered tank scenes (ROC, localisation error, association, time).
+
+Scenes: ``clutter_scenes.cluttered_scene``: the thesis tank with a rough sand floor and 1-8
+random posts, edge prisms, short cylinders and spheres in front of the sonar (default pose).
+Each trial is one scene of one clutter density: its paths are traced once (first and second
+order, specular, edge and diffuse with ``DIFFUSE_RAYS`` rays) and one ping is synthesised at
+each SNR (``snr_db``: 2E/N0 of the strongest target echo, white noise replacing the noise
+models), recorded for ``RECORD_S`` and gated past the main bang and the cross-talk
+(``gating.BLANKING_S``).
+
+Each detector runs twice on a ping: with its nominal settings (the operating point, the
+localisation and the time per ping) and with a lowered threshold (``LOWERED``) whose echoes'
+scores are swept post hoc for the ROC (``roc``: a detection is an echo within
+``TOLERANCE_M`` of path length of an object's first-order arrival; a false alarm an echo no
+significant arrival of any kind explains). The nominal detections are localised
+(``binsonar.localization.localize``: association of the three channels' echoes and point /
+circle / plane fits); a target is *correctly associated* when its three echoes are, by the truth
+arrivals, from the same object, and its range and bearing errors are then taken against that
+object's truth (``truth.object_truth``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from typing import Any
+
+import numpy as np
+
+from acoustisim.experiments.config import ExperimentConfig
+from acoustisim.experiments.report import ExperimentReport, markdown_table
+from acoustisim.experiments.runner import Trial
+
+NAME = "clutter"
+SUMMARY = ("detectors in randomised cluttered tank scenes: ROC, localisation-error distribution, association "
+           "accuracy and time per ping")
+DEFAULT_SCENES = 4
+"""Scenes per clutter density (``--trials``)."""
+DENSITIES: tuple[int, ...] = (1, 4, 8)
+"""Objects per scene."""
+SNRS_DB: tuple[float, ...] = (20.0, 30.0, 40.0)
+"""2E/N0 of the strongest target echo (dB); 20 dB is a peak-to-noise ratio of about 2.2."""
+DETECTORS: tuple[str, ...] = ("threshold", "ca-cfar", "os-cfar", "local-matched", "dwt", "whitened-matched")
+LOWERED: dict[str, dict[str, float]] = {
+    "threshold": {"level_sigma": 3.0},
+    "ca-cfar": {"pfa": 1e-3},
+    "os-cfar": {"pfa": 1e-3},
+    "local-matched": {"pfa": 0.1},
+    "dwt": {"pfa": 0.1},
+    "whitened-matched": {"pfa": 0.1},
+}
+"""Options lowering each detector's threshold for the ROC sweep (nominal: level 6 sigma, CFAR
+pfa 1e-6, the others pfa 1e-3)."""
+RECORD_S = 5e-3
+"""Record length (s): 3.7 m of range, past the farthest object (3.2 m)."""
+DIFFUSE_RAYS = 2000
+MAX_ORDER = 2
+ATTENUATION_DB = 60.0
+"""Receive attenuation (dB): the strongest echo plus the noise of the lowest SNR stay under the
+ADC's 1 V full scale (measured: a 0.06 V echo and 0.025 V of noise at 20 dB)."""
+TOLERANCE_M = 0.01
+"""A detection lies within this much path length (m) of a true arrival: 6.8 us, more than the
+5 us pulse, so that a detector's TOF bias on a distorted (diffracted, overlapping) echo is not
+counted as a miss."""
+
+
+def add_arguments(parser: Any) -> None:
+    """``--densities``, ``--snrs``, ``--detectors``."""
+    parser.add_argument("--densities", default=",".join(str(d) for d in DENSITIES),
+                        help="objects per scene, comma-separated (default 1,4,8)")
+    parser.add_argument("--snrs", default=",".join(f"{s:g}" for s in SNRS_DB),
+                        help="SNRs (2E/N0 of the strongest target echo, dB), comma-separated (default 20,30,40)")
+    parser.add_argument("--detectors", default=",".join(DETECTORS),
+                        help=f"detectors, comma-separated (default {','.join(DETECTORS)})")
+
+
+def _localise(result: Any, recording: Any) -> Any:
+    from binsonar.bounds import rms_bandwidth_hz
+    from binsonar.localization import localize
+
+    bandwidth = rms_bandwidth_hz(recording.template.samples, recording.template.sample_rate_hz)
+    return localize(result, sound_speed_m_s=recording.sound_speed_m_s,
+                    channel_positions_m=recording.channel_positions_m, pose=recording.pose,
+                    rms_bandwidth_hz=bandwidth)
+
+
+def measure_scene(trial: Trial) -> dict[str, Any]:
+    """One scene: trace once, one ping per SNR, every detector nominal and lowered (runner function).
+
+    Trial parameters: ``density``, ``snrs_db`` (tuple), ``detectors`` (tuple).
+
+    Returns
+    -------
+    dict
+        ``density``, ``objects`` (kinds), ``solve_s``, and per SNR and detector: ``target_best``
+        (best lowered score per target, None = missed), ``false_alarm_scores``, ``nominal_pd`` /
+        ``nominal_targets`` / ``nominal_false_alarms``, ``range_errors_m``, ``bearing_errors_deg``,
+        ``targets`` / ``associated`` (localised targets with three echoes / from one object),
+        ``elapsed_s`` and ``cpu_s`` (nominal detection of the ping), ``clipped``.
+    """
+    from scipy.signal import hilbert
+
+    from acoustisim.experiments.clutter_scenes import cluttered_scene
+    from acoustisim.experiments.gating import BLANKING_S, gate_recording
+    from acoustisim.experiments.roc import echo_object, first_order_targets, roc_curve, score_echoes
+    from acoustisim.experiments.truth import object_truth
+    from acoustisim.propagation import SolverConfig, solve
+    from acoustisim.simulation import simulate
+    from acoustisim.synthesis.chain import ReceiverChain
+    from binsonar.detection import detect
+
+    del roc_curve  # the curve is built from all scenes in ``run``
+    p = dict(trial.params)
+    rng = np.random.default_rng(np.random.SeedSequence([trial.seed, 1]))
+    scene = cluttered_scene(int(p["density"]), rng, RECORD_S)
+    sonar = scene.sonar
+    names = [o.name for o in scene.objects]
+    truths = {o.name: object_truth(scene, sonar, o) for o in scene.objects}
+    t = time.perf_counter()
+    paths = solve(scene, sonar, SolverConfig(max_order=MAX_ORDER, diffuse_rays=DIFFUSE_RAYS, seed=trial.seed % 2**31))
+    solve_s = time.perf_counter() - t
+    arrivals = paths.arrivals()
+    surface_names = tuple(paths.surface_names)
+    chain = ReceiverChain(attenuation_db=(ATTENUATION_DB,) * 3)
+    c = None
+    out: dict[str, Any] = {"density": int(p["density"]), "objects": [o.kind for o in scene.objects],
+                           "solve_s": solve_s, "snr": {}}
+    for k, snr in enumerate(p["snrs_db"]):
+        t = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
+            sim = simulate(scene, sonar, chain=chain, paths=paths, seed=trial.seed + k, n_pings=1, snr_db=float(snr))
+        simulate_s = time.perf_counter() - t
+        recording = gate_recording(sim.recording, BLANKING_S)
+        c = float(recording.sound_speed_m_s)
+        tol_s = TOLERANCE_M / c
+        fs = recording.sample_rate_hz
+        i0 = int(round(recording.t0_s * fs))
+        envelope = np.abs(hilbert(sim.clean[:, i0:i0 + recording.waveforms.shape[-1]], axis=-1))
+        window = (recording.t0_s, recording.t0_s + recording.waveforms.shape[-1] / fs)
+        targets = first_order_targets(arrivals, surface_names, names, window)
+        sigma = np.asarray(sim.noise_sigma_v, dtype=float)
+        clipped = bool(np.max(np.abs(recording.waveforms)) >= chain.adc_full_scale_v * (1 - 1e-9))
+        per: dict[str, Any] = {"simulate_s": simulate_s, "clipped": clipped, "n_targets": len(targets),
+                               "detectors": {}}
+        for method in p["detectors"]:
+            lowered = detect(recording, method, **LOWERED[method])
+            best, fa = score_echoes(lowered.echoes[0], targets, arrivals, envelope, recording.t0_s, fs, sigma, tol_s)
+            cpu = time.process_time()
+            nominal = detect(recording, method)
+            cpu = time.process_time() - cpu
+            nb, nfa = score_echoes(nominal.echoes[0], targets, arrivals, envelope, recording.t0_s, fs, sigma, tol_s)
+            loc = _localise(nominal, recording)
+            range_err, bearing_err, n_three, n_assoc = [], [], 0, 0
+            for target in loc.targets[0]:
+                if any(e is None for e in target.echoes):
+                    continue
+                n_three += 1
+                owners = {echo_object(arrivals, surface_names, names, e.channel, e.tof_s, tol_s)
+                          for e in target.echoes}
+                if len(owners) == 1 and None not in owners:
+                    n_assoc += 1
+                    truth = truths[owners.pop()]
+                    range_err.append(float(target.range_m - truth.range_m))
+                    bearing_err.append(float(target.bearing_deg - truth.bearing_deg))
+            per["detectors"][method] = {
+                "target_best": [float(v) if np.isfinite(v) else None for v in best],
+                "false_alarm_scores": fa.tolist(),
+                "nominal_detected": int(np.sum(np.isfinite(nb))), "nominal_false_alarms": int(nfa.size),
+                "range_errors_m": range_err, "bearing_errors_deg": bearing_err,
+                "targets": n_three, "associated": n_assoc,
+                "elapsed_s": float(nominal.elapsed_s), "cpu_s": float(cpu),
+            }
+        out["snr"][f"{float(snr):g}"] = per
+    return out
+
+
+def _best_array(values: list[Any]) -> np.ndarray:
+    return np.array([-np.inf if v is None else v for v in values], dtype=float)
+
+
+def summarise(scenes: list[dict[str, Any]], snrs: list[str], detectors: list[str]) -> dict[str, Any]:
+    """Per detector and SNR (all densities), and per detector and density (all SNRs): ROC, rates, errors, time."""
+    from acoustisim.experiments.roc import roc_curve
+
+    def pooled(select: Any) -> dict[str, Any]:
+        out = {}
+        for m in detectors:
+            best, fa, rng_e, brg_e = [], [], [], []
+            pings = targets = detected = fas = n_three = n_assoc = 0
+            elapsed, cpu = [], []
+            for s in scenes:
+                for snr, per in s["snr"].items():
+                    if not select(s, snr):
+                        continue
+                    d = per["detectors"][m]
+                    pings += 1
+                    targets += per["n_targets"]
+                    best.append(_best_array(d["target_best"]))
+                    fa.append(np.asarray(d["false_alarm_scores"], dtype=float))
+                    detected += d["nominal_detected"]
+                    fas += d["nominal_false_alarms"]
+                    rng_e += d["range_errors_m"]
+                    brg_e += d["bearing_errors_deg"]
+                    n_three += d["targets"]
+                    n_assoc += d["associated"]
+                    elapsed.append(d["elapsed_s"])
+                    cpu.append(d["cpu_s"])
+            b = np.concatenate(best) if best else np.zeros(0)
+            f = np.concatenate(fa) if fa else np.zeros(0)
+            r = np.abs(np.asarray(rng_e, dtype=float))
+            out[m] = {
+                "pings": pings, "targets": targets,
+                "roc": roc_curve(b, f, pings),
+                "pd_max": float(np.mean(np.isfinite(b))) if b.size else float("nan"),
+                "nominal_pd": detected / targets if targets else float("nan"),
+                "nominal_false_alarms_per_ping": fas / pings if pings else float("nan"),
+                "localised_targets": n_three, "associated_targets": n_assoc,
+                "association_accuracy": n_assoc / n_three if n_three else float("nan"),
+                "range_errors_m": rng_e, "bearing_errors_deg": brg_e,
+                "range_error_median_abs_m": float(np.median(r)) if r.size else float("nan"),
+                "range_error_p90_abs_m": float(np.quantile(r, 0.9)) if r.size else float("nan"),
+                "bearing_error_median_abs_deg": (float(np.median(np.abs(brg_e))) if brg_e else float("nan")),
+                "time_per_ping_s": float(np.mean(elapsed)) if elapsed else float("nan"),
+                "cpu_per_ping_s": float(np.mean(cpu)) if cpu else float("nan"),
+            }
+        return out
+
+    densities = sorted({s["density"] for s in scenes})
+    return {
+        "by_snr": {snr: pooled(lambda s, x, snr=snr: x == snr) for snr in snrs},
+        "by_density": {str(d): pooled(lambda s, x, d=d: s["density"] == d) for d in densities},
+        "all": pooled(lambda s, x: True),
+    }
+
+
+COLOURS = {"threshold": "tab:orange", "ca-cfar": "tab:blue", "os-cfar": "tab:cyan", "local-matched": "tab:green",
+           "dwt": "tab:purple", "whitened-matched": "tab:red"}
+
+
+def roc_figure(summary: dict[str, Any], detectors: list[str]) -> Any:
+    """ROC curves per detector, one panel per SNR, with the nominal operating points."""
+    from acoustisim.experiments.figures import new_figure
+
+    snrs = list(summary["by_snr"])
+    fig, axes = new_figure(1, len(snrs), width=4.2 * len(snrs), row_height=3.6)
+    for j, snr in enumerate(snrs):
+        ax = axes[0, j]
+        for m in detectors:
+            s = summary["by_snr"][snr][m]
+            fa = np.asarray(s["roc"]["fa_per_ping"], dtype=float)
+            pd = np.asarray(s["roc"]["pd"], dtype=float)
+            floor = 0.5 / max(1, s["pings"])  # zero false alarms drawn at half of one per all pings
+            ax.step(np.maximum(fa, floor), pd, where="post", color=COLOURS.get(m), label=m)
+            ax.plot(max(s["nominal_false_alarms_per_ping"], floor), s["nominal_pd"], "o", color=COLOURS.get(m), ms=5)
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel("false alarms per ping (3 channels)")
+        if j == 0:
+            ax.set_ylabel("probability of detection")
+        ax.set_title(f"2E/N0 of the strongest echo {snr} dB", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        if j == len(snrs) - 1:
+            ax.legend(fontsize=7, loc="lower right", title="dots: nominal threshold", title_fontsize=7)
+    return fig
+
+
+def error_figure(summary: dict[str, Any], detectors: list[str]) -> Any:
+    """Histograms of the range and bearing errors of the targets associated to one object."""
+    from acoustisim.experiments.figures import new_figure
+
+    fig, axes = new_figure(1, 2, width=10.0, row_height=3.4)
+    bins_r = np.logspace(-2, 3, 41)  # |range error| in mm
+    bins_b = np.logspace(-3, 1.5, 41)  # |bearing error| in deg
+    for m in detectors:
+        s = summary["all"][m]
+        r = np.abs(np.asarray(s["range_errors_m"], dtype=float)) * 1e3
+        b = np.abs(np.asarray(s["bearing_errors_deg"], dtype=float))
+        if r.size:
+            axes[0, 0].hist(np.clip(r, bins_r[0], bins_r[-1]), bins=bins_r, histtype="step", color=COLOURS.get(m),
+                            label=f"{m} ({r.size})")
+            axes[0, 1].hist(np.clip(b, bins_b[0], bins_b[-1]), bins=bins_b, histtype="step", color=COLOURS.get(m),
+                            label=m)
+    for ax, label in ((axes[0, 0], "|range error| (mm)"), (axes[0, 1], "|bearing error| (deg)")):
+        ax.set_xscale("log")
+        ax.set_xlabel(label)
+        ax.set_ylabel("targets")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    axes[0, 0].set_title("Localised targets whose three echoes are from one object", fontsize=9)
+    axes[0, 1].set_title("(all densities and SNRs; values clipped to the axes)", fontsize=9)
+    return fig
+
+
+def _parse(text: str, kind: type, what: str) -> list[Any]:
+    from acoustisim.errors import InputError
+
+    try:
+        values = [kind(v) for v in str(text).split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"clutter: --{what} {text!r}: expected comma-separated numbers") from None
+    if not values:
+        raise InputError(f"clutter: --{what} is empty")
+    return values
+
+
+def run(config: ExperimentConfig) -> ExperimentReport:
+    """``config.trials`` scenes (default 4) per density, one ping per SNR, every detector."""
+    from acoustisim.errors import InputError
+    from acoustisim.experiments.runner import make_trials, run_trials
+
+    n_scenes = config.trials_or(DEFAULT_SCENES)
+    densities = _parse(config.option("densities", ",".join(map(str, DENSITIES))), int, "densities")
+    snrs = _parse(config.option("snrs", ",".join(f"{s:g}" for s in SNRS_DB)), float, "snrs")
+    detectors = [d.strip() for d in str(config.option("detectors", ",".join(DETECTORS))).split(",") if d.strip()]
+    if n_scenes < 1:
+        raise InputError(f"clutter: --trials must be >= 1, got {n_scenes}")
+    if any(not 1 <= d <= 12 for d in densities):
+        raise InputError(f"clutter: --densities must lie in 1..12 objects, got {densities}")
+    if any(not (math.isfinite(s) and 0.0 < s <= 80.0) for s in snrs):
+        raise InputError(f"clutter: --snrs must lie in (0, 80] dB, got {snrs}")
+    unknown = [d for d in detectors if d not in LOWERED]
+    if unknown or not detectors:
+        raise InputError(f"clutter: --detectors {','.join(unknown) or '(empty)'}: choose among {', '.join(LOWERED)}")
+    params = [{"density": d, "snrs_db": tuple(snrs), "detectors": tuple(detectors)}
+              for d in densities for _ in range(n_scenes)]
+    trials = make_trials(config.seed, params)
+    start = time.perf_counter()
+    scenes = run_trials(measure_scene, trials, workers=config.workers, description=config.name,
+                        progress=config.progress)
+    wall_s = time.perf_counter() - start
+    snr_keys = [f"{s:g}" for s in snrs]
+    summary = summarise(scenes, snr_keys, detectors)
+    report = ExperimentReport(config.name, config.out_dir)
+    sim_s = [per["simulate_s"] for s in scenes for per in s["snr"].values()]
+    report.results = {
+        "seed": config.seed, "scenes_per_density": n_scenes, "densities": densities, "snrs_db": snrs,
+        "detectors": detectors, "lowered_options": {d: LOWERED[d] for d in detectors},
+        "tolerance_m": TOLERANCE_M, "record_s": RECORD_S, "diffuse_rays": DIFFUSE_RAYS, "max_order": MAX_ORDER,
+        "wall_time_s": wall_s, "solve_s_per_scene": float(np.mean([s["solve_s"] for s in scenes])),
+        "simulate_s_per_ping": float(np.mean(sim_s)),
+        "clipped_pings": int(sum(per["clipped"] for s in scenes for per in s["snr"].values())),
+        "summary": summary, "scenes": scenes,
+    }
+    report.add_figure(roc_figure(summary, detectors), "clutter_roc.png",
+                      "ROC per detector (threshold swept post hoc over the echoes' scores), one panel per SNR, "
+                      "all densities pooled; dots: the nominal thresholds")
+    report.add_figure(error_figure(summary, detectors), "clutter_errors.png",
+                      "Range and bearing errors of the localised targets whose three echoes come from one object")
+    rows = []
+    for m in detectors:
+        s = summary["all"][m]
+        rows.append([m, s["nominal_pd"], s["nominal_false_alarms_per_ping"], s["pd_max"], s["association_accuracy"],
+                     f"{s['associated_targets']}/{s['localised_targets']}", s["range_error_median_abs_m"] * 1e3,
+                     s["bearing_error_median_abs_deg"], s["time_per_ping_s"] * 1e3, s["cpu_per_ping_s"] * 1e3])
+    report.add_section(
+        f"{n_scenes} random scenes per density ({', '.join(map(str, densities))} objects), one ping per SNR "
+        f"({', '.join(snr_keys)} dB, 2E/N0 of the strongest target echo), record {RECORD_S * 1e3:g} ms, "
+        f"{DIFFUSE_RAYS} diffuse rays, order <= {MAX_ORDER}; a detection is within {TOLERANCE_M * 100:g} cm of "
+        f"path length of an object's first-order arrival. Wall time {wall_s:.1f} s.")
+    report.add_section(markdown_table(
+        ["detector", "P_D (nominal)", "false alarms / ping (nominal)", "P_D (lowest threshold)",
+         "association accuracy", "associated / localised", "median |range error| (mm)",
+         "median |bearing error| (deg)", "time per ping (ms)", "CPU per ping (ms)"], rows))
+    drows = []
+    for d, per in summary["by_density"].items():
+        for m in detectors:
+            s = per[m]
+            drows.append([d, m, s["nominal_pd"], s["nominal_false_alarms_per_ping"], s["association_accuracy"]])
+    report.add_section("By clutter density (all SNRs):\n\n" + markdown_table(
+        ["objects", "detector", "P_D (nominal)", "false alarms / ping", "association accuracy"], drows))
+    report.add_section(
+        "Reading: P_D counts every object's echo on every channel, including objects far off the 19 mm "
+        "transducers' main lobe (bearings up to 8 deg) and small posts and spheres, whose echoes lie tens of dB "
+        "under the strongest; detectors that report one echo per channel (local-matched, whitened-matched, "
+        "mostly dwt) cannot exceed one target per channel per ping. The seed's tank had electrical noise and "
+        "interference; here white noise at a set SNR replaces them, so the false alarms come from noise and from "
+        "reverberation peaks the truth does not explain at the noise level.")
+    return report
