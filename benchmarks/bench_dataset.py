@@ -35,7 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from acoustisim.datasets.generate import generate, simulate_sample  # noqa: E402
+from acoustisim.datasets.generate import _local_cluster, generate, simulate_sample  # noqa: E402
 from acoustisim.datasets.sampling import plan_samples  # noqa: E402
 from acoustisim.datasets.spec import load_spec, loads_spec  # noqa: E402
 
@@ -76,9 +76,7 @@ def _worker_cpu_s(client) -> float:
 
 
 def throughput(spec_path: Path, n: int, workdir: Path) -> None:
-    import logging
-
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     spec = dataclasses.replace(load_spec(spec_path), n_samples=n)
     samples = plan_samples(spec)
@@ -105,8 +103,7 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
           f"CPU overhead vs baseline {(cpu / loop_cpu - 1) * 100:+.1f} %, wall {(base_rate / report.samples_per_s - 1) * 100:+.1f} %")
     rates, overheads = {}, {}
     for workers in (1, 2):
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR)
+        cluster = _local_cluster(workers)  # the one generate() starts by default
         with Client(cluster) as client:
             warm = dataclasses.replace(spec, n_samples=2 * workers)
             generate(warm, workdir / f"warm{workers}.zarr", client=client, progress=False)  # imports, caches
