@@ -291,41 +291,46 @@ class PathSynthesiser:
         """
         from scipy import sparse
 
-        check_rows(rows)
         m_dec = self.grid.n_fft_decimated
         keep = int(math.ceil(self.grid.n_samples / self.grid.decimation)) + 1
         fs_dec = self.grid.sample_rate_hz / self.grid.decimation
         out = np.zeros(3 * m_dec)
+        # Contiguous copies of the columns used, read once (the structured rows are strided).
+        columns = {name: np.ascontiguousarray(rows[name]) for name in ROW_COLUMNS}
+        check_columns(columns)
         if rows.size == 0:
             return out.reshape(3, m_dec)
-        # Contiguous per-row columns, computed once (the structured rows are strided).
-        position = rows["delay_s"] * fs_dec
+        position = columns["delay_s"] * fs_dec
         whole = np.floor(position)
         late = whole - self.plans[-1].centre >= keep
         if warn and np.any(late):
             lost = np.unique(rows["path_id"][late]).size
             warnings.warn(
                 f"record_length_s = {self.grid.n_samples / self.grid.sample_rate_hz:g} s is too short for "
-                f"{lost} arrival(s) (latest delay {rows['delay_s'].max():.6g} s): they are left out",
+                f"{lost} arrival(s) (latest delay {columns['delay_s'].max():.6g} s): they are left out",
                 UserWarning,
                 stacklevel=3,
             )
-        angle_tx = np.ascontiguousarray(rows["angle_tx_rad"])
-        angle_rx = np.ascontiguousarray(rows["angle_rx_rad"])
+        angle_tx, angle_rx = columns["angle_tx_rad"], columns["angle_rx_rad"]
         sin_tx, sin_rx = np.abs(np.sin(angle_tx)), np.abs(np.sin(angle_rx))
         # A baffled piston radiates (and receives) only in front of its face: D = 0 beyond
-        # 90 deg off axis (the housing), as in propagation.directivity (cos(angle) >= 0 is front).
-        front = (np.cos(angle_tx) >= 0.0) & (np.cos(angle_rx) >= 0.0)
-        phase = rows["phase_rad"]
-        gain = rows["geometric_gain"] * front
+        # 90 deg off axis (the housing), as in propagation.directivity (cos(angle) >= 0, i.e.
+        # |angle| <= pi/2 in doubles, is the front).
+        front = (np.abs(angle_tx) <= 0.5 * np.pi) & (np.abs(angle_rx) <= 0.5 * np.pi)
+        phase = columns["phase_rad"]
+        gain = columns["geometric_gain"] * front
         weight = np.empty(rows.size, dtype=np.complex64)
-        weight.real = gain * np.cos(phase)
-        weight.imag = gain * np.sin(phase)
+        if np.any(phase != 0.0):
+            weight.real = gain * np.cos(phase)
+            weight.imag = gain * np.sin(phase)
+        else:
+            weight.real = gain
+            weight.imag = 0.0
         i_tx = np.rint(sin_tx * SINE_STEPS).astype(np.int64)
         i_rx = np.rint(sin_rx * SINE_STEPS).astype(np.int64)
-        i_len = np.rint(rows["path_length_m"] * (1.0 / LENGTH_STEP_M)).astype(np.int64)
+        i_len = np.rint(columns["path_length_m"] * (1.0 / LENGTH_STEP_M)).astype(np.int64)
         frac = position - whole
-        sample = rows["channel"].astype(np.int64) * m_dec + whole.astype(np.int64)
+        sample = columns["channel"].astype(np.int64) * m_dec + whole.astype(np.int64)
         limits = np.array([plan.max_spread for plan in self.plans])
         which = np.minimum(np.searchsorted(limits, sin_tx + sin_rx, side="left"), len(self.plans) - 1)
         for plan_number, plan in enumerate(self.plans):
@@ -391,18 +396,26 @@ class PathSynthesiser:
         return full
 
 
-def check_rows(rows: NDArray[Any]) -> None:
-    """Raise InputError when path rows hold NaN/inf or impossible values."""
-    names = ("delay_s", "path_length_m", "geometric_gain", "phase_rad", "angle_tx_rad", "angle_rx_rad")
-    total = np.zeros(rows.size)
+ROW_COLUMNS: tuple[str, ...] = (
+    "delay_s", "path_length_m", "geometric_gain", "phase_rad", "angle_tx_rad", "angle_rx_rad", "channel",
+)
+"""The path-row columns synthesis reads."""
+
+
+def check_columns(columns: dict[str, NDArray[Any]]) -> None:
+    """Raise InputError when path columns hold NaN/inf or impossible values."""
+    names = ROW_COLUMNS[:-1]
+    total = np.zeros(columns["delay_s"].size)
     for name in names:
-        total += rows[name]  # NaN or inf anywhere makes the sum non-finite (inf - inf is NaN)
+        total += columns[name]  # NaN or inf anywhere makes the sum non-finite (inf - inf is NaN)
     for name in names if not np.all(np.isfinite(total)) else ():
-        values = rows[name]
+        values = columns[name]
         if not np.all(np.isfinite(values)):
             bad = int(np.flatnonzero(~np.isfinite(values))[0])
             raise InputError(f"paths.{name} holds a non-finite value at row {bad}: {values[bad]!r}")
-    if rows.size and (np.any(rows["channel"] < 0) or np.any(rows["channel"] > 2)):
-        raise InputError(f"paths.channel must be 0, 1 or 2, got {sorted(set(rows['channel'].tolist()))}")
-    if rows.size and np.any(rows["path_length_m"] < 0):
+    channel = columns["channel"]
+    if channel.size and (channel.min() < 0 or channel.max() > 2):
+        raise InputError(f"paths.channel must be 0, 1 or 2, got {sorted(set(channel.tolist()))}")
+    if channel.size and columns["path_length_m"].min() < 0:
         raise InputError("paths.path_length_m holds negative values")
+
