@@ -161,8 +161,9 @@ def sample_directions(
     edges = np.linspace(1.0, -1.0, _COS_CELLS + 1)  # cos(theta) from the axis backwards
     centres = np.arccos(0.5 * (edges[1:] + edges[:-1]))
     power = piston_directivity(centres, context.centre_frequency_hz, context.piston_radius_m, context.sound_speed_m_s) ** 2
-    # 2 J1(x)/x with x = k a sin(theta) is symmetric about 90 degrees; the lobe density keeps the
-    # forward half (the transducer's face) and leaves the backward half to the uniform share
+    # the lobe density covers the forward hemisphere only (2 J1(x)/x, x = k a sin(theta), is
+    # symmetric about 90 degrees, a baffled piston radiates nothing behind); the back is left
+    # to the uniform share
     power = np.where(centres < 0.5 * np.pi, power, 0.0)
     mass = np.cumsum(power)
     width = 2.0 / _COS_CELLS
