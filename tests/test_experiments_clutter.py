@@ -104,6 +104,11 @@ def test_tiny_run_fields_and_invariants(tiny):
         assert np.all(np.diff(roc["threshold"]) > 0)
         assert np.all(np.diff(roc["pd"]) <= 0) and np.all(np.diff(roc["fa_per_ping"]) <= 0)
         assert s["time_per_ping_s"] > 0
+        # the ladder: one operating point per setting, the nominal one among them
+        assert len(s["ladder_pd"]) == len(s["ladder_fa_per_ping"]) == len(clutter.LADDER[m])
+        assert all(0.0 <= v <= 1.0 for v in s["ladder_pd"])
+        assert s["ladder_pd"][clutter.NOMINAL[m]] == pytest.approx(s["nominal_pd"])
+        assert s["ladder_fa_per_ping"][clutter.NOMINAL[m]] == pytest.approx(s["nominal_false_alarms_per_ping"])
     # The matched filter + CFAR finds the on-axis objects' echoes at 30 dB: the ROC's best P_D is
     # well above zero (a broken truth matching or tolerance would give 0).
     assert r["summary"]["all"]["ca-cfar"]["pd_max"] > 0.3

@@ -8,11 +8,16 @@ each SNR (``snr_db``: 2E/N0 of the strongest target echo, white noise replacing 
 models), recorded for ``RECORD_S`` and gated past the main bang and the cross-talk
 (``gating.BLANKING_S``).
 
-Each detector runs twice on a ping: with its nominal settings (the operating point, the
-localisation and the time per ping) and with a lowered threshold (``LOWERED``) whose echoes'
-scores are swept post hoc for the ROC (``roc``: a detection is an echo within
+Each detector runs on a ping at a ladder of threshold settings (``LADDER``, from the most
+permissive to the strictest, the nominal one among them): the most permissive run's echoes'
+scores are swept post hoc for the ROC curve (``roc``: a detection is an echo within
 ``TOLERANCE_M`` of path length of an object's first-order arrival; a false alarm an echo no
-significant arrival of any kind explains). The nominal detections are localised
+significant arrival of any kind explains), and every run gives one operating point. The two
+agree for detectors that report every peak above their threshold (the CFARs); for those that
+report one echo per channel (the threshold detector's first crossing, local-matched,
+whitened-matched) lowering the threshold changes *which* echo is reported (an early floor
+reverberation instead of a later object), so only the ladder's operating points describe them.
+The nominal run gives the localisation and the time per ping. The nominal detections are localised
 (``binsonar.localization.localize``: association of the three channels' echoes and point /
 circle / plane fits); a target is *correctly associated* when its three echoes are, by the truth
 arrivals, from the same object, and its range and bearing errors are then taken against that
@@ -42,16 +47,21 @@ DENSITIES: tuple[int, ...] = (1, 4, 8)
 SNRS_DB: tuple[float, ...] = (20.0, 30.0, 40.0)
 """2E/N0 of the strongest target echo (dB); 20 dB is a peak-to-noise ratio of about 2.2."""
 DETECTORS: tuple[str, ...] = ("threshold", "ca-cfar", "os-cfar", "local-matched", "dwt", "whitened-matched")
-LOWERED: dict[str, dict[str, float]] = {
-    "threshold": {"level_sigma": 3.0},
-    "ca-cfar": {"pfa": 1e-3},
-    "os-cfar": {"pfa": 1e-3},
-    "local-matched": {"pfa": 0.1},
-    "dwt": {"pfa": 0.1},
-    "whitened-matched": {"pfa": 0.1},
+_PFA_LADDER = (1e-1, 1e-2, 1e-3, 1e-5)
+_CFAR_LADDER = (1e-3, 1e-4, 1e-6, 1e-8)
+LADDER: dict[str, tuple[dict[str, float], ...]] = {
+    "threshold": tuple({"level_sigma": v} for v in (4.0, 6.0, 9.0, 13.0)),
+    "ca-cfar": tuple({"pfa": v} for v in _CFAR_LADDER),
+    "os-cfar": tuple({"pfa": v} for v in _CFAR_LADDER),
+    "local-matched": tuple({"pfa": v} for v in _PFA_LADDER),
+    "dwt": tuple({"pfa": v} for v in _PFA_LADDER),
+    "whitened-matched": tuple({"pfa": v} for v in _PFA_LADDER),
 }
-"""Options lowering each detector's threshold for the ROC sweep (nominal: level 6 sigma, CFAR
-pfa 1e-6, the others pfa 1e-3)."""
+"""Threshold settings of each detector, most permissive first (nominal: level 6 sigma, CFAR pfa
+1e-6, the others pfa 1e-3)."""
+NOMINAL: dict[str, int] = {"threshold": 1, "ca-cfar": 2, "os-cfar": 2, "local-matched": 2, "dwt": 2,
+                           "whitened-matched": 2}
+"""Index of the nominal (default) setting in each ladder."""
 RECORD_S = 5e-3
 """Record length (s): 3.7 m of range, past the farthest object (3.2 m)."""
 DIFFUSE_RAYS = 2000
@@ -80,13 +90,14 @@ def _localise(result: Any, recording: Any) -> Any:
     from binsonar.localization import localize
 
     bandwidth = rms_bandwidth_hz(recording.template.samples, recording.template.sample_rate_hz)
-    return localize(result, sound_speed_m_s=recording.sound_speed_m_s,
-                    channel_positions_m=recording.channel_positions_m, pose=recording.pose,
-                    rms_bandwidth_hz=bandwidth)
+    with np.errstate(over="ignore"):  # association squares the huge TOF stds of echoes barely above threshold
+        return localize(result, sound_speed_m_s=recording.sound_speed_m_s,
+                        channel_positions_m=recording.channel_positions_m, pose=recording.pose,
+                        rms_bandwidth_hz=bandwidth)
 
 
 def measure_scene(trial: Trial) -> dict[str, Any]:
-    """One scene: trace once, one ping per SNR, every detector nominal and lowered (runner function).
+    """One scene: trace once, one ping per SNR, every detector at every ladder setting (runner function).
 
     Trial parameters: ``density``, ``snrs_db`` (tuple), ``detectors`` (tuple).
 
@@ -94,8 +105,9 @@ def measure_scene(trial: Trial) -> dict[str, Any]:
     -------
     dict
         ``density``, ``objects`` (kinds), ``solve_s``, and per SNR and detector: ``target_best``
-        (best lowered score per target, None = missed), ``false_alarm_scores``, ``nominal_pd`` /
-        ``nominal_targets`` / ``nominal_false_alarms``, ``range_errors_m``, ``bearing_errors_deg``,
+        (best score per target in the most permissive run, None = missed), ``false_alarm_scores``,
+        ``nominal_detected`` / ``nominal_false_alarms``, ``ladder_detected`` / ``ladder_false_alarms``
+        (per ladder setting), ``range_errors_m``, ``bearing_errors_deg``,
         ``targets`` / ``associated`` (localised targets with three echoes / from one object),
         ``elapsed_s`` and ``cpu_s`` (nominal detection of the ping), ``clipped``.
     """
@@ -145,12 +157,18 @@ def measure_scene(trial: Trial) -> dict[str, Any]:
         per: dict[str, Any] = {"simulate_s": simulate_s, "clipped": clipped, "n_targets": len(targets),
                                "detectors": {}}
         for method in p["detectors"]:
-            lowered = detect(recording, method, **LOWERED[method])
-            best, fa = score_echoes(lowered.echoes[0], targets, arrivals, envelope, recording.t0_s, fs, sigma, tol_s)
-            cpu = time.process_time()
-            nominal = detect(recording, method)
-            cpu = time.process_time() - cpu
-            nb, nfa = score_echoes(nominal.echoes[0], targets, arrivals, envelope, recording.t0_s, fs, sigma, tol_s)
+            ladder_detected, ladder_fa = [], []
+            for level, options in enumerate(LADDER[method]):
+                cpu = time.process_time()
+                res = detect(recording, method, **options)
+                cpu = time.process_time() - cpu
+                b, f = score_echoes(res.echoes[0], targets, arrivals, envelope, recording.t0_s, fs, sigma, tol_s)
+                if level == 0:
+                    best, fa = b, f
+                if level == NOMINAL[method]:
+                    nominal, nominal_cpu, nb, nfa = res, cpu, b, f
+                ladder_detected.append(int(np.sum(b >= 1.0)))
+                ladder_fa.append(int(np.sum(f >= 1.0)))
             loc = _localise(nominal, recording)
             range_err, bearing_err, n_three, n_assoc = [], [], 0, 0
             for target in loc.targets[0]:
@@ -167,10 +185,11 @@ def measure_scene(trial: Trial) -> dict[str, Any]:
             per["detectors"][method] = {
                 "target_best": [float(v) if np.isfinite(v) else None for v in best],
                 "false_alarm_scores": fa.tolist(),
-                "nominal_detected": int(np.sum(np.isfinite(nb))), "nominal_false_alarms": int(nfa.size),
+                "nominal_detected": int(np.sum(nb >= 1.0)), "nominal_false_alarms": int(np.sum(nfa >= 1.0)),
+                "ladder_detected": ladder_detected, "ladder_false_alarms": ladder_fa,
                 "range_errors_m": range_err, "bearing_errors_deg": bearing_err,
                 "targets": n_three, "associated": n_assoc,
-                "elapsed_s": float(nominal.elapsed_s), "cpu_s": float(cpu),
+                "elapsed_s": float(nominal.elapsed_s), "cpu_s": float(nominal_cpu),
             }
         out["snr"][f"{float(snr):g}"] = per
     return out
@@ -189,6 +208,8 @@ def summarise(scenes: list[dict[str, Any]], snrs: list[str], detectors: list[str
         for m in detectors:
             best, fa, rng_e, brg_e = [], [], [], []
             pings = targets = detected = fas = n_three = n_assoc = 0
+            lad_d = np.zeros(len(LADDER[m]))
+            lad_f = np.zeros(len(LADDER[m]))
             elapsed, cpu = [], []
             for s in scenes:
                 for snr, per in s["snr"].items():
@@ -200,6 +221,8 @@ def summarise(scenes: list[dict[str, Any]], snrs: list[str], detectors: list[str
                     best.append(_best_array(d["target_best"]))
                     fa.append(np.asarray(d["false_alarm_scores"], dtype=float))
                     detected += d["nominal_detected"]
+                    lad_d += np.asarray(d["ladder_detected"], dtype=float)
+                    lad_f += np.asarray(d["ladder_false_alarms"], dtype=float)
                     fas += d["nominal_false_alarms"]
                     rng_e += d["range_errors_m"]
                     brg_e += d["bearing_errors_deg"]
@@ -214,6 +237,8 @@ def summarise(scenes: list[dict[str, Any]], snrs: list[str], detectors: list[str
                 "pings": pings, "targets": targets,
                 "roc": roc_curve(b, f, pings),
                 "pd_max": float(np.mean(np.isfinite(b))) if b.size else float("nan"),
+                "ladder_pd": (lad_d / targets).tolist() if targets else [float("nan")] * lad_d.size,
+                "ladder_fa_per_ping": (lad_f / pings).tolist() if pings else [float("nan")] * lad_f.size,
                 "nominal_pd": detected / targets if targets else float("nan"),
                 "nominal_false_alarms_per_ping": fas / pings if pings else float("nan"),
                 "localised_targets": n_three, "associated_targets": n_assoc,
@@ -253,7 +278,9 @@ def roc_figure(summary: dict[str, Any], detectors: list[str]) -> Any:
             pd = np.asarray(s["roc"]["pd"], dtype=float)
             floor = 0.5 / max(1, s["pings"])  # zero false alarms drawn at half of one per all pings
             ax.step(np.maximum(fa, floor), pd, where="post", color=COLOURS.get(m), label=m)
-            ax.plot(max(s["nominal_false_alarms_per_ping"], floor), s["nominal_pd"], "o", color=COLOURS.get(m), ms=5)
+            ax.plot(np.maximum(s["ladder_fa_per_ping"], floor), s["ladder_pd"], ":", marker=".", color=COLOURS.get(m))
+            ax.plot(max(s["nominal_false_alarms_per_ping"], floor), s["nominal_pd"], "o", color=COLOURS.get(m), ms=6,
+                    mfc="none")
         ax.set_xscale("log")
         ax.set_ylim(0, 1.02)
         ax.set_xlabel("false alarms per ping (3 channels)")
@@ -262,7 +289,7 @@ def roc_figure(summary: dict[str, Any], detectors: list[str]) -> Any:
         ax.set_title(f"2E/N0 of the strongest echo {snr} dB", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         if j == len(snrs) - 1:
-            ax.legend(fontsize=7, loc="lower right", title="dots: nominal threshold", title_fontsize=7)
+            ax.legend(fontsize=7, loc="lower right", title="lines: post-hoc sweep; dotted: threshold ladder;\ncircles: nominal threshold", title_fontsize=7)
     return fig
 
 
@@ -320,9 +347,9 @@ def run(config: ExperimentConfig) -> ExperimentReport:
         raise InputError(f"clutter: --densities must lie in 1..12 objects, got {densities}")
     if any(not (math.isfinite(s) and 0.0 < s <= 80.0) for s in snrs):
         raise InputError(f"clutter: --snrs must lie in (0, 80] dB, got {snrs}")
-    unknown = [d for d in detectors if d not in LOWERED]
+    unknown = [d for d in detectors if d not in LADDER]
     if unknown or not detectors:
-        raise InputError(f"clutter: --detectors {','.join(unknown) or '(empty)'}: choose among {', '.join(LOWERED)}")
+        raise InputError(f"clutter: --detectors {','.join(unknown) or '(empty)'}: choose among {', '.join(LADDER)}")
     params = [{"density": d, "snrs_db": tuple(snrs), "detectors": tuple(detectors)}
               for d in densities for _ in range(n_scenes)]
     trials = make_trials(config.seed, params)
@@ -336,7 +363,8 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     sim_s = [per["simulate_s"] for s in scenes for per in s["snr"].values()]
     report.results = {
         "seed": config.seed, "scenes_per_density": n_scenes, "densities": densities, "snrs_db": snrs,
-        "detectors": detectors, "lowered_options": {d: LOWERED[d] for d in detectors},
+        "detectors": detectors, "ladder_options": {d: LADDER[d] for d in detectors},
+        "nominal_ladder_index": {d: NOMINAL[d] for d in detectors},
         "tolerance_m": TOLERANCE_M, "record_s": RECORD_S, "diffuse_rays": DIFFUSE_RAYS, "max_order": MAX_ORDER,
         "wall_time_s": wall_s, "solve_s_per_scene": float(np.mean([s["solve_s"] for s in scenes])),
         "simulate_s_per_ping": float(np.mean(sim_s)),
@@ -344,8 +372,9 @@ def run(config: ExperimentConfig) -> ExperimentReport:
         "summary": summary, "scenes": scenes,
     }
     report.add_figure(roc_figure(summary, detectors), "clutter_roc.png",
-                      "ROC per detector (threshold swept post hoc over the echoes' scores), one panel per SNR, "
-                      "all densities pooled; dots: the nominal thresholds")
+                      "ROC per detector, one panel per SNR, all densities pooled: solid, the most permissive run's "
+                      "threshold swept post hoc over the echoes' scores; dotted, the operating points of the "
+                      "threshold ladder; circles, the nominal thresholds (zero false alarms drawn at the left edge)")
     report.add_figure(error_figure(summary, detectors), "clutter_errors.png",
                       "Range and bearing errors of the localised targets whose three echoes come from one object")
     rows = []
@@ -360,7 +389,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
         f"{DIFFUSE_RAYS} diffuse rays, order <= {MAX_ORDER}; a detection is within {TOLERANCE_M * 100:g} cm of "
         f"path length of an object's first-order arrival. Wall time {wall_s:.1f} s.")
     report.add_section(markdown_table(
-        ["detector", "P_D (nominal)", "false alarms / ping (nominal)", "P_D (lowest threshold)",
+        ["detector", "P_D (nominal)", "false alarms / ping (nominal)", "P_D (most permissive run)",
          "association accuracy", "associated / localised", "median |range error| (mm)",
          "median |bearing error| (deg)", "time per ping (ms)", "CPU per ping (ms)"], rows))
     drows = []

@@ -313,6 +313,10 @@ def fuse_track(poses: list[dict[str, Any]]) -> dict[str, Any]:
         "fused_radius_mean_m": float(np.mean(r[ok])) if ok.any() else float("nan"),
         "fused_radius_scatter_m": float(np.std(r[ok], ddof=1)) if ok.sum() > 1 else float("nan"),
         "fused_radius_reported_std_m": float(np.nanmean(radius_std)) if ok.any() else float("nan"),
+        "fused_radius_median_m": float(np.median(r[ok])) if ok.any() else float("nan"),
+        "fused_radius_robust_scatter_m": (float(1.4826 * np.median(np.abs(r[ok] - np.median(r[ok]))))
+                                          if ok.sum() > 1 else float("nan")),
+        "fused_class_counts": {c: classes.count(c) for c in sorted(set(classes))},
         "fused_radius_rms_error_m": float(np.sqrt(np.mean((r[ok] - FUSION_RADIUS_M) ** 2))) if ok.any() else float("nan"),
         "single_ping_radius_rms_error_m": (float(np.sqrt(np.nanmean((single - FUSION_RADIUS_M) ** 2)))
                                            if np.isfinite(single).any() else float("nan")),
@@ -381,7 +385,9 @@ def cases_figure(summaries: dict[str, dict[str, Any]]) -> Any:
             for m in METHODS:
                 mean = np.array([r[m][f"{key}_abs_error_mean_{unit}"] for r in rows], dtype=float) * scale
                 std = np.array([r[m][f"{key}_abs_error_std_{unit}"] for r in rows], dtype=float) * scale
-                ax.errorbar(x, mean, yerr=np.where(np.isfinite(std), std, 0.0), capsize=2, label=m, **styles[m])
+                std = np.where(np.isfinite(std), std, 0.0)
+                # asymmetric bars: a log axis cannot show mean - std <= 0
+                ax.errorbar(x, mean, yerr=[np.minimum(std, 0.9 * mean), std], capsize=2, label=m, **styles[m])
             ax.set_yscale("log")
             ax.grid(True, which="both", alpha=0.3)
             if j == 0:
@@ -524,18 +530,29 @@ def _write_text(report: ExperimentReport, summaries: dict[str, Any], fusion: dic
         report.add_section(
             f"Fusion: {fusion['poses']} poses along a {FUSION_TRACK_M:g} m track, post of radius "
             f"{FUSION_RADIUS_M * 1e3:g} mm at {FUSION_DISTANCE_M:g} m: fused radius "
-            f"{fusion['fused_radius_mean_m'] * 1e3:.2f} mm mean, {fusion['fused_radius_scatter_m'] * 1e3:.2f} mm "
+            f"{fusion['fused_radius_mean_m'] * 1e3:.3f} mm mean, {fusion['fused_radius_scatter_m'] * 1e6:.3g} um "
             f"scatter over {fusion['realisations']} realisations (reported std "
-            f"{fusion['fused_radius_reported_std_m'] * 1e3:.2f} mm), RMS error "
-            f"{fusion['fused_radius_rms_error_m'] * 1e3:.2f} mm; a single ping's exact fit has an RMS radius error of "
+            f"{fusion['fused_radius_reported_std_m'] * 1e6:.3g} um), RMS error "
+            f"{fusion['fused_radius_rms_error_m'] * 1e6:.3g} um; a single ping's exact fit has an RMS radius error of "
             f"{fusion['single_ping_radius_rms_error_m'] * 1e3:.3g} mm (median |error| "
-            f"{fusion['single_ping_radius_median_abs_error_m'] * 1e3:.3g} mm).")
+            f"{fusion['single_ping_radius_median_abs_error_m'] * 1e3:.3g} mm). Median fused radius "
+            f"{fusion['fused_radius_median_m'] * 1e3:.4f} mm, robust scatter (1.48 MAD) "
+            f"{fusion['fused_radius_robust_scatter_m'] * 1e6:.3g} um; the fused classes "
+            f"{fusion['fused_class_counts']} ('unknown': no model fits within the noise the echoes' Cramer-Rao "
+            "stds predict, i.e. the fused residuals exceed those stds).")
+    ple = [s["overall"]["path_length_error_mean_m"] for s in summaries.values()]
+    noise_um = [s["overall"]["path_length_noise_std_m"] * 1e6 for s in summaries.values()]
     report.add_section(
-        "Differences from the seed's study: the seed added 2 um of Gaussian noise to exact path lengths. Here "
-        "the TOFs come from detection on digitised waveforms: their noise follows the echo's SNR (Cramer-Rao, "
-        "about 1-3 um of path length at the 60-70 dB of these strong, unclipped echoes, more for the far, small "
-        "cylinders), and the detector adds a bias common to the three channels (the echo's shape through the "
-        "receive chain is not exactly the template's), which cancels in the radius (a difference of path "
-        "lengths) but shifts the range. The approximate method's radius error is dominated by its model bias "
-        "(about D tan^2(theta) + d^2 / (4 D), physics.md section 7), not by the noise, so the ranking of the two "
-        "methods is the seed's.")
+        "Differences from the seed's study: the seed added 2 um of Gaussian noise to exact path lengths. Here the "
+        "TOFs come from a detector on digitised waveforms: their noise follows each echo's SNR (its Cramer-Rao "
+        f"bound), measured {min(noise_um):.2g}-{max(noise_um):.2g} um of path length at the 60-70 dB of these "
+        "strong, unclipped echoes - close to the seed's 2 um, so the two studies are comparable - and varies with "
+        "the cylinder's radius and range (a larger, nearer cylinder echoes more strongly). The detector's bias, "
+        f"at most {max(abs(v) for v in ple) * 1e6:.2g} um, is negligible: the specular echo of a smooth cylinder "
+        "is the transmitted pulse through the same chain as the template, so the matched filter is unbiased; a "
+        "bias common to the three channels would cancel in the radius anyway. The exact fit's radius error is "
+        "the noise's, about 2 sqrt(6) sigma_L D^2 / d^2 (tens of centimetres at D = 3-4 m with d = 4 cm); the "
+        "approximation adds its model bias, about D tan^2(theta) + d^2 / (4 D) (physics.md section 7), which "
+        "dominates at the 20 deg of case 1 and is small at the 1-12 deg of cases 2 and 3, where both methods "
+        "are noise-limited: the seed's ranking, with the margin set by the bearing. Range and angle come from "
+        "the same path lengths by both methods and agree, as the seed found.")
