@@ -135,3 +135,21 @@ def test_template_at_another_sample_rate_is_resampled():
     resampled = detect(data, "matched", sample_rate_hz=FS, template=slow)
     for a, b in zip(native.echoes[0], resampled.echoes[0]):
         assert abs(a[0].tof_s - b[0].tof_s) < 1e-9
+
+
+def test_prepared_detector_matches_detect_and_checks_the_record():
+    from binsonar.detection import prepare
+
+    data = _record(3)
+    for method in ("matched", "local-matched", "threshold", "seed-8", "os-cfar"):
+        prepared = prepare(method, sample_rate_hz=FS, n_samples=N, template=pulse_template())
+        once = detect(data, method, sample_rate_hz=FS, template=pulse_template())
+        again = prepared.run(data)
+        assert [[[(e.tof_s, e.score) for e in ch] for ch in ping] for ping in again.echoes] == \
+            [[[(e.tof_s, e.score) for e in ch] for ch in ping] for ping in once.echoes]
+    with pytest.raises(RecordingError, match="prepared for 4096 samples"):
+        prepare("matched", sample_rate_hz=FS, n_samples=N, template=pulse_template()).run(data[..., :4000])
+    with pytest.raises(RecordingError, match="needs a template"):
+        prepare("matched", sample_rate_hz=FS, n_samples=N)
+    with pytest.raises(RecordingError, match="n_samples"):
+        prepare("matched", sample_rate_hz=FS, n_samples=1, template=pulse_template())

@@ -1,11 +1,21 @@
 """Echo detectors and time-of-flight estimators.
 
 ``detect(data, method, ...)`` runs any of ``METHODS`` on a ``Recording`` or an array and
-returns a ``DetectionResult``. Importing this package loads numpy only; each method imports
+returns a ``DetectionResult``; ``prepare(method, ...)`` sets a method up once for a template
+and record length, and its ``run(data)`` then processes each new ping (live use). Importing this package loads numpy only; each method imports
 scipy / PyWavelets when it runs.
 """
 
-from binsonar.detection.api import BASE_METHODS, METHODS, detect, method_options
+from binsonar.detection.api import BASE_METHODS, METHODS, PreparedDetector, detect, method_options, prepare
 from binsonar.detection.echo import DetectionResult, Echo
 
-__all__ = ["BASE_METHODS", "METHODS", "DetectionResult", "Echo", "detect", "method_options"]
+__all__ = [
+    "BASE_METHODS",
+    "METHODS",
+    "DetectionResult",
+    "Echo",
+    "PreparedDetector",
+    "detect",
+    "method_options",
+    "prepare",
+]

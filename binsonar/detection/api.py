@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import inspect
+import math
 import time
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -94,12 +96,12 @@ def _base(method: str) -> tuple[str, bool, bool]:
 
 def _preprocess(
     signals: Signals,
-    template: Template | None,
     average: bool,
-    bandpass_hz: tuple[float, float] | str | None,
+    bandpass_hz: tuple[float, float] | None,
     bandpass_order: int,
 ) -> Signals:
-    from binsonar.preprocess import average_pings, bandpass, template_band_hz
+    """Average the pings and/or band-pass them (``binsonar.preprocess``)."""
+    from binsonar.preprocess import average_pings, bandpass
 
     waveforms = signals.waveforms
     clipped = signals.clipped
@@ -107,21 +109,191 @@ def _preprocess(
         waveforms = average_pings(waveforms)
         clipped = clipped.any(axis=0, keepdims=True)
     if bandpass_hz is not None:
-        if isinstance(bandpass_hz, str):
-            if bandpass_hz != "template":
-                raise RecordingError(f"bandpass_hz must be (low_hz, high_hz) or 'template', got {bandpass_hz!r}")
-            if template is None:
-                raise RecordingError(f"{signals.source}: bandpass_hz='template' needs a template")
-            low, high = template_band_hz(template.samples, signals.sample_rate_hz)
-        else:
-            try:
-                low, high = (float(v) for v in bandpass_hz)
-            except (TypeError, ValueError):
-                raise RecordingError(f"bandpass_hz must be (low_hz, high_hz), got {bandpass_hz!r}") from None
-        waveforms = bandpass(waveforms, signals.sample_rate_hz, low, high, bandpass_order)
+        waveforms = bandpass(waveforms, signals.sample_rate_hz, bandpass_hz[0], bandpass_hz[1], bandpass_order)
     if waveforms is signals.waveforms:
         return signals
     return signals.with_waveforms(waveforms, clipped)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedDetector:
+    """A detection method set up once for a template, sample rate and record length.
+
+    Everything that does not depend on the samples (the matched filter's template spectrum and
+    analytic template, its bounds and thresholds) is computed once, so that ``run`` on each new
+    ping costs only the detection itself: the way to run live. Build it with ``prepare``.
+
+    Attributes
+    ----------
+    method : str
+    base : str
+        The base method ("matched" for "seed-4", ...).
+    sample_rate_hz : float
+    n_samples : int
+        Record length (samples) the detector accepts.
+    template : Template or None
+    average : bool
+        Average the pings of each ``run`` first.
+    bandpass_hz : (low_hz, high_hz) or None
+        Zero-phase band-pass first.
+    bandpass_order : int
+    options : tuple of (str, value)
+        Method options.
+    """
+
+    method: str
+    base: str
+    sample_rate_hz: float
+    n_samples: int
+    template: Template | None
+    average: bool
+    bandpass_hz: tuple[float, float] | None
+    bandpass_order: int
+    options: tuple[tuple[str, Any], ...]
+    _plan: Any = field(default=None, repr=False)
+
+    def run(
+        self,
+        data: Recording | NDArray[np.floating],
+        *,
+        t0_s: float = 0.0,
+        full_scale_v: float | None = None,
+        on_clipped: str = "flag",
+    ) -> DetectionResult:
+        """Detect echoes in one recording or array (see ``detect`` for the arguments).
+
+        Raises
+        ------
+        RecordingError
+            Bad data, or a sample rate or record length other than the prepared ones.
+        """
+        start = time.perf_counter()
+        signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v)
+        if not math.isclose(signals.sample_rate_hz, self.sample_rate_hz, rel_tol=1e-12) or signals.n_samples != self.n_samples:
+            raise RecordingError(
+                f"{signals.source}: {signals.n_samples} samples at {signals.sample_rate_hz:g} Hz, but the detector was "
+                f"prepared for {self.n_samples} samples at {self.sample_rate_hz:g} Hz"
+            )
+        return self._detect(signals, on_clipped, start)
+
+    def _detect(self, signals: Signals, on_clipped: str, start: float) -> DetectionResult:
+        if on_clipped not in CLIPPED_POLICIES:
+            raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
+        if on_clipped == "error" and signals.clipped.any():
+            ping, channel = (int(v) for v in np.argwhere(signals.clipped)[0])
+            raise RecordingError(
+                f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped "
+                f"channel(s))"
+            )
+        signals = _preprocess(signals, self.average, self.bandpass_hz, self.bandpass_order)
+        n_pings, n_channels, n = signals.waveforms.shape
+        rows = signals.waveforms.reshape(n_pings * n_channels, n)
+        raw = _run(self, rows, signals)
+        clipped = signals.clipped
+        echoes = tuple(
+            tuple(
+                tuple(
+                    Echo(channel=c, tof_s=e[0], amplitude=e[1], snr_db=e[2], score=e[3], ping=p, tof_std_s=e[4],
+                         clipped=bool(clipped[p, c]))
+                    for e in raw[p * n_channels + c]
+                ) if not (on_clipped == "drop" and clipped[p, c]) else ()
+                for c in range(n_channels)
+            )
+            for p in range(n_pings)
+        )
+        used = {"average": self.average, "bandpass_hz": self.bandpass_hz, **dict(self.options)}
+        return DetectionResult(
+            method=self.method,
+            echoes=echoes,
+            elapsed_s=time.perf_counter() - start,
+            clipped=tuple(tuple(bool(v) for v in row) for row in clipped),
+            options=tuple(sorted((k, v) for k, v in used.items() if v is not None)),
+        )
+
+
+def _prepare(
+    method: str,
+    template: Template | None,
+    sample_rate_hz: float,
+    n_samples: int,
+    average: bool | None,
+    bandpass_hz: tuple[float, float] | str | None,
+    bandpass_order: int,
+    options: dict[str, Any],
+) -> PreparedDetector:
+    from binsonar.preprocess import template_band_hz
+
+    base, seed_average, seed_bandpass = _base(method)
+    allowed = method_options(method)
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise RecordingError(
+            f"method {method!r}: unknown option(s) {', '.join(unknown)}; it accepts: {', '.join(sorted(allowed)) or 'none'}"
+        )
+    band_request = ("template" if seed_bandpass else None) if bandpass_hz is None else bandpass_hz
+    band: tuple[float, float] | None = None
+    if isinstance(band_request, str):
+        if band_request != "template":
+            raise RecordingError(f"bandpass_hz must be (low_hz, high_hz) or 'template', got {band_request!r}")
+        if template is None:
+            raise RecordingError("bandpass_hz='template' needs a template")
+        band = template_band_hz(template.samples, sample_rate_hz)
+    elif band_request is not None:
+        try:
+            low, high = (float(v) for v in band_request)
+        except (TypeError, ValueError):
+            raise RecordingError(f"bandpass_hz must be (low_hz, high_hz), got {band_request!r}") from None
+        band = (low, high)
+    plan = None
+    if base != "threshold":
+        if template is None:
+            raise RecordingError(f"method {method!r} needs a template")
+        if base in ("matched", "local-matched", "ca-cfar", "os-cfar"):
+            from binsonar.detection.matched import plan_matched
+
+            plan = plan_matched(template, n_samples, sample_rate_hz, full=base != "local-matched")
+    return PreparedDetector(
+        method=method,
+        base=base,
+        sample_rate_hz=float(sample_rate_hz),
+        n_samples=int(n_samples),
+        template=template,
+        average=seed_average if average is None else bool(average),
+        bandpass_hz=band,
+        bandpass_order=int(bandpass_order),
+        options=tuple(sorted(options.items())),
+        _plan=plan,
+    )
+
+
+def prepare(
+    method: str,
+    *,
+    sample_rate_hz: float,
+    n_samples: int,
+    template: Template | NDArray[np.floating] | None = None,
+    average: bool | None = None,
+    bandpass_hz: tuple[float, float] | str | None = None,
+    bandpass_order: int = 4,
+    **options: Any,
+) -> PreparedDetector:
+    """Set a method up once for records of ``n_samples`` at ``sample_rate_hz``.
+
+    ``prepare(...).run(data)`` gives what ``detect(data, ...)`` gives, without redoing the
+    per-template work for every ping. Arguments as for ``detect``.
+
+    Raises
+    ------
+    RecordingError
+        Unknown method or option, a missing or unusable template.
+    """
+    if not (isinstance(n_samples, (int, np.integer)) and n_samples >= 2):
+        raise RecordingError(f"n_samples must be an integer >= 2, got {n_samples!r}")
+    shell = Signals(np.broadcast_to(np.zeros(1), (1, 1, int(n_samples))), float(sample_rate_hz), 0.0,
+                    np.zeros((1, 1), dtype=bool), None, "prepare")
+    resolved = None if template is None else resolve_template(template, shell, method)
+    return _prepare(method, resolved, float(sample_rate_hz), int(n_samples), average, bandpass_hz, bandpass_order,
+                    options)
 
 
 def detect(
@@ -174,7 +346,8 @@ def detect(
     Returns
     -------
     DetectionResult
-        ``elapsed_s`` covers validation, pre-processing and detection (not file reading).
+        ``elapsed_s`` covers validation, set-up, pre-processing and detection (not file
+        reading; the first call also pays for importing scipy).
 
     Raises
     ------
@@ -182,85 +355,37 @@ def detect(
         Bad data, template or option (one-line message naming the field and value).
     """
     start = time.perf_counter()
-    base, seed_average, seed_bandpass = _base(method)
+    base, _, seed_bandpass = _base(method)
     if on_clipped not in CLIPPED_POLICIES:
         raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
-    function = _method_function(base)
-    allowed = method_options(method)
-    unknown = sorted(set(options) - set(allowed))
-    if unknown:
-        raise RecordingError(
-            f"method {method!r}: unknown option(s) {', '.join(unknown)}; it accepts: {', '.join(sorted(allowed)) or 'none'}"
-        )
     signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v)
-    if on_clipped == "error" and signals.clipped.any():
-        ping, channel = (int(v) for v in np.argwhere(signals.clipped)[0])
-        raise RecordingError(
-            f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped channel(s))"
-        )
-    needs_template = base != "threshold" or seed_bandpass or bandpass_hz == "template"
+    band_from_template = isinstance(bandpass_hz, str) or (bandpass_hz is None and seed_bandpass)
     resolved: Template | None = None
-    if needs_template:
-        resolved = resolve_template(template, signals, method)
-    elif template is not None or signals.template is not None:
-        resolved = resolve_template(template, signals, method)
-    do_average = seed_average if average is None else bool(average)
-    band = ("template" if seed_bandpass else None) if bandpass_hz is None else bandpass_hz
-    signals = _preprocess(signals, resolved, do_average, band, bandpass_order)
-    n_pings, n_channels, n = signals.waveforms.shape
-    rows = signals.waveforms.reshape(n_pings * n_channels, n)
-    raw = _run(base, function, rows, signals, resolved, options)
-    clipped = signals.clipped
-    echoes = tuple(
-        tuple(
-            tuple(
-                Echo(channel=c, tof_s=e[0], amplitude=e[1], snr_db=e[2], score=e[3], ping=p, tof_std_s=e[4],
-                     clipped=bool(clipped[p, c]))
-                for e in raw[p * n_channels + c]
-            ) if not (on_clipped == "drop" and clipped[p, c]) else ()
-            for c in range(n_channels)
-        )
-        for p in range(n_pings)
-    )
-    elapsed = time.perf_counter() - start
-    used = {"average": do_average, "bandpass_hz": band, **options}
-    return DetectionResult(
-        method=method,
-        echoes=echoes,
-        elapsed_s=elapsed,
-        clipped=tuple(tuple(bool(v) for v in row) for row in clipped),
-        options=tuple(sorted((k, v) for k, v in used.items() if v is not None)),
-    )
+    if base != "threshold" or band_from_template or template is not None or signals.template is not None:
+        resolved = resolve_template(template, signals, method)  # raises if there is none
+    prepared = _prepare(method, resolved, signals.sample_rate_hz, signals.n_samples, average, bandpass_hz,
+                        bandpass_order, options)
+    return prepared._detect(signals, on_clipped, start)
 
 
-def _run(
-    base: str,
-    function: Callable[..., RawEchoes],
-    rows: NDArray[np.float64],
-    signals: Signals,
-    template: Template | None,
-    options: dict[str, Any],
-) -> RawEchoes:
-    """Call a base method with what it needs, on chunks of rows (bounded memory: every method
-    treats rows independently)."""
+def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals) -> RawEchoes:
+    """Call the base method with what it needs, on chunks of rows (bounded memory: every
+    method treats rows independently)."""
+    base, function = prepared.base, _method_function(prepared.base)
+    options = dict(prepared.options)
+    template, plan = prepared.template, prepared._plan
     fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
     if base == "threshold":
         call = lambda chunk: function(chunk, sample_rate_hz=fs, t0_s=t0, template=template, where=where, **options)  # noqa: E731
-    elif template is None:
-        raise RecordingError(f"{where}: method {base!r} needs a template")
     elif base in ("energy", "whitened-matched", "dwt"):
         call = lambda chunk: function(chunk, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)  # noqa: E731
+    elif base == "matched":
+        call = lambda chunk: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
+    elif base == "local-matched":
+        call = lambda chunk: function(chunk, plan, t0_s=t0, where=where, **options)  # noqa: E731
     else:
-        from binsonar.detection.matched import plan_matched
-
-        plan = plan_matched(template, rows.shape[1], fs, full=base != "local-matched")
-        if base == "matched":
-            call = lambda chunk: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
-        elif base == "local-matched":
-            call = lambda chunk: function(chunk, plan, t0_s=t0, where=where, **options)  # noqa: E731
-        else:
-            kind = "ca" if base == "ca-cfar" else "os"
-            call = lambda chunk: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
+        kind = "ca" if base == "ca-cfar" else "os"
+        call = lambda chunk: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
     out: RawEchoes = []
     for start in range(0, rows.shape[0], ROW_CHUNK):  # chunks of rows, vectorised inside
         out.extend(call(rows[start:start + ROW_CHUNK]))
