@@ -49,20 +49,29 @@ def channels_figure(waveforms: NDArray[np.float64], sample_rate_hz: float, blank
         direct = arrivals[(arrivals["channel"] == ch) & (arrivals["kind"] == 0)]
         bang = "main bang" + (f" + cross-talk ({direct['delay_s'][0] * 1e6:.0f} us)" if direct.size and ch != 1 else "")
         ax.text(blanking_s * 1e3, 1.45 * after, f" {bang}: blanked (off scale)", fontsize=7, va="top", color="0.3")
-        placed: list[tuple[float, int, str]] = []  # (time, level, label) of the texts written
-        for c, tof, lab in sorted(echoes, key=lambda e: e[1]):
-            if c != ch:
-                continue
+        span_ms = float(t_ms[-1] - t_ms[0]) if t_ms.size > 1 else 1.0
+        char_ms = span_ms / 180.0  # rough width of one 6.5 pt character on this 11-inch axis
+        mine = [(tof, lab) for c, tof, lab in echoes if c == ch]
+        for tof, lab in mine:
             ax.axvline(tof * 1e3, color=_colour(lab), lw=0.8, alpha=0.7)
-            if any(abs(p - tof) < 0.4e-3 and q == lab for p, _, q in placed):
+        # Labels: objects' own echoes first, then multipaths, then the tank; each on the first of
+        # five rows where it does not overlap a label already written; dropped when none is free.
+        rank = {KIND_COLOURS["target"]: 0, KIND_COLOURS["multipath"]: 1, KIND_COLOURS["tank"]: 2}
+        rows: list[list[tuple[float, float]]] = [[] for _ in range(5)]
+        written: set[tuple[str, int]] = set()
+        for tof, lab in sorted(mine, key=lambda e: (rank[_colour(e[1])], e[0])):
+            x0 = tof * 1e3
+            x1 = x0 + (len(lab) + 1) * char_ms
+            key = (lab, int(x0 / (0.5 * span_ms / 10)))
+            if key in written:
                 continue  # the same name just written nearby
-            busy = {lvl for p, lvl, _ in placed if abs(p - tof) < 0.45e-3}
-            free = [lvl for lvl in range(4) if lvl not in busy]
-            if not free:
-                continue
-            placed.append((tof, free[0], lab))
-            ax.text(tof * 1e3, (1.2 - 0.2 * free[0]) * after, " " + lab, fontsize=6.5, color=_colour(lab),
-                    va="bottom")
+            for level, row in enumerate(rows):
+                if all(x1 < a or x0 > b for a, b in row):
+                    row.append((x0, x1))
+                    written.add(key)
+                    ax.text(x0, (1.2 - 0.17 * level) * after, " " + lab, fontsize=6.5, color=_colour(lab),
+                            va="bottom")
+                    break
         ax.set_ylabel(f"{CHANNELS[ch]} (V)")
         ax.grid(True, alpha=0.3)
     axes[0, 0].set_title("Averaged ping, three channels; echoes of the localised targets named from the "
