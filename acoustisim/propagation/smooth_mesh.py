@@ -219,32 +219,43 @@ class SmoothMesh:
         p = self.triangles[tri]
         e_u = p[:, 1] - p[:, 0]
         e_v = p[:, 2] - p[:, 0]
-        t1 = _unit(e_u)
-        t2 = np.cross(self.face_normals[tri], t1)
-        aa, bb = a[pair], b[pair]
-
-        def residual(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-            x = self._point(tri, u, v)
-            h = _unit(_unit(aa - x) + _unit(bb - x))
-            d = h - _unit(self._normal(tri, u, v))
-            return np.stack([np.einsum("ij,ij->i", d, t1), np.einsum("ij,ij->i", d, t2)], axis=1)
-
+        cn = self.corner_normals[tri]
+        # Newton on the survivors only, with their data gathered once; candidates whose iterate
+        # leaves the neighbourhood of their triangle are dropped as the iterations go
+        live = np.arange(tri.size)
         u = np.full(tri.size, 1.0 / 3.0)
         v = np.full(tri.size, 1.0 / 3.0)
+
+        def residual(k: NDArray[np.int64], uu: NDArray[np.float64], vv: NDArray[np.float64]) -> NDArray[np.float64]:
+            x = p[k, 0] + uu[:, None] * e_u[k] + vv[:, None] * e_v[k]
+            h = _unit(_unit(a[pair[k]] - x) + _unit(b[pair[k]] - x))
+            nrm = _unit(cn[k, 0] + uu[:, None] * (cn[k, 1] - cn[k, 0]) + vv[:, None] * (cn[k, 2] - cn[k, 0]))
+            d = h - nrm
+            t1 = _unit(e_u[k])
+            t2 = np.cross(self.face_normals[tri[k]], t1)
+            return np.stack([np.einsum("ij,ij->i", d, t1), np.einsum("ij,ij->i", d, t2)], axis=1)
+
         step = 1e-7
-        for _ in range(_NEWTON_STEPS):
-            f = residual(u, v)
-            ju = (residual(u + step, v) - f) / step
-            jv = (residual(u, v + step) - f) / step
+        for iteration in range(_NEWTON_STEPS):
+            uu, vv = u[live], v[live]
+            f = residual(live, uu, vv)
+            ju = (residual(live, uu + step, vv) - f) / step
+            jv = (residual(live, uu, vv + step) - f) / step
             det = ju[:, 0] * jv[:, 1] - ju[:, 1] * jv[:, 0]
             det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-            du = (f[:, 0] * jv[:, 1] - f[:, 1] * jv[:, 0]) / det
-            dv = (ju[:, 0] * f[:, 1] - ju[:, 1] * f[:, 0]) / det
-            u = u - np.clip(du, -0.5, 0.5)
-            v = v - np.clip(dv, -0.5, 0.5)
-        f = residual(u, v)
+            du = np.clip((f[:, 0] * jv[:, 1] - f[:, 1] * jv[:, 0]) / det, -0.5, 0.5)
+            dv = np.clip((ju[:, 0] * f[:, 1] - ju[:, 1] * f[:, 0]) / det, -0.5, 0.5)
+            u[live] = uu - du
+            v[live] = vv - dv
+            if iteration >= 3:  # far outside the triangle after 4 steps: another triangle's point
+                near = (u[live] > -1.0) & (v[live] > -1.0) & (u[live] + v[live] < 2.0)
+                moving = np.maximum(np.abs(du), np.abs(dv)) > 1e-14
+                live = live[near & moving]
+            if live.size == 0:
+                break
+        f = residual(np.arange(tri.size), u, v)
         ok = (np.linalg.norm(f, axis=1) < 1e-10) & (u >= -_BARY_TOL) & (v >= -_BARY_TOL) & (u + v <= 1 + _BARY_TOL)
-        pair, tri, u, v, p, e_u, e_v = pair[ok], tri[ok], u[ok], v[ok], p[ok], e_u[ok], e_v[ok]
+        pair, tri, u, v, e_u, e_v = pair[ok], tri[ok], u[ok], v[ok], e_u[ok], e_v[ok]
         x = self._point(tri, u, v)
         raw = self._normal(tri, u, v)
         norm = np.linalg.norm(raw, axis=1, keepdims=True)
