@@ -291,4 +291,9 @@ def format_table(demo: DemoResult) -> str:
     lines += ["", f"{s['scene']}: {s['pings_averaged']} pings averaged by binsonar, method {s['method']}, "
                   f"default receiver noise, blanking {s['blanking_s'] * 1e6:.0f} us, seed {s['seed']}; "
                   f"every localisable edge and post within 1 mm / 0.1 deg: {'yes' if demo.accepted else 'NO'}"]
+    sds = [r["estimate"]["bearing_std_deg"] for r in demo.objects
+           if r["estimate"] is not None and r["kind"] in ACCEPT_KINDS and math.isfinite(r["estimate"]["bearing_std_deg"])]
+    if sds:
+        lines.append(f"bearing sd of the edge and posts up to {max(sds):.3f} deg (Cramer-Rao bound at the estimated SNR "
+                     f"after averaging): 0.1 deg is {0.1 / max(sds):.1f} sd; the sd falls as 1/sqrt(--pings)")
     return "\n".join(lines)
