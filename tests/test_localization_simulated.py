@@ -12,12 +12,19 @@ scenes_builtin = pytest.importorskip("scenes.builtin")
 from binsonar.localization import localize  # noqa: E402
 
 
-def _simulate(name, seed=1):
-    return acoustisim_simulation.simulate(scenes_builtin.builtin_scene(name), seed=seed).recording
+def _simulate(name, seed=1, chain=None, snr_db=None):
+    scene = scenes_builtin.builtin_scene(name)
+    return acoustisim_simulation.simulate(scene, seed=seed, chain=chain, snr_db=snr_db).recording
 
 
 def test_free_plane_is_a_plane_at_one_metre():
-    rec = _simulate("free-plane")
+    from acoustisim.synthesis.chain import ReceiverChain
+
+    # A rigid plane 1 m ahead echoes about 13 V at the default 40 dB attenuation, far beyond the
+    # ADC's +/-1 V: as an operator would, set the 5052PR's attenuation to its 68 dB maximum
+    # (echo about 0.5 V), so the echo is not clipped; 2E/N0 = 30 dB as in a real tank.
+    rec = _simulate("free-plane", chain=ReceiverChain(attenuation_db=(68.0, 68.0, 68.0)), snr_db=30.0)
+    assert not rec.clipped.any()
     res = localize(rec)
     assert len(res.targets[0]) == 1
     t = res.targets[0][0]
