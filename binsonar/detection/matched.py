@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
+from binsonar.detection.noise import row_median
 from binsonar.detection.peaks import SidelobeModel, log_parabolic_offset
 from binsonar.recording import RecordingError, Template
 
@@ -311,7 +312,7 @@ def envelope(plan: MatchedPlan, spectrum: NDArray[np.complex128]) -> NDArray[np.
 
 def noise_mean_power(power: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean |z|^2 of the noise per row, from the median (exponential law), shape (n_rows,)."""
-    return np.maximum(np.median(power, axis=-1) / LN2, np.finfo(float).tiny)
+    return np.maximum(row_median(power) / LN2, np.finfo(float).tiny)
 
 
 def lags_time_domain(

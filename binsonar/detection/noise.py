@@ -18,9 +18,11 @@ from binsonar.recording import RecordingError
 # median(|x|) = 0.6745 sigma for zero-mean Gaussian noise.
 MAD_TO_SIGMA = 1.0 / 0.6744897501960817
 
-# Robust estimates use at most this many samples per channel, taken at a regular stride: the
-# median of |x| over 4096 Gaussian samples has a relative standard error of about 2 %.
+# Robust estimates use at most this many samples per channel, in ROBUST_SEGMENTS contiguous
+# stretches spread evenly over the record (cache-friendly, and no single stretch dominates):
+# the median of |x| over 4096 Gaussian samples has a relative standard error of about 2 %.
 ROBUST_SAMPLES = 4096
+ROBUST_SEGMENTS = 16
 
 
 def window_indices(
@@ -47,6 +49,36 @@ def window_indices(
     return slice(start, stop)
 
 
+def robust_subsample(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """At most ROBUST_SAMPLES samples per row, in ROBUST_SEGMENTS evenly spread stretches.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+
+    Returns
+    -------
+    ndarray, shape (n_rows, k), k <= ROBUST_SAMPLES (a view when it can be)
+    """
+    n_rows, n = rows.shape
+    if n <= ROBUST_SAMPLES:
+        return rows
+    period = n // ROBUST_SEGMENTS
+    length = ROBUST_SAMPLES // ROBUST_SEGMENTS
+    return rows[:, : period * ROBUST_SEGMENTS].reshape(n_rows, ROBUST_SEGMENTS, period)[:, :, :length]
+
+
+def row_median(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Median along the last axis (the upper of the two middle values for an even count).
+
+    A single ``partition``: several times cheaper than ``numpy.median`` on short rows, and
+    for the noise statistics here the half-sample difference is far below their scatter.
+    """
+    flat = values.reshape(values.shape[0], -1) if values.ndim > 2 else values
+    k = flat.shape[-1] // 2
+    return np.partition(flat, k, axis=-1)[..., k]
+
+
 def noise_sigma(
     rows: NDArray[np.float64],
     *,
@@ -64,7 +96,7 @@ def noise_sigma(
         Sampling of the rows.
     noise_window_s : (start_s, stop_s), optional
         A noise-only window in recording time: the sample standard deviation there. None: the
-        robust estimate 1.4826 median(|x|) over a regular subsample of the whole record.
+        robust estimate 1.4826 median(|x|) over stretches spread over the whole record.
 
     Returns
     -------
@@ -75,7 +107,6 @@ def noise_sigma(
         segment = rows[:, window_indices(noise_window_s, rows.shape[1], sample_rate_hz, t0_s, where)]
         sigma = segment.std(axis=1)
     else:
-        stride = max(1, rows.shape[1] // ROBUST_SAMPLES)
-        sigma = MAD_TO_SIGMA * np.median(np.abs(rows[:, ::stride]), axis=1)
+        sigma = MAD_TO_SIGMA * row_median(np.abs(robust_subsample(rows)))
     floor = np.finfo(float).tiny ** 0.5
     return np.maximum(sigma, floor)

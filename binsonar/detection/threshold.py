@@ -38,11 +38,12 @@ def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> ND
     for start in range(0, n, _BLOCK):  # blocks of samples, vectorised inside
         stop = min(start + _BLOCK, n)
         usable = start + (stop - start) // _CHUNK * _CHUNK
+        source = rows if pending.size == n_rows else rows[pending]  # a view while all are pending
         parts = []
         if usable > start:
-            parts.append(np.abs(rows[pending, start:usable]).reshape(pending.size, -1, _CHUNK).max(axis=2))
+            parts.append(np.abs(source[:, start:usable]).reshape(pending.size, -1, _CHUNK).max(axis=2))
         if usable < stop:  # the ragged end of the record: one shorter chunk
-            parts.append(np.abs(rows[pending, usable:stop]).max(axis=1, keepdims=True))
+            parts.append(np.abs(source[:, usable:stop]).max(axis=1, keepdims=True))
         peaks = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
         above = peaks >= level[pending, np.newaxis]
         hit = above.any(axis=1)
