@@ -34,8 +34,9 @@ _NEWTON_STEPS = 12
 _CHUNK = 2_000_000
 """(pair, cluster) combinations screened per vectorised block (bounds the memory to ~0.5 GB)."""
 
-_CLUSTERS_PER_AXIS = 24
-"""Voxel cells per axis of the triangle clusters (at most 24^3; about 1000 on a closed surface)."""
+_TRIANGLES_PER_CLUSTER = 600
+"""Target triangles per cluster: the voxel grid has about sqrt(t / 600) cells per axis, which
+balances the two screening stages (pairs x clusters, then pairs x triangles of near clusters)."""
 
 _BARY_TOL = 1e-9
 """Barycentric slack at the triangle's edges (points on a shared edge belong to both triangles)."""
@@ -63,7 +64,7 @@ class SmoothMesh:
     source_face : ndarray of int64, shape (t,)
         Index of each triangle in the original mesh (crease splitting may reorder faces).
     cluster_order : ndarray of int64, shape (t,)
-        Triangles sorted by cluster (a voxel grid of about :data:`_CLUSTERS_PER_AXIS`^3 cells).
+        Triangles sorted by cluster (a voxel grid, :data:`_TRIANGLES_PER_CLUSTER`).
     cluster_start : ndarray of int64, shape (c + 1,)
         Offsets of each cluster in ``cluster_order``.
     cluster_centre, cluster_radius, cluster_axis, cluster_cone : ndarray
@@ -117,9 +118,10 @@ class SmoothMesh:
         # clusters: a voxel grid over the triangle centroids
         centroid = triangles.mean(axis=1)
         lo, hi = centroid.min(axis=0), centroid.max(axis=0)
-        cell = max(float(np.max(hi - lo)) / _CLUSTERS_PER_AXIS, 1e-12)
+        per_axis = int(np.clip(np.sqrt(len(triangles) / _TRIANGLES_PER_CLUSTER), 4, 128))
+        cell = max(float(np.max(hi - lo)) / per_axis, 1e-12)
         ijk = np.floor((centroid - lo) / cell).astype(np.int64)
-        key = (ijk[:, 0] * (_CLUSTERS_PER_AXIS + 1) + ijk[:, 1]) * (_CLUSTERS_PER_AXIS + 1) + ijk[:, 2]
+        key = (ijk[:, 0] * (per_axis + 1) + ijk[:, 1]) * (per_axis + 1) + ijk[:, 2]
         _, cluster = np.unique(key, return_inverse=True)
         order = np.argsort(cluster, kind="stable")
         counts = np.bincount(cluster)
