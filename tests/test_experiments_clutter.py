@@ -111,7 +111,13 @@ def test_tiny_run_fields_and_invariants(tiny):
         assert s["ladder_fa_per_ping"][clutter.NOMINAL[m]] == pytest.approx(s["nominal_false_alarms_per_ping"])
     # The matched filter + CFAR finds the on-axis objects' echoes at 30 dB: the ROC's best P_D is
     # well above zero (a broken truth matching or tolerance would give 0).
-    assert r["summary"]["all"]["ca-cfar"]["pd_max"] > 0.3
+    cfar = r["summary"]["all"]["ca-cfar"]
+    assert cfar["pd_max"] > 0.3
+    # Against the feature that reflected, the matched filter's targets are millimetre-accurate (its
+    # TOF CRLB is tens of micrometres here; 5 mm leaves room for overlapping echoes); the 10-20 cm
+    # of a prism's rear edges would show if the errors were taken against the wrong feature.
+    assert cfar["associated_targets"] > 0
+    assert cfar["range_error_median_abs_m"] < 5e-3
     assert set(r["figures"]) == {"clutter_roc.png", "clutter_errors.png"}
     for name in r["figures"]:
         assert (out / name).stat().st_size > 10_000

@@ -44,17 +44,22 @@ def first_order_targets(arrivals: NDArray[Any], surface_names: Sequence[str], ob
     return targets
 
 
-def echo_object(arrivals: NDArray[Any], surface_names: Sequence[str], object_names: Sequence[str], channel: int,
-                tof_s: float, tolerance_s: float) -> str | None:
-    """The scene object whose arrival is the strongest within ``tolerance_s`` of an echo (None: none, or a
-    path touching only tank boundaries). The object is the first scene object on the path."""
+def echo_arrival(arrivals: NDArray[Any], channel: int, tof_s: float, tolerance_s: float) -> int | None:
+    """Row of the strongest (non-direct) arrival on ``channel`` within ``tolerance_s`` of an echo's TOF (None: none)."""
     near = np.flatnonzero((arrivals["channel"] == channel) & (np.abs(arrivals["delay_s"] - tof_s) <= tolerance_s)
                           & (arrivals["kind"] != 0))
     if near.size == 0:
         return None
-    best = near[int(np.argmax(np.abs(arrivals["amplitude"][near])))]
+    return int(near[int(np.argmax(np.abs(arrivals["amplitude"][near])))])
+
+
+def arrival_object(arrivals: NDArray[Any], row: int | None, surface_names: Sequence[str],
+                   object_names: Sequence[str]) -> str | None:
+    """The first scene object on an arrival's path (None: no row, or a path of tank boundaries only)."""
+    if row is None:
+        return None
     objects = set(object_names)
-    for i in arrivals["object_ids"][best]:
+    for i in arrivals["object_ids"][row]:
         if i >= 0 and surface_names[i] in objects:
             return str(surface_names[i])
     return None
@@ -129,7 +134,8 @@ def roc_curve(target_best: NDArray[np.float64], false_alarm_scores: NDArray[np.f
     """
     scores = np.concatenate([target_best[np.isfinite(target_best)], false_alarm_scores])
     if scores.size:
-        thresholds = np.unique(np.concatenate([[0.0], np.quantile(scores, np.linspace(0, 1, n_points), method="inverted_cdf")]))
+        quantiles = np.quantile(scores, np.linspace(0, 1, n_points), method="inverted_cdf")
+        thresholds = np.unique(np.concatenate([[0.0], quantiles]))
     else:
         thresholds = np.array([0.0])
     tb = np.sort(target_best)
