@@ -170,6 +170,20 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     return out
 
 
+def finite_mean(values: Any) -> float:
+    """Mean of the finite values (NaN, without a warning, when none)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else float("nan")
+
+
+def finite_max(values: Any) -> float:
+    """Largest finite value (NaN, without a warning, when none)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else float("nan")
+
+
 def rms(values: list[float]) -> float:
     """RMS of the finite values (NaN when none)."""
     v = np.asarray(values, dtype=float)
@@ -186,20 +200,20 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
                                "simulate_cpu_s_per_ping": pos.get("simulate_cpu_s_per_ping", float("nan")),
                                "solve_s": pos["solve_s"], "solve_cpu_s": pos.get("solve_cpu_s", float("nan"))}
         bound = pos["detectors"].get("matched", {})
-        b_r = float(np.nanmean(bound.get("bound_range_m", [np.nan]))) if bound else float("nan")
-        b_b = float(np.nanmean(bound.get("bound_bearing_deg", [np.nan]))) if bound else float("nan")
+        b_r = finite_mean(bound.get("bound_range_m", [])) if bound else float("nan")
+        b_b = finite_mean(bound.get("bound_bearing_deg", [])) if bound else float("nan")
         row["bound_range_m"], row["bound_bearing_deg"] = b_r, b_b
         for m in detectors:
             d = pos["detectors"][m]
             row[m] = {
                 "range_rms_m": rms(d["range_error_m"]),
                 "bearing_rms_deg": rms(d["bearing_error_deg"]),
-                "range_mean_error_m": float(np.nanmean(d["range_error_m"])) if any(d["detected"]) else float("nan"),
-                "bearing_mean_error_deg": float(np.nanmean(d["bearing_error_deg"])) if any(d["detected"]) else float("nan"),
+                "range_mean_error_m": finite_mean(d["range_error_m"]),
+                "bearing_mean_error_deg": finite_mean(d["bearing_error_deg"]),
                 "detection_rate": float(np.mean(d["detected"])),
                 "elapsed_s": float(np.mean(d["elapsed_s"])),
                 "cpu_s": float(np.mean(d["cpu_s"])) if d.get("cpu_s") else float("nan"),
-                "snr_db": float(np.nanmean(d["snr_db"])) if any(d["detected"]) else float("nan"),
+                "snr_db": finite_mean(d["snr_db"]),
             }
         if "matched" in detectors:
             row["matched"]["range_rms_over_bound"] = row["matched"]["range_rms_m"] / b_r if b_r > 0 else float("nan")
@@ -216,12 +230,12 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
         summary[m] = {
             "elapsed_s_per_position": float(np.mean([r[m]["elapsed_s"] for r in rows])),
             "cpu_s_per_position": float(np.mean([r[m]["cpu_s"] for r in rows])),
-            "max_range_rms_m": float(np.nanmax([r[m]["range_rms_m"] for r in rows])) if rows else float("nan"),
-            "max_bearing_rms_deg": float(np.nanmax([r[m]["bearing_rms_deg"] for r in rows])) if rows else float("nan"),
+            "max_range_rms_m": finite_max([r[m]["range_rms_m"] for r in rows]),
+            "max_bearing_rms_deg": finite_max([r[m]["bearing_rms_deg"] for r in rows]),
             "detection_rate": float(np.mean([r[m]["detection_rate"] for r in rows])),
         }
     if "matched" in detectors:
         ratios = np.array([r["matched"]["range_rms_over_bound"] for r in rows], dtype=float)
-        summary["matched"]["max_range_rms_over_bound"] = float(np.nanmax(ratios)) if np.isfinite(ratios).any() else float("nan")
+        summary["matched"]["max_range_rms_over_bound"] = finite_max(ratios)
         summary["matched"]["positions_within_1_5_bound"] = int(np.sum(ratios <= 1.5))
     return {"positions": rows, "summary": summary}
