@@ -9,6 +9,8 @@ scene, so that many poses of one scene pay for this once.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +22,9 @@ from acoustisim.propagation.curved import CurvedSet
 from acoustisim.propagation.image_source import PlanarMirrors, is_polyhedral
 from acoustisim.propagation.raycast import RayCaster
 from acoustisim.propagation.smooth_mesh import SmoothMesh
+
+if TYPE_CHECKING:
+    from acoustisim.propagation.edge_extraction import SharpEdges
 from acoustisim.scene import Scene, SceneObject
 
 MIN_FACE_AREA_FRACTION = 1e-14
@@ -92,6 +97,13 @@ class PreparedScene:
     curved_seen_by: NDArray[np.bool_] = field(repr=False)
     smooth: tuple[SmoothReflector, ...] = ()
     object_bounds: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2, 3)), repr=False)
+
+    @cached_property
+    def sharp_edges(self) -> "SharpEdges":
+        """The scene's sharp edges (for edge diffraction), extracted once per prepared scene."""
+        from acoustisim.propagation.edge_extraction import sharp_edges
+
+        return sharp_edges(self.raycaster, self.scene)
 
 
 def check_mesh(obj: SceneObject) -> None:

@@ -2,16 +2,14 @@
 
 Mechanisms run in order, each given a :class:`SolveContext` whose ``first_path_id`` is the next
 free id: direct, specular (:mod:`.specular`), then edge diffraction
-(``acoustisim.propagation.edges.edge_paths(context, config)``) and diffuse reverberation
-(``acoustisim.propagation.diffuse.diffuse_paths(context, config)``) when those modules are
-installed. :func:`~acoustisim.propagation.columns.complete_columns` then fills the derived
+(:func:`~acoustisim.propagation.edges.edge_paths`, on the prepared scene's sharp edges,
+extracted once) and diffuse reverberation (:func:`~acoustisim.propagation.diffuse.diffuse_paths`),
+each when named in ``config.mechanisms``. :func:`~acoustisim.propagation.columns.complete_columns` then fills the derived
 columns of every row and the amplitude floor culls weak arrivals.
 """
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 from typing import Any
 
 import numpy as np
@@ -22,17 +20,13 @@ from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.diffuse import diffuse_paths
+from acoustisim.propagation.edges import edge_paths
 from acoustisim.propagation.paths import PATH_DTYPE, Paths, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene, prepare
 from acoustisim.propagation.specular import direct_rows, specular_rows
 from acoustisim.scene import Scene
 from acoustisim.sonar import CHANNEL_NAMES, SonarHead
-
-_OPTIONAL_MECHANISMS = (
-    ("edge", "acoustisim.propagation.edges", "edge_paths"),
-    ("diffuse", "acoustisim.propagation.diffuse", "diffuse_paths"),
-)
-
 
 def check_sonar(prepared: PreparedScene, sonar: SonarHead) -> None:
     """Raise :class:`InputError` if a transducer touches or is inside a surface, or a receive-only
@@ -148,10 +142,10 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         add(direct_rows(context.with_first_path_id(next_id)))
     if "specular" in config.mechanisms:
         add(specular_rows(context.with_first_path_id(next_id), prepared, config.max_order))
-    for name, module_name, function_name in _OPTIONAL_MECHANISMS:
-        if name in config.mechanisms and importlib.util.find_spec(module_name) is not None:
-            function = getattr(importlib.import_module(module_name), function_name)
-            add(function(context.with_first_path_id(next_id), config))
+    if "edge" in config.mechanisms:
+        add(edge_paths(context.with_first_path_id(next_id), config, prepared.sharp_edges))
+    if "diffuse" in config.mechanisms:
+        add(diffuse_paths(context.with_first_path_id(next_id), config))
     rows = np.concatenate(parts) if parts else empty_paths_array(0)
     rows = complete_columns(rows, context)
     rows = rows[np.lexsort((rows["delay_s"], rows["channel"]))]
