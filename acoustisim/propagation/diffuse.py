@@ -176,13 +176,119 @@ def sample_directions(
     sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
     phi = 2.0 * np.pi * u[3]
     e1, e2 = _basis(boresight)
-    # (no BLAS matmul: its threads contend on a busy 2-core machine)
-    directions = (sin_t * np.cos(phi))[:, None] * e1
-    directions += (sin_t * np.sin(phi))[:, None] * e2
-    directions += cos_t[:, None] * boresight
+    a, b = sin_t * np.cos(phi), sin_t * np.sin(phi)
+    # column by column (contiguous 1-D passes; no BLAS matmul, whose threads contend on a
+    # busy 2-core machine, and no (n, 3) broadcasts over a length-3 inner axis)
+    directions = np.empty((n, 3))
+    for k in range(3):  # the three coordinates
+        column = a * e1[k]
+        column += b * e2[k]
+        column += cos_t * boresight[k]
+        directions[:, k] = column
     cell_of = np.minimum(((1.0 - cos_t) * (_COS_CELLS / 2.0)).astype(np.int64), _COS_CELLS - 1)
     pdf = UNIFORM_FRACTION / (4.0 * np.pi) + (1.0 - UNIFORM_FRACTION) * lobe_pdf[cell_of]
     return directions, 1.0 / (n * pdf)
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectScreen:
+    """Which scattering points' legs to the receivers may be blocked: a conservative screen.
+
+    The tank's boundaries enclose a convex box (or there are none, in free field), so a
+    straight leg between two points in the water, a scattering point on a boundary or an
+    object and a receiver, never crosses a boundary: only objects can block it. A leg that
+    misses every object's axis-aligned box (grown by :data:`SCREEN_MARGIN_M`) is clear, and
+    Embree need not test it. The legs from one point to the receivers lie in the hull of the
+    point and the receivers' box, so one segment from the point to that box's centre is tested
+    against the object boxes grown by its half-size (Minkowski sum): a miss is a miss for
+    every receiver. Exact: only legs Embree would report clear are skipped.
+
+    Attributes
+    ----------
+    centre : ndarray, shape (3,)
+        Centre of the receivers' box (m).
+    lo, hi : ndarray, shape (k, 3)
+        Grown object boxes (m); row 0 the union of all, then each object's (when there are at
+        most :data:`SCREEN_MAX_BOXES`). ``None`` when the screen cannot be used (a receiver
+        outside the tank's water): every leg is then tested.
+    """
+
+    centre: NDArray[np.float64]
+    lo: NDArray[np.float64] | None
+    hi: NDArray[np.float64] | None
+
+    @classmethod
+    def create(cls, scene: Any, receivers_m: NDArray[np.float64]) -> "ObjectScreen":
+        """The screen of ``scene``'s objects for the receivers ``receivers_m`` (n_rx, 3)."""
+        low, high = receivers_m.min(axis=0), receivers_m.max(axis=0)
+        centre, half = 0.5 * (low + high), 0.5 * (high - low)
+        if scene.tank is not None and not np.all(scene.tank.contains(receivers_m)):
+            return cls(centre, None, None)
+        if not scene.objects:
+            empty = np.zeros((0, 3))
+            return cls(centre, empty, empty)
+        bounds = np.array([obj.bounds_m for obj in scene.objects])  # (k, 2, 3)
+        grow = half + SCREEN_MARGIN_M
+        lo, hi = bounds[:, 0] - grow, bounds[:, 1] + grow
+        union_lo, union_hi = lo.min(axis=0, keepdims=True), hi.max(axis=0, keepdims=True)
+        if len(scene.objects) > SCREEN_MAX_BOXES:
+            return cls(centre, union_lo, union_hi)
+        return cls(centre, np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi]))
+
+    def near(self, points_m: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Whether the legs from each point (n, 3) to the receivers may cross an object (n,)."""
+        n = points_m.shape[0]
+        if self.lo is None:
+            return np.ones(n, dtype=bool)
+        if self.lo.shape[0] == 0:
+            return np.zeros(n, dtype=bool)
+        # float32 columns: the rounding (1e-6 m over a 10 m leg) is far inside the margin
+        start = [np.ascontiguousarray(points_m[:, k], dtype=np.float32) for k in range(3)]
+        span = [np.float32(self.centre[k]) - start[k] for k in range(3)]
+        for column in span:  # a (near-)zero span, a leg in a slab's plane: no inf or 0 x inf
+            column[np.abs(column) < 1e-30] = np.float32(1e-30)
+        inverse = [np.float32(1.0) / column for column in span]
+        offset = [-start[k] * inverse[k] for k in range(3)]
+        near = _segments_cross_box(inverse, offset, self.lo[0], self.hi[0])
+        if self.lo.shape[0] == 1:
+            return near
+        candidates = np.flatnonzero(near)
+        inverse = [column[candidates] for column in inverse]
+        offset = [column[candidates] for column in offset]
+        crossing = np.zeros(candidates.size, dtype=bool)
+        for lo, hi in zip(self.lo[1:], self.hi[1:]):  # a handful of objects
+            crossing |= _segments_cross_box(inverse, offset, lo, hi)
+        near[candidates] = crossing
+        return near
+
+
+SCREEN_MARGIN_M = 1e-4
+"""Growth of the object boxes in :class:`ObjectScreen` (m): 100 times the float32 rounding
+of a 10 m leg."""
+
+SCREEN_MAX_BOXES = 16
+"""Objects screened box by box; more are screened by their union box only."""
+
+
+def _segments_cross_box(
+    inverse: list[NDArray[np.float32]], offset: list[NDArray[np.float32]], lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+) -> NDArray[np.bool_]:
+    """Slab test: whether segments start + t span, t in [0, 1], meet the box [lo, hi].
+
+    Per coordinate k, ``inverse[k]`` = 1 / span (n,) and ``offset[k]`` = -start / span: the
+    segment is in slab k for t between lo inverse + offset and hi inverse + offset.
+    """
+    enter = np.zeros(inverse[0].size, dtype=np.float32)
+    leave = np.ones(inverse[0].size, dtype=np.float32)
+    for k in range(3):  # the three coordinates
+        t1 = np.float32(lo[k]) * inverse[k]
+        t1 += offset[k]
+        t2 = np.float32(hi[k]) * inverse[k]
+        t2 += offset[k]
+        np.maximum(enter, np.minimum(t1, t2), out=enter)
+        np.minimum(leave, np.maximum(t1, t2), out=leave)
+    return enter <= leave
 
 
 @dataclass(frozen=True)
@@ -270,6 +376,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     tx = np.asarray(context.transmitter_m, dtype=float)
     rx = np.asarray(context.receivers_m, dtype=float)
     directions, weight = sample_directions(n_rays, np.asarray(context.boresight, dtype=float), context, rng)
+    screen = ObjectScreen.create(scene, rx)
     departure = directions
     origins = np.broadcast_to(tx, (n_rays, 3))
     travelled = np.zeros(n_rays)
@@ -281,21 +388,26 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         hits = raycaster.intersect(origins, directions)
         surface = hits.surface
         mu = mu_of_surface[np.maximum(surface, 0)]
-        live = np.flatnonzero((surface >= 0) & (mu > 0.0))
-        normal = hits.normal[live]
-        directions = directions[live]
-        front = np.einsum("ij,ij->i", directions, normal) < 0.0
-        live, normal, directions = live[front], normal[front], directions[front]
-        if live.size == 0:
+        # a scattering surface hit from its front (a missed ray's normal is NaN: not < 0)
+        front = np.einsum("ij,ij->i", directions, hits.normal) < 0.0
+        keep = front & (surface >= 0) & (mu > 0.0)
+        n_hits = int(np.count_nonzero(keep))
+        if n_hits == 0:
             break
-        distance = hits.distance_m[live]
-        mu = mu[live]
-        points = origins[live] + distance[:, None] * directions
-        weight, departure, parent = weight[live], departure[live], parent[live]
-        travelled = travelled[live] + distance
-        n_hits = live.size
+        # in a closed tank every ray scatters: then no gathers
+        live = None if n_hits == keep.size else np.flatnonzero(keep)
+
+        def alive(values: NDArray[Any]) -> NDArray[Any]:
+            return values if live is None else values[live]
+
+        normal, directions, distance, mu = alive(hits.normal), alive(directions), alive(hits.distance_m), alive(mu)
+        points = distance[:, None] * directions
+        points += alive(origins)
+        weight, departure, parent = alive(weight), alive(departure), alive(parent)
+        travelled = alive(travelled) + distance
+        surface = alive(surface)
         ev["points"].append(points)
-        ev["surface"].append(surface[live])
+        ev["surface"].append(surface)
         ev["parent"].append(parent)
         ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
         ev["departure"].append(departure)
@@ -307,21 +419,24 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         sin_gs = np.einsum("ijk,ik->ij", to_rx, normal) / r2
         magnitude, phase = speckle_polar(points, config.seed)
         gain = (magnitude * np.sqrt(weight * mu))[:, None] * np.sqrt(np.maximum(sin_gs, 0.0)) / r2
-        facing = (sin_gs > 0.0).reshape(-1)
-        # (hit, receiver) pairs in front of the face; in a tank nearly all, so skip the gathers
-        flat = None if facing.all() else np.flatnonzero(facing)
-        origins_nee = np.repeat(points, n_rx, axis=0) if flat is None else points[flat // n_rx]
-        targets_nee = np.tile(rx, (n_hits, 1)) if flat is None else rx[flat % n_rx]
-        clear = ~raycaster.occluded(origins_nee, targets_nee)
-        flat = np.flatnonzero(clear) if flat is None else flat[clear]
-        hit_idx, rx_idx = flat // n_rx, flat % n_rx
+        # (hit, receiver) pairs in front of the face; Embree tests only the legs that may
+        # cross an object (boundaries cannot block them: see _legs_near_objects)
+        clear = (sin_gs > 0.0).reshape(-1)
+        test = np.flatnonzero(clear & np.repeat(screen.near(points), n_rx))
+        if test.size:
+            hit_test, rx_test = np.divmod(test, n_rx)
+            clear[test] = ~raycaster.occluded(points[hit_test], rx[rx_test])
+        flat = np.flatnonzero(clear)
+        hit_idx, rx_idx = np.divmod(flat, n_rx)
         r2_sel = r2.reshape(-1)[flat]
         rc["event"].append(next_event + hit_idx)
         rc["channel"].append(rx_idx)
         rc["length"].append(travelled[hit_idx] + r2_sel)
         rc["gain"].append(gain.reshape(-1)[flat])
         rc["phase"].append(phase[hit_idx])
-        rc["arrival"].append(to_rx.reshape(-1, 3)[flat] / r2_sel[:, None])
+        arrival = to_rx.reshape(-1, 3)[flat]
+        arrival /= r2_sel[:, None]
+        rc["arrival"].append(arrival)
         parent = next_event + np.arange(n_hits)
         next_event += n_hits
         if bounce + 1 >= int(config.diffuse_bounces):
