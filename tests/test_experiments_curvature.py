@@ -76,6 +76,9 @@ def test_fusion_fields_and_gain(tiny):
     # whereas a single ping's (2 d = 8 cm baseline) exact fit is off by millimetres.
     assert abs(f["fused_radius_mean_m"] - 0.025) < 1e-3
     assert f["fused_radius_rms_error_m"] < f["single_ping_radius_rms_error_m"]
+    # every fused radius has a finite positive std: the quantisation floor keeps a ping whose
+    # detector reported a zero TOF std from pinning the fit
+    assert all(s is not None and s > 0 for s in f["fused_radius_std_m"])
 
 
 def test_bad_options(tmp_path):
