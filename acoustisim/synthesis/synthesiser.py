@@ -267,12 +267,12 @@ class PathSynthesiser:
         from scipy.fft import irfft
 
         n_groups, n_bins = ramps.shape
-        # Real factors in float32, then applied to the complex ramp through its float32 view
-        # (same-type, contiguous operations: mixed complex x real ufunc loops are far slower).
+        # Real factors in float32, applied to the complex ramps in place (numpy's complex64 x
+        # float32 loop: twice as fast as a broadcast over the float32 view's pairs).
         real = np.take(plan.directivity_table, i_tx, axis=0)
         real *= np.take(plan.directivity_table, i_rx, axis=0)
         real *= np.take(plan.absorption_table, np.minimum(i_len, plan.absorption_table.shape[0] - 1), axis=0)
-        ramps.view(np.float32).reshape(n_groups, n_bins, 2)[...] *= real[:, :, None]
+        ramps *= real
         full = np.zeros((n_groups, plan.length // 2 + 1), dtype=np.complex64)
         full[:, :n_bins] = ramps
         return irfft(full, n=plan.length, axis=1)
@@ -295,8 +295,15 @@ class PathSynthesiser:
         keep = int(math.ceil(self.grid.n_samples / self.grid.decimation)) + 1
         fs_dec = self.grid.sample_rate_hz / self.grid.decimation
         out = np.zeros(3 * m_dec)
-        # Contiguous copies of the columns used, read once (the structured rows are strided).
-        columns = {name: np.ascontiguousarray(rows[name]) for name in ROW_COLUMNS}
+        # Contiguous copies of the columns used, read in one pass over the (wide) structured
+        # rows: the float columns as one (rows, 6) strided view, transposed into a copy.
+        from numpy.lib.recfunctions import structured_to_unstructured
+
+        floats = np.ascontiguousarray(
+            structured_to_unstructured(rows[list(ROW_COLUMNS[:-1])], dtype=np.float64, copy=False).T
+        )
+        columns = dict(zip(ROW_COLUMNS[:-1], floats))
+        columns["channel"] = np.ascontiguousarray(rows["channel"])
         check_columns(columns)
         if rows.size == 0:
             return out.reshape(3, m_dec)
@@ -343,8 +350,7 @@ class PathSynthesiser:
                 * (SINE_STEPS // MERGE_SINE_STEPS + 1)
                 + i_rx[selected] // MERGE_SINE_STEPS
             ) * (int(i_len.max()) // MERGE_LENGTH_STEPS + 1) + i_len[selected] // MERGE_LENGTH_STEPS
-            order = selected[np.argsort(key, kind="stable")]
-            key = np.sort(key, kind="stable")
+            order, key = _stable_order(key, selected)
             starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
             bounds = np.r_[starts, order.size]
             offsets = np.arange(plan.length)
@@ -394,6 +400,20 @@ class PathSynthesiser:
         top = m_dec // 2 if q > 1 else m_dec // 2 + 1
         full[:, :top] = q * spectrum_dec[:, :top]
         return full
+
+
+def _stable_order(key: NDArray[np.int64], items: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.int64]]:
+    """``items`` and ``key`` (both (n,), key >= 0) sorted by key, ties in their given order.
+
+    When key x n fits in int64, the position is appended to the key: the keys are then
+    distinct, and the (4x faster, SIMD) unstable sort gives exactly the stable order.
+    """
+    n = key.size
+    if n and (int(key.max()) + 1) * n < 2**63:
+        by_key = np.argsort(key * n + np.arange(n))
+    else:
+        by_key = np.argsort(key, kind="stable")
+    return items[by_key], key[by_key]
 
 
 ROW_COLUMNS: tuple[str, ...] = (
