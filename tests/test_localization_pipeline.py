@@ -149,3 +149,20 @@ def test_pose_reported_even_without_targets_and_clipped_echoes_flagged():
     echoes = tuple((Echo(c, L[c] / C, 1.0, 20.0, 5.0, 0, 1e-7, clipped=(c == 1)),) for c in range(3))
     res = localize(DetectionResult("hand-built", (echoes,)), sound_speed_m_s=C, channel_positions_m=POSITIONS)
     assert "clipped channel(s) [1]" in res.targets[0][0].message
+
+
+def test_averaged_pings_of_one_pose_keep_that_pose():
+    """Averaging N pings gives one ping: its pose is the (common) pose of the N pings."""
+    from binsonar.detection.echo import DetectionResult
+    from binsonar.localization.pipeline import LocalizationError, localize
+
+    echoes = ((), (), ())
+    detections = DetectionResult("ca-cfar", (echoes,))
+    positions = [[-0.065, 0, 0], [0, 0, 0], [0.065, 0, 0]]
+    pose = np.tile([1.0, 1.5, 0.5, 10.0, 0.0, 0.0], (5, 1))
+    result = localize(detections, sound_speed_m_s=1482.0, channel_positions_m=positions, pose=pose)
+    assert result.n_pings == 1
+    moved = pose.copy()
+    moved[3, 0] += 0.1
+    with pytest.raises(LocalizationError, match="different poses"):
+        localize(detections, sound_speed_m_s=1482.0, channel_positions_m=positions, pose=moved)

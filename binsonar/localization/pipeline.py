@@ -268,6 +268,12 @@ def localize(
         pose_arr = np.array(poses, dtype=float)
         if pose_arr.ndim == 1:
             pose_arr = np.broadcast_to(pose_arr, (n_pings, pose_arr.size)).copy()
+        elif n_pings == 1 and pose_arr.ndim == 2 and pose_arr.shape[0] > 1 and pose_arr.shape[1] == 6:
+            # The pings were averaged into one: that is meaningful only for one pose.
+            if not np.allclose(pose_arr, pose_arr[0], rtol=0.0, atol=1e-9):
+                raise LocalizationError(f"{where}: the {pose_arr.shape[0]} averaged pings were recorded at "
+                                        "different poses; average pings of one pose only")
+            pose_arr = pose_arr[:1].copy()
         if pose_arr.shape != (n_pings, 6) or not np.all(np.isfinite(pose_arr)):
             raise LocalizationError(f"{where}: pose must be ({n_pings}, 6) finite, got shape {pose_arr.shape}")
 
