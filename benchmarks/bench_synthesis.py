@@ -2,7 +2,16 @@
 
 Usage
 -----
-    python benchmarks/bench_synthesis.py [--repeats 9] [--scene thesis-tank]
+    python benchmarks/bench_synthesis.py [--repeats 9] [--scene thesis-tank] [--before FILE]
+
+``--before FILE``: an older ``acoustisim/synthesis/synthesiser.py`` (e.g. from ``git show
+REV:acoustisim/synthesis/synthesiser.py > /tmp/synthesiser_before.py``), whose
+``PathSynthesiser.decimated_record`` is timed interleaved with the current one on the same rows
+(and its output compared), for a before/after ratio under the same load.
+
+Times are CPU-time medians (``time.process_time``: every stage is single-threaded, and on a
+shared machine the wall clock mostly measures the other processes), wall-clock medians in
+brackets.
 
 Measured (medians over ``--repeats``), on the traced paths of the scene (the solver runs once,
 untimed):
@@ -40,13 +49,27 @@ from acoustisim.synthesis import PingSynthesiser, ReceiverChain, TimeVaryingGain
 from scenes.builtin import builtin_scene  # noqa: E402
 
 
+def cpu_and_wall(function) -> tuple[float, float]:
+    """CPU (process) and wall-clock seconds of one call."""
+    start, start_cpu = time.perf_counter(), time.process_time()
+    function()
+    return time.process_time() - start_cpu, time.perf_counter() - start
+
+
 def median_time(function, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+    """Median CPU seconds of ``repeats`` calls."""
+    return statistics.median(cpu_and_wall(function)[0] for _ in range(repeats))
+
+
+def load_module(path: str, name: str):
+    """Import a module from a file (an older version of one of ours) under another name."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up while the class is built
+    spec.loader.exec_module(module)
+    return module
 
 
 def peak_memory(function) -> int:
@@ -61,6 +84,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=9)
     parser.add_argument("--scene", default="thesis-tank")
+    parser.add_argument("--before", default=None, help="an older synthesiser.py to compare with")
     args = parser.parse_args()
     warnings.simplefilter("ignore", UserWarning)  # arrivals past the record's end
 
@@ -81,17 +105,24 @@ def main() -> int:
     planning = median_time(lambda: PingSynthesiser.create(sonar, scene.medium, chain), max(3, args.repeats // 3))
     synth = PingSynthesiser.create(sonar, scene.medium, chain)
     counter = iter(range(10**9))
+    before = None
+    if args.before:
+        padding = chain.bandpass_settle_s() + 8.0 * chain.main_bang_decay_s  # as PingSynthesiser.create
+        before = load_module(args.before, "synthesiser_before").PathSynthesiser.create(sonar, scene.medium, padding)
     # Interleaved so that the floor and the pings see the same load on a shared machine.
-    floors, pings, tens, paths_only = [], [], [], []
+    samples: dict[str, list[tuple[float, float]]] = {k: [] for k in ("floor", "ping", "paths", "ten", "before")}
     for _ in range(args.repeats):
-        floors.append(median_time(floor, 1))
-        pings.append(median_time(lambda: synth.render(paths.rows, seed=next(counter)), 1))
-        paths_only.append(median_time(lambda: synth.paths.decimated_record(paths.rows), 1))
-        tens.append(median_time(lambda: synth.render(paths.rows, seed=next(counter), n_pings=10), 1))
-    floor_s, ping_s = statistics.median(floors), statistics.median(pings)
-    ten_s, paths_s = statistics.median(tens), statistics.median(paths_only)
+        samples["floor"].append(cpu_and_wall(floor))
+        samples["ping"].append(cpu_and_wall(lambda: synth.render(paths.rows, seed=next(counter))))
+        samples["paths"].append(cpu_and_wall(lambda: synth.paths.decimated_record(paths.rows)))
+        if before is not None:
+            samples["before"].append(cpu_and_wall(lambda: before.decimated_record(paths.rows)))
+        samples["ten"].append(cpu_and_wall(lambda: synth.render(paths.rows, seed=next(counter), n_pings=10)))
+    cpu = {k: statistics.median(c for c, _ in v) for k, v in samples.items() if v}
+    wall = {k: statistics.median(w for _, w in v) for k, v in samples.items() if v}
+    floor_s, ping_s, ten_s, paths_s = cpu["floor"], cpu["ping"], cpu["ten"], cpu["paths"]
     extra_s = (ten_s - ping_s) / 9.0
-    ratios = sorted(p / f for p, f in zip(pings, floors))
+    ratios = sorted(p / f for (p, _), (f, _) in zip(samples["ping"], samples["floor"]))
 
     memory = peak_memory(lambda: synth.render(paths.rows, seed=1))
     long_sonar = dataclasses.replace(sonar, record_length_s=2 * sonar.record_length_s)
@@ -100,13 +131,25 @@ def main() -> int:
 
     print(f"scene {scene.name}: {len(paths)} path rows ({paths.arrivals().size} arrivals), solve {solve_s:.2f} s")
     print(f"record: 3 x {n} samples at {sonar.sample_rate_hz / 1e6:g} MS/s ({sonar.record_length_s * 1e3:g} ms)")
-    print(f"floor (noise + one rfft)      median {floor_s * 1e3:8.1f} ms")
-    print(f"one ping, every mechanism on  median {ping_s * 1e3:8.1f} ms   ratio {ping_s / floor_s:5.2f} x floor (goal <= 3)")
+    print("CPU-time medians [wall-clock medians]")
+    print(f"floor (noise + one rfft)      median {floor_s * 1e3:8.1f} ms [{wall['floor'] * 1e3:8.1f}]")
+    print(
+        f"one ping, every mechanism on  median {ping_s * 1e3:8.1f} ms [{wall['ping'] * 1e3:8.1f}]"
+        f"   ratio {ping_s / floor_s:5.2f} x floor (goal <= 3)"
+    )
     print(f"  ratio per repeat (same load): min {ratios[0]:.2f}, median {statistics.median(ratios):.2f}, max {ratios[-1]:.2f}")
     print(
-        f"  of which the paths (kernels + scatter)  {paths_s * 1e3:8.1f} ms"
+        f"  of which the paths (kernels + scatter)  {paths_s * 1e3:8.1f} ms [{wall['paths'] * 1e3:8.1f}]"
         f" ({paths_s / len(paths) * 1e7:.1f} ms per 10^4 rows)"
     )
+    if before is not None:
+        same = np.array_equal(before.decimated_record(paths.rows), synth.paths.decimated_record(paths.rows))
+        pairs = [a / b for (a, _), (b, _) in zip(samples["paths"], samples["before"])]
+        print(
+            f"  the paths with {args.before}: {cpu['before'] * 1e3:8.1f} ms [{wall['before'] * 1e3:8.1f}];"
+            f" now / before median of per-repeat ratios {statistics.median(pairs):.2f}"
+            f" (output {'identical' if same else 'different'})"
+        )
     print(f"each extra ping (of 10)              {extra_s * 1e3:8.1f} ms   ratio {extra_s / floor_s:5.2f} x floor")
     print(f"planning (create, once)       median {planning * 1e3:8.1f} ms")
     print(
