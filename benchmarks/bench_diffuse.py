@@ -2,7 +2,11 @@
 
 Usage
 -----
-    python benchmarks/bench_diffuse.py [--rays 200000] [--repeats 7] [--bounces 1]
+    python benchmarks/bench_diffuse.py [--rays 200000] [--repeats 7] [--bounces 1] [--before FILE]
+
+``--before FILE``: an older ``acoustisim/propagation/diffuse.py`` (e.g. from ``git show
+REV:acoustisim/propagation/diffuse.py > /tmp/diffuse_before.py``) whose ``trace_diffuse`` is
+timed interleaved with the current one (same context, config and load), its rows compared.
 
 All measured in this run, on the thesis tank (``scenes.builtin.builtin_scene("thesis-tank")``)
 at its default sonar pose, with the same ray directions (the tracer's own draw for the seed):
@@ -59,6 +63,7 @@ def main() -> int:
     parser.add_argument("--rays", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--bounces", type=int, default=1)
+    parser.add_argument("--before", default=None, help="an older diffuse.py to compare with")
     args = parser.parse_args()
 
     from embreex import rtcore_scene
@@ -108,6 +113,26 @@ def main() -> int:
         "diffuse_paths": median_time(lambda: diffuse_paths(context, config), args.repeats),
         "+ columns": median_time(lambda: complete_columns(diffuse_paths(context, config), context), args.repeats),
     }
+    before_note = None
+    if args.before:
+        import importlib.util
+
+        spec = importlib.util.spec_from_file_location("diffuse_before", args.before)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["diffuse_before"] = module  # dataclasses look their module up
+        spec.loader.exec_module(module)
+        now_cpu, before_cpu = [], []
+        for _ in range(args.repeats):  # interleaved: the same load for both
+            now_cpu.append(median_time(lambda: trace_diffuse(context, config), 1)[1])
+            before_cpu.append(median_time(lambda: module.trace_diffuse(context, config), 1)[1])
+        same = diffuse_paths(context, config).tobytes() == module.diffuse_paths(context, config).tobytes()
+        now, then = statistics.median(now_cpu), statistics.median(before_cpu)
+        before_note = (
+            f"  tracer now {now * 1e3:.2f} ms CPU ({n / now / 1e6:.3f} M rays/s), {args.before} {then * 1e3:.2f} ms "
+            f"({n / then / 1e6:.3f} M rays/s): now / before median of per-repeat ratios "
+            f"{statistics.median([a / b for a, b in zip(now_cpu, before_cpu)]):.2f}, rows "
+            f"{'byte-identical' if same else 'different'}"
+        )
     events = trace_diffuse(context, config)
     print(f"thesis tank: {raycaster.triangle_count} triangles, {n} rays, {args.bounces} bounce(s), "
           f"{int(hit.sum())} first hits, {seg_t32.size} NEE segments, {events.event.size} rows; "
@@ -125,6 +150,8 @@ def main() -> int:
               f"{tracer / results['raw intersect'][index]:.2f}x (goal <= 2x), tracer / raw same work = "
               f"{tracer / results['raw same work'][index]:.2f}x, diffuse_paths / tracer = "
               f"{results['diffuse_paths'][index] / tracer:.2f}x")
+    if before_note:
+        print(before_note)
     return 0
 
 
