@@ -90,11 +90,17 @@ def cosh_eta_minus_one(
     """
     a = np.asarray(z, dtype=float) - z_s
     b = np.asarray(z, dtype=float) - z_r
-    m = np.hypot(r_s, a)
-    l = np.hypot(r_r, b)
-    num = (np.asarray(r_s) * b + np.asarray(r_r) * a) ** 2
-    den = (m * l + np.asarray(r_s) * np.asarray(r_r) - a * b) * np.asarray(r_s) * np.asarray(r_r)
-    return num / den
+    r_s, r_r = np.asarray(r_s, dtype=float), np.asarray(r_r, dtype=float)
+    return _cosh_eta_minus_one(a, b, r_s, r_r, np.hypot(r_s, a) * np.hypot(r_r, b))
+
+
+def _cosh_eta_minus_one(
+    a: NDArray[np.float64], b: NDArray[np.float64], r_s: NDArray[np.float64], r_r: NDArray[np.float64],
+    ml: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`cosh_eta_minus_one` from a = z - zS, b = z - zR and m l (already computed)."""
+    rsr = r_s * r_r
+    return (r_s * b + r_r * a) ** 2 / ((ml + rsr - a * b) * rsr)
 
 
 def beta(
@@ -403,28 +409,42 @@ def element_gains(
 
     idx = elements.pair
     nu_, rs, zs, rr, zr = nu_p[idx], rs_p[idx], zs_p[idx], rr_p[idx], zr_p[idx]
-    num, gap, nk, ml_star, z_star = num_p[idx], gap_p[idx], nk_p[idx], ml_star_p[idx], z_star_p[idx]
+    nk, ml_star, z_star = nk_p[idx], ml_star_p[idx], z_star_p[idx]
+    # the four terms as contiguous per-element rows (4, n): 1-D passes, no (n, 4) reductions
+    num, gap = num_p.T.copy()[:, idx], gap_p.T.copy()[:, idx]
+    coef, s_gap = coef_p.T.copy()[:, idx], s_gap_p.T.copy()[:, idx]
 
-    def terms(den: NDArray[np.float64]) -> NDArray[np.float64]:
-        ok = den > 0.0
-        return np.sum(np.divide(num, den, out=np.zeros_like(den), where=ok), axis=1)
+    def terms(den: NDArray[np.float64], i: int) -> NDArray[np.float64]:
+        return np.divide(num[i], den, out=np.zeros_like(den), where=den > 0.0)
 
     z0, z1 = elements.z_start_m, elements.z_end_m
     half_len = 0.5 * (z1 - z0)
     centre = 0.5 * (z0 + z1)
     total = np.zeros(z0.size)
-    for x, w in zip(_GAUSS_X, _GAUSS_W):
+    for x, w in zip(_GAUSS_X, _GAUSS_W):  # the two Gauss points
         z = centre + x * half_len
-        ml = np.hypot(rs, z - zs) * np.hypot(rr, z - zr)
-        c1 = np.maximum(cosh_eta_minus_one(z, rs, zs, rr, zr), 0.0)
+        a, b = z - zs, z - zr
+        ml = np.hypot(rs, a) * np.hypot(rr, b)
+        c1 = np.maximum(_cosh_eta_minus_one(a, b, rs, rr, ml), 0.0)
         eta = np.log1p(c1 + np.sqrt(c1 * (c1 + 2.0)))
         # cosh(nu eta) - cos(nu phi) = 2 sinh^2(nu eta / 2) + 2 sin^2(nu phi / 2)
-        exact = terms(2.0 * np.sinh(0.5 * nu_ * eta)[:, None] ** 2 + gap) / ml
-        apex = terms(0.5 * (nk * (z - z_star))[:, None] ** 2 + gap) / ml_star
-        total += w * (exact - apex)
-    g0 = np.sum(coef_p[idx] * np.arctan2((nk * (z0 - z_star))[:, None], s_gap_p[idx]), axis=1)
-    g1 = np.sum(coef_p[idx] * np.arctan2((nk * (z1 - z_star))[:, None], s_gap_p[idx]), axis=1)
-    total = total * half_len + (g1 - g0)
+        hyperbolic = 2.0 * np.sinh(0.5 * nu_ * eta) ** 2
+        model = 0.5 * (nk * (z - z_star)) ** 2
+        exact = np.zeros(z0.size)
+        apex = np.zeros(z0.size)
+        for i in range(4):  # the four terms of beta
+            exact += terms(hyperbolic + gap[i], i)
+            apex += terms(model + gap[i], i)
+        total += w * (exact / ml - apex / ml_star)
+    # Int of the apex model: sum_i coef_i (atan(A1 / s_i) - atan(A0 / s_i)), A = nu kappa (z - z*),
+    # as one atan2((A1 - A0) s, s^2 + A0 A1) per term (exact for s > 0; coef_i = 0 where s_i
+    # is 0, on a boundary)
+    a0, a1 = nk * (z0 - z_star), nk * (z1 - z_star)
+    da, prod = nk * (z1 - z0), a0 * a1
+    model_integral = np.zeros(z0.size)
+    for i in range(4):  # the four terms of beta
+        model_integral += coef[i] * np.arctan2(da * s_gap[i], s_gap[i] ** 2 + prod)
+    total = total * half_len + model_integral
     return -(nu_ / (4.0 * np.pi)) * total
 
 
