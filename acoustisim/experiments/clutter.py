@@ -327,7 +327,7 @@ def error_figure(summary: dict[str, Any], detectors: list[str]) -> Any:
     from acoustisim.experiments.figures import new_figure
 
     fig, axes = new_figure(1, 2, width=10.0, row_height=3.4)
-    bins_r = np.logspace(-2, 3, 41)  # |range error| in mm
+    bins_r = np.logspace(-3, 2, 41)  # |range error| in mm
     bins_b = np.logspace(-3, 1.5, 41)  # |bearing error| in deg
     for m in detectors:
         s = summary["all"][m]
