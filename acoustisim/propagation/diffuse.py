@@ -420,7 +420,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         magnitude, phase = speckle_polar(points, config.seed)
         gain = (magnitude * np.sqrt(weight * mu))[:, None] * np.sqrt(np.maximum(sin_gs, 0.0)) / r2
         # (hit, receiver) pairs in front of the face; Embree tests only the legs that may
-        # cross an object (boundaries cannot block them: see _legs_near_objects)
+        # cross an object (boundaries cannot block them: see ObjectScreen)
         clear = (sin_gs > 0.0).reshape(-1)
         test = np.flatnonzero(clear & np.repeat(screen.near(points), n_rx))
         if test.size:
