@@ -20,7 +20,9 @@ of the position quantised to :data:`SPECKLE_CELL_M` and of ``config.seed``, so t
 same for every receiver and every ping. |X| sqrt(...) is the row's ``geometric_gain`` and
 arg X its ``phase_rad``; directivities and absorption come from the common columns. A row is
 emitted when the receiver is in front of the scattering face and the leg hit -> receiver is
-not occluded (one batched Embree ``occluded`` for all hits and receivers).
+not occluded (one batched Embree ``occluded`` for the legs that may cross an object: the
+tank's boundaries enclose a convex box and cannot block a leg, so legs missing every object's
+bounding box are clear without a query, see :class:`ObjectScreen`).
 
 Further bounces (``config.diffuse_bounces`` > 1) continue each ray in a cosine-weighted
 direction about the hit's normal, which multiplies its weight by ``pi mu`` (the Lambert
