@@ -212,6 +212,11 @@ def test_object_screen_skips_only_legs_embree_finds_clear():
         assert not blocked.any()
     on_object = events.surface >= len(scene.boundaries)
     assert on_object.any() and near[on_object].all()
+    # a first hit's leg back to a receiver at the transmitter (the centre transducer) is not
+    # tested: it is the ray itself, clear by Embree too
+    assert np.array_equal(context.receivers_m[1], context.transmitter_m)
+    first = events.points_m[events.bounce == 1]
+    assert not context.raycaster.occluded(first, np.broadcast_to(context.transmitter_m, first.shape)).any()
     # legs the screen keeps include blocked ones (second-bounce points in the shadows of the
     # prism and posts: first hits are all seen from the transmitter, the centre receiver)
     kept = events.points_m[near]

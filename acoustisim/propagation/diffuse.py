@@ -379,6 +379,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     rx = np.asarray(context.receivers_m, dtype=float)
     directions, weight = sample_directions(n_rays, np.asarray(context.boresight, dtype=float), context, rng)
     screen = ObjectScreen.create(scene, rx)
+    at_transmitter = np.all(rx == tx, axis=1)  # (the thesis sonar's centre transducer)
     departure = directions
     origins = np.broadcast_to(tx, (n_rays, 3))
     travelled = np.zeros(n_rays)
@@ -424,7 +425,10 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         # (hit, receiver) pairs in front of the face; Embree tests only the legs that may
         # cross an object (boundaries cannot block them: see ObjectScreen)
         clear = (sin_gs > 0.0).reshape(-1)
-        test = np.flatnonzero(clear & np.repeat(screen.near(points), n_rx))
+        near = np.repeat(screen.near(points), n_rx).reshape(n_hits, n_rx)
+        if bounce == 0:  # a first hit's leg back to a receiver at the transmitter is its own ray
+            near[:, at_transmitter] = False
+        test = np.flatnonzero(clear & near.reshape(-1))
         if test.size:
             hit_test, rx_test = np.divmod(test, n_rx)
             clear[test] = ~raycaster.occluded(points[hit_test], rx[rx_test])
