@@ -158,10 +158,13 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     probe = points + VISIBILITY_OFFSET_M * bisector[e]
     receivers = rx[pair_rx[pair]]
     n = points.shape[0]
+    # a receiver at the transmitter (the centre transducer) has the same leg: tested once
+    own_leg = np.flatnonzero(~np.all(rx == tx, axis=1)[pair_rx[pair]])
     blocked = context.raycaster.occluded(
-        np.concatenate([probe, probe]), np.concatenate([np.broadcast_to(tx, (n, 3)), receivers])
+        np.concatenate([probe, probe[own_leg]]), np.concatenate([np.broadcast_to(tx, (n, 3)), receivers[own_leg]])
     )
-    visible = ~(blocked[:n] | blocked[n:])
+    visible = ~blocked[:n]
+    visible[own_leg] &= ~blocked[n:]
     pair, gains, path_length, e, points, receivers = (
         pair[visible], gains[visible], path_length[visible], e[visible], points[visible], receivers[visible]
     )
