@@ -55,12 +55,11 @@ radius_m = [0.01, 0.03]
 
 @pytest.fixture(scope="module")
 def client():
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
-    import logging
+    from acoustisim.datasets.generate import _local_cluster
 
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+    cluster = _local_cluster(2)  # as `generate --workers 2` starts it
     with Client(cluster) as c:
         yield c
     cluster.close()
