@@ -71,6 +71,8 @@ class Template:
             raise RecordingError("template: samples contain NaN or infinite values")
         if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
             raise RecordingError(f"template: sample_rate_hz must be > 0, got {self.sample_rate_hz!r}")
+        if not math.isfinite(self.t0_s):
+            raise RecordingError(f"template: t0_s must be finite, got {self.t0_s!r}")
         samples.setflags(write=False)
         object.__setattr__(self, "samples", samples)
 
@@ -164,6 +166,8 @@ class Recording:
             math.isfinite(self.sound_speed_m_s) and 1000.0 < self.sound_speed_m_s < 2000.0
         ):
             raise RecordingError(f"{where}: sound_speed_m_s out of range: {self.sound_speed_m_s!r}")
+        if self.temperature_c is not None and not (math.isfinite(self.temperature_c) and -5.0 < self.temperature_c < 100.0):
+            raise RecordingError(f"{where}: temperature_c out of range: {self.temperature_c!r}")
         if len(self.channel_names) != 3:
             raise RecordingError(f"{where}: channel_names must name 3 channels, got {self.channel_names!r}")
 

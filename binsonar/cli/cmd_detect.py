@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
             samples = np.load(args.template, allow_pickle=False)
         except (OSError, ValueError) as exc:
             raise RecordingError(f"{args.template}: cannot read the template (.npy): {exc}") from None
-        template = Template(np.asarray(samples, dtype=float).ravel(), recording.sample_rate_hz,
+        template = Template(np.asarray(samples, dtype=float), recording.sample_rate_hz,
                             args.template_t0, "calibration-echo")
     bandpass = tuple(args.bandpass) if args.bandpass is not None else ("template" if args.bandpass_template else None)
     result = detect(
@@ -167,7 +167,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--template", default=None, metavar="FILE.npy",
                         help="use this template (a calibration echo, at the recording's sample rate)")
     parser.add_argument("--template-t0", type=float, default=0.0, metavar="SECONDS",
-                        help="time of the --template's first sample relative to its reference instant")
+                        help=("time of the --template's first sample relative to its reference instant "
+                              "(s; write a negative value with '=', e.g. --template-t0=-3.95e-6)"))
     parser.add_argument("--full-scale-v", type=float, default=None, help="ADC full scale (V) for clipping checks")
     parser.add_argument("--on-clipped", choices=CLIPPED_POLICIES, default="flag",
                         help="clipped channels: flag their echoes (default), drop them, or fail (exit 2)")

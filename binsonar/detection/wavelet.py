@@ -132,7 +132,9 @@ def detect_dwt(
     if not (isinstance(levels, (int, np.integer)) and 1 <= levels <= 20 and 2 ** levels * 4 <= n):
         raise RecordingError(f"{where}: levels={levels!r} is not usable for {n} samples")
     block = 2 ** levels
-    n_pad = int(math.ceil(n / block)) * block
+    # Zero padding of at least two template lengths keeps the periodised transform from
+    # wrapping the record's start (the main bang) onto its end.
+    n_pad = int(math.ceil((n + 2 * s.size) / block)) * block
     # Level weights from the template's energy per level, averaged over its dyadic phase.
     cal_n = int(math.ceil(6 * m / block)) * block + block
     start = 2 * int(math.ceil(m / block)) * block
@@ -162,8 +164,13 @@ def detect_dwt(
     padded = np.zeros((n_rows, n_pad))
     padded[:, :n] = rows
     details = _details(padded, wavelet, levels)
-    sigma = [np.maximum(MAD_TO_SIGMA * np.median(np.abs(d), axis=1), np.finfo(float).tiny) for d in details]
+    # Noise scale of each level from the coefficients over the record only (not the padding).
+    sigma = [np.maximum(MAD_TO_SIGMA * np.median(np.abs(d[:, : int(math.ceil(n / 2.0 ** (j + 1)))]), axis=1),
+                        np.finfo(float).tiny) for j, d in enumerate(details)]
     stat = _window_sum(_statistic(details, weights, sigma, finest), window)
+    # The periodised transform wraps the record's start (the main bang) onto the zero padding:
+    # cells past the record's end are not data.
+    stat[:, int(math.ceil(n * 2.0 ** -finest)):] = 0.0
     n_cells = stat.shape[1]
     repeats = 2.0 ** (np.arange(1, levels + 1) - finest)
     mean = window * float(np.sum(weights / repeats))

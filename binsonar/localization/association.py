@@ -45,7 +45,7 @@ class Association:
 
 
 def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geometry: ArrayGeometry,
-              n_sigma: float = 4.0) -> list[Association]:
+              n_sigma: float = 4.0, min_range_m: float = 0.0) -> list[Association]:
     """Group one ping's echoes into reflectors by geometric consistency.
 
     Parameters
@@ -57,6 +57,10 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
     geometry : ArrayGeometry
     n_sigma : float
         Gate width in standard deviations.
+    min_range_m : float
+        Pairs whose point solution lies closer to the transmitter than this (m) are not
+        reflectors: the transmitter's direct cross-talk to the side receivers and the ringing
+        around it.
 
     Returns
     -------
@@ -76,7 +80,7 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
                    & (np.abs(a - b) <= geometry.max_path_difference_m + n_sigma * s_pair))
     # Point solution of each pair (nearest consistent bearing when noise pushes |sin| past 1).
     r, th = point_from_path_lengths(a, np.clip(b, a - 2 * d * (1 - 1e-12), a + 2 * d * (1 - 1e-12)), d)
-    pair_ok &= np.isfinite(r) & (r > 0)
+    pair_ok &= np.isfinite(r) & (r > max(float(min_range_m), 0.0))
     t = geometry.transmitter_m
     pos = np.stack([t[0] + r * np.sin(th), t[1] + r * np.cos(th), np.full_like(r, t[2])], axis=-1)
     mc_point = np.linalg.norm(pos - t, axis=-1) + np.linalg.norm(pos - geometry.receivers_m[1], axis=-1)

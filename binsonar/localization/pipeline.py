@@ -51,6 +51,11 @@ class LocalizationConfig:
         the matched-filter peak; on the simulator's free-post, free-plane and free-cylinder
         scenes this bias is 20-70 ns (30-105 um of path). The default, 50 ns, is one sample at
         20 MS/s. Set 0 to trust the detector's std alone.
+    min_range_m : float
+        Echo pairs implying a reflector closer than this to the transmitter (m) are not
+        targets: the transmitter's direct cross-talk to the side receivers (at |T - R| / c,
+        44 us for d = 65 mm) and the ringing around it. The default, 5 cm, is a few transducer
+        diameters.
     """
 
     estimation: EstimationConfig = field(default_factory=EstimationConfig)
@@ -59,10 +64,13 @@ class LocalizationConfig:
     track_gate_m: float = 0.15
     min_pings_to_fuse: int = 3
     tof_floor_s: float = 50e-9
+    min_range_m: float = 0.05
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.tof_floor_s) and self.tof_floor_s >= 0):
             raise LocalizationError(f"tof_floor_s must be >= 0, got {self.tof_floor_s!r}")
+        if not (math.isfinite(self.min_range_m) and self.min_range_m >= 0):
+            raise LocalizationError(f"min_range_m must be >= 0, got {self.min_range_m!r}")
         if not self.gate_n_sigma > 0:
             raise LocalizationError(f"gate_n_sigma must be > 0, got {self.gate_n_sigma!r}")
 
@@ -163,7 +171,7 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
             raise LocalizationError(
                 f"ping {ping}, channel {ch}: echoes carry no tof_std_s and no RMS bandwidth is known "
                 "(no template in the recording): pass rms_bandwidth_hz")
-    groups = associate(lengths, sigmas, geometry, cfg.gate_n_sigma)
+    groups = associate(lengths, sigmas, geometry, cfg.gate_n_sigma, cfg.min_range_m)
     targets = []
     used = 0
     for grp in groups:
