@@ -221,3 +221,15 @@ def test_object_screen_skips_only_legs_embree_finds_clear():
     # prism and posts: first hits are all seen from the transmitter, the centre receiver)
     kept = events.points_m[near]
     assert context.raycaster.occluded(kept, np.broadcast_to(context.receivers_m[1], kept.shape)).any()
+
+
+def test_an_empty_free_field_gives_no_diffuse_rows():
+    """Nothing to scatter from: the tracer returns no rows (it used to index an empty table)."""
+    from acoustisim.propagation import SolverConfig, solve
+    from acoustisim.propagation.paths import PathKind
+    from acoustisim.scene import Scene
+
+    paths = solve(Scene(tank=None, objects=()), config=SolverConfig())
+    kinds = set(int(k) for k in paths.rows["kind"])
+    assert PathKind.DIFFUSE not in kinds
+    assert kinds == {int(PathKind.DIRECT)}  # the two side receivers hear the transmitter

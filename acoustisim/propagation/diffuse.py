@@ -387,7 +387,9 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
     rc: dict[str, list[NDArray[Any]]] = {k: [] for k in ("event", "channel", "length", "gain", "phase", "arrival")}
     next_event = 0
-    for bounce in range(int(config.diffuse_bounces)):  # a handful of bounces
+    # No surface scatters (e.g. an empty free field): nothing to trace.
+    bounces = int(config.diffuse_bounces) if np.any(mu_of_surface > 0.0) else 0
+    for bounce in range(bounces):  # a handful of bounces
         hits = raycaster.intersect(origins, directions)
         surface = hits.surface
         mu = mu_of_surface[np.maximum(surface, 0)]
