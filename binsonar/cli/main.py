@@ -1,66 +1,27 @@
-"""Entry point of the ``binsonar`` command.
-
-Verbs are discovered from the modules ``binsonar/cli/cmd_*.py``; each defines
-``register(subparsers) -> None``, adding its parser with ``set_defaults(run=callable)``, where
-``run(args) -> int`` returns the exit code. Bad input raises an exception listed in
-``USER_ERRORS``: it is printed on one line (no traceback) and the exit code is 2.
-"""
+"""Entry point of the ``binsonar`` command; its verbs are the modules ``binsonar/cli/cmd_*.py``
+(see :mod:`binsonar.cli.verbs` for the contract and the exit codes)."""
 
 from __future__ import annotations
 
 import argparse
-import importlib
-import pkgutil
 import sys
 from typing import Sequence
 
 import binsonar.cli as cli_package
+from binsonar.cli.verbs import build_parser as _build_parser
+from binsonar.cli.verbs import run_command
 
-USER_ERROR_NAMES: tuple[str, ...] = ("InputError", "RecordingError", "SceneFileError", "SpecError")
+DESCRIPTION = "Detection and localisation for the binaural sonar, on real-format recordings."
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every discovered verb."""
-    parser = argparse.ArgumentParser(
-        prog="binsonar",
-        description="Detection and localisation for the binaural sonar, on real-format recordings.",
-    )
-    subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
-    subparsers.required = True
-    for info in sorted(pkgutil.iter_modules(cli_package.__path__), key=lambda m: m.name):
-        if info.name.startswith("cmd_"):
-            module = importlib.import_module(f"binsonar.cli.{info.name}")
-            module.register(subparsers)
-    return parser
-
-
-def _is_user_error(exc: BaseException) -> bool:
-    return any(cls.__name__ in USER_ERROR_NAMES for cls in type(exc).__mro__) or isinstance(
-        exc, (FileNotFoundError, IsADirectoryError, PermissionError)
-    )
+    return _build_parser(cli_package, "binsonar", DESCRIPTION)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 success, 2 bad input)."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        return int(args.run(args) or 0)
-    except BrokenPipeError:
-        # The reader of stdout went away (e.g. `| head`): stop quietly, as Unix tools do.
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
-    except KeyboardInterrupt:
-        print("binsonar: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # noqa: BLE001 - user errors become one line and exit 2
-        if _is_user_error(exc):
-            message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            print(f"binsonar: error: {message}", file=sys.stderr)
-            return 2
-        raise
+    return run_command(build_parser(), argv, "binsonar")
 
 
 if __name__ == "__main__":
