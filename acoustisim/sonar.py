@@ -140,13 +140,14 @@ class SonarHead:
 
     @property
     def rotation(self) -> NDArray[np.float64]:
-        """Rotation matrix (3, 3) taking head-frame vectors to the tank frame."""
-        y, p, r = (math.radians(v) for v in (self.yaw_deg, self.pitch_deg, self.roll_deg))
-        rz = np.array([[math.cos(y), -math.sin(y), 0.0], [math.sin(y), math.cos(y), 0.0], [0.0, 0.0, 1.0]])
-        r0 = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-        rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(p), -math.sin(p)], [0.0, math.sin(p), math.cos(p)]])
-        ry = np.array([[math.cos(r), 0.0, math.sin(r)], [0.0, 1.0, 0.0], [-math.sin(r), 0.0, math.cos(r)]])
-        return rz @ r0 @ rx @ ry
+        """Rotation matrix (3, 3) taking head-frame vectors to the tank frame.
+
+        One implementation of the convention serves the simulator and the pipeline (binsonar
+        must not import the simulator, so it lives there).
+        """
+        from binsonar.localization.frames import head_to_tank_rotation
+
+        return head_to_tank_rotation(self.yaw_deg, self.pitch_deg, self.roll_deg)
 
     @property
     def channel_positions_head(self) -> NDArray[np.float64]:
