@@ -29,8 +29,8 @@ import os
 import re
 import tomllib
 from dataclasses import dataclass
-from types import MappingProxyType
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
 import tomli_w
@@ -216,8 +216,8 @@ _SONAR = MappingProxyType({
     "channel_positions_m": _Field(_rows3x3),
 })
 
-_COMMON = {"kind": _Field(_string, required=True), "name": _Field(_string), "material": _Field(_material)}
-_VERTICAL = {"bottom_m": _Field(_number), "top_m": _Field(_number)}
+_COMMON = MappingProxyType({"kind": _Field(_string, required=True), "name": _Field(_string), "material": _Field(_material)})
+_VERTICAL = MappingProxyType({"bottom_m": _Field(_number), "top_m": _Field(_number)})
 
 _OBJECTS: Mapping[str, Mapping[str, _Field]] = MappingProxyType({
     "post": {**_COMMON, "center_m": _Field(_vector(2), True), "radius_m": _Field(_positive, True), **_VERTICAL},

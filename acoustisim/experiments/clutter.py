@@ -33,7 +33,8 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from typing import Any
+from types import MappingProxyType
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -53,18 +54,18 @@ SNRS_DB: tuple[float, ...] = (20.0, 30.0, 40.0)
 DETECTORS: tuple[str, ...] = ("threshold", "ca-cfar", "os-cfar", "local-matched", "dwt", "whitened-matched")
 _PFA_LADDER = (1e-1, 1e-2, 1e-3, 1e-5)
 _CFAR_LADDER = (1e-3, 1e-4, 1e-6, 1e-8)
-LADDER: dict[str, tuple[dict[str, float], ...]] = {
+LADDER: Mapping[str, tuple[dict[str, float], ...]] = MappingProxyType({
     "threshold": tuple({"level_sigma": v} for v in (4.0, 6.0, 9.0, 13.0)),
     "ca-cfar": tuple({"pfa": v} for v in _CFAR_LADDER),
     "os-cfar": tuple({"pfa": v} for v in _CFAR_LADDER),
     "local-matched": tuple({"pfa": v} for v in _PFA_LADDER),
     "dwt": tuple({"pfa": v} for v in _PFA_LADDER),
     "whitened-matched": tuple({"pfa": v} for v in _PFA_LADDER),
-}
+})
 """Threshold settings of each detector, most permissive first (nominal: level 6 sigma, CFAR pfa
 1e-6, the others pfa 1e-3)."""
-NOMINAL: dict[str, int] = {"threshold": 1, "ca-cfar": 2, "os-cfar": 2, "local-matched": 2, "dwt": 2,
-                           "whitened-matched": 2}
+NOMINAL: Mapping[str, int] = MappingProxyType({"threshold": 1, "ca-cfar": 2, "os-cfar": 2, "local-matched": 2,
+                                               "dwt": 2, "whitened-matched": 2})
 """Index of the nominal (default) setting in each ladder."""
 RECORD_S = 5e-3
 """Record length (s): 3.7 m of range, past the farthest object (3.2 m)."""

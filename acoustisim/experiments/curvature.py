@@ -42,7 +42,8 @@ import math
 import time
 import warnings
 from dataclasses import replace
-from typing import Any
+from types import MappingProxyType
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -77,14 +78,14 @@ that one ping. The floor is the CRLB with the quantisation noise alone (LSB / sq
 a 0.2-0.4 V echo: 2E/N0 ~ 75 dB, 0.3-0.5 um of path); with it the fused radius scatter (2 um)
 matches the fit's reported std (2.6 um) and the fused classes are all "cylinder"."""
 METHODS: tuple[str, ...] = ("approximate", "exact")
-CASES: dict[str, dict[str, Any]] = {
+CASES: Mapping[str, Mapping[str, Any]] = MappingProxyType({
     "case1": {"varied": "radius_m", "values": np.round(np.arange(0.3, 1.5001, 0.1), 10),
               "fixed": {"range_m": 3.05, "angle_deg": 20.1}, "label": "radius (m)", "seed_figure": "4-22"},
     "case2": {"varied": "range_m", "values": np.round(np.arange(1.5, 3.0001, 0.1), 10),
               "fixed": {"radius_m": 0.303, "angle_deg": 7.23}, "label": "range (m)", "seed_figure": "4-23"},
     "case3": {"varied": "angle_deg", "values": np.arange(1.0, 12.001, 1.0),
               "fixed": {"radius_m": 0.66, "range_m": 3.91}, "label": "angle (deg)", "seed_figure": "4-24"},
-}
+})
 FUSION_RADIUS_M = 0.025
 FUSION_DISTANCE_M = 1.0
 """Distance from the track to the post's axis (m)."""

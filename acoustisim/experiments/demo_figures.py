@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from types import MappingProxyType
 from typing import Any, Sequence
 
 import numpy as np
@@ -11,7 +12,7 @@ from numpy.typing import NDArray
 from acoustisim.experiments.figures import new_figure
 
 CHANNELS = ("left", "centre", "right")
-KIND_COLOURS = {"target": "tab:red", "multipath": "tab:purple", "tank": "tab:gray"}
+KIND_COLOURS = MappingProxyType({"target": "tab:red", "multipath": "tab:purple", "tank": "tab:gray"})
 
 
 def _colour(label: str) -> str:

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 import pyvista as pv
@@ -26,18 +27,18 @@ from acoustisim.viz.layers import RGBA_ARRAY, Layer
 
 RGB = tuple[float, float, float]
 
-KIND_COLORS: dict[PathKind, RGB] = {
+KIND_COLORS: Mapping[PathKind, RGB] = MappingProxyType({
     PathKind.DIRECT: (0.17, 0.63, 0.17),
     PathKind.SPECULAR: (0.12, 0.47, 0.71),
     PathKind.EDGE: (1.0, 0.5, 0.05),
     PathKind.DIFFUSE: (0.58, 0.40, 0.74),
-}
+})
 """Colour of each path kind (matplotlib's tab10 green, blue, orange, purple)."""
 
 CHANNEL_COLORS: tuple[RGB, RGB, RGB] = ((0.84, 0.15, 0.16), (0.85, 0.65, 0.0), (0.17, 0.63, 0.17))
 """Left (port red), centre (gold, the transmitter), right (starboard green)."""
 
-MATERIAL_COLORS: dict[str, RGB] = {
+MATERIAL_COLORS: Mapping[str, RGB] = MappingProxyType({
     "concrete": (0.74, 0.74, 0.70),
     "glass": (0.55, 0.82, 0.88),
     "pvc": (0.80, 0.30, 0.12),
@@ -50,7 +51,7 @@ MATERIAL_COLORS: dict[str, RGB] = {
     "rigid": (0.50, 0.50, 0.55),
     "pressure-release": (0.60, 0.80, 1.00),
     "air": (0.60, 0.80, 1.00),
-}
+})
 
 DIFFUSE_OPACITY_SCALE = 0.3
 """Opacity factor of diffuse paths relative to discrete echoes of the same amplitude."""
