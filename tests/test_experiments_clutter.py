@@ -50,6 +50,7 @@ def test_score_echoes_detection_explained_and_false_alarm():
     env = np.zeros((3, n))
     env[0, 995:1006] = 0.5
     env[0, 1495:1506] = 0.5
+    assert names[arrivals["object_ids"][0][0]] == "post-0"  # the surface index the rows use
     targets = [(0, "post-0", np.array([1.0e-3]))]
     echoes = [[Echo(0, 1.002e-3, 1.0, 20.0, 4.0), Echo(0, 1.5e-3, 1.0, 20.0, 2.5),
                Echo(0, 2.0e-3, 1.0, 20.0, 1.7), Echo(0, 2.5e-3, 1.0, 20.0, 1.3)], [], []]
