@@ -127,6 +127,24 @@ def _check_apart(scene: Scene, source: str) -> None:
                 )
 
 
+def _check_sampling(scene: Scene, source: str) -> None:
+    """The sample rate must carry the pulse (twice its -40 dB band top) and the default receiver
+    chain's band-pass (its upper corner below Nyquist), as ``acoustisim simulate`` needs."""
+    from acoustisim.synthesis.chain import ReceiverChain
+    from acoustisim.synthesis.transducer import pulse_band_top_hz
+
+    sonar = scene.sonar
+    fs = float(sonar.sample_rate_hz)
+    band_top = pulse_band_top_hz(sonar.pulse)
+    corner = ReceiverChain().bandpass_high_hz
+    needed = max(2.0 * band_top, 0.0 if corner is None else 2.0 * corner)
+    if fs <= needed:
+        raise SceneFileError(
+            f"{source}: sonar.sample_rate_hz = {fs:g} must exceed {needed:g} Hz (twice the pulse's band top "
+            f"{band_top:g} Hz and the receiver's band-pass corner {corner or 0.0:g} Hz)"
+        )
+
+
 def _check_sonar(scene: Scene, source: str) -> None:
     sonar = scene.sonar
     margin = sonar.piston_radius_m
@@ -175,3 +193,4 @@ def validate_scene(scene: Scene, source: str | None = None) -> None:
     _check_in_water(scene, where)
     _check_apart(scene, where)
     _check_sonar(scene, where)
+    _check_sampling(scene, where)

@@ -225,3 +225,16 @@ def test_unreadable_mesh_branch(tmp_path, monkeypatch):
     monkeypatch.setattr(scene_file.os, "access", lambda *_: False)
     with pytest.raises(SceneFileError, match=r"objects\[2\]\.path = 'rock.stl': mesh file not readable"):
         load_scene(path)
+
+
+def test_sample_rate_too_low_for_the_pulse_and_the_receiver(tmp_path, capsys):
+    """`scene validate` refuses what `simulate` cannot synthesise (the default chain's 2 MHz
+    band-pass corner needs more than 4 MS/s), naming the key and the value."""
+    scene = tmp_path / "slow.toml"
+    scene.write_text(
+        'free_field = true\n[medium]\nwater = "fresh"\ntemperature_c = 20.0\n'
+        '[sonar]\nposition_m = [0.0, 0.0, 0.0]\nsample_rate_hz = 1.2e6\n'
+    )
+    assert main(["scene", "validate", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert "sonar.sample_rate_hz = 1.2e+06" in err and err.count("\n") == 1
