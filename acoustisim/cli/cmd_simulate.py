@@ -15,22 +15,7 @@ import math
 import sys
 import warnings
 
-
-def _nonnegative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    value = _nonnegative_int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
-    return value
+from acoustisim.cli.arguments import int_at_least
 
 
 def _finite_float(text: str) -> float:
@@ -102,7 +87,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("scene", metavar="FILE_OR_NAME", help="scene file (TOML) or built-in scene name")
     parser.add_argument("-o", "--output", required=True, metavar="PING.h5", help="recording file to write")
-    parser.add_argument("--seed", type=_nonnegative_int, default=0, help="noise seed (default 0)")
+    parser.add_argument("--seed", type=int_at_least(0), default=0, help="noise seed (default 0)")
     parser.add_argument(
         "--snr-db", type=_finite_float, default=None, metavar="X",
         help="set 2E/N0 (dB) of the named echo on each channel with white noise",
@@ -111,8 +96,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--snr-echo", default=None, metavar="NAME",
         help="surface whose echo --snr-db refers to (default: the strongest target echo)",
     )
-    parser.add_argument("--pings", type=_positive_int, default=1, metavar="N", help="pings (independent noise)")
-    parser.add_argument("--max-order", type=_positive_int, default=None, metavar="N", help="most reflections per path")
+    parser.add_argument("--pings", type=int_at_least(1), default=1, metavar="N", help="pings (independent noise)")
+    parser.add_argument("--max-order", type=int_at_least(1), default=None, metavar="N", help="most reflections per path")
     parser.add_argument("--keep-all-paths", action="store_true", help="turn off the solver's amplitude floor")
     parser.add_argument("--average", action="store_true", help="store the mean of the pings as one ping")
     parser.add_argument("--json", action="store_true", help="print one JSON object (arrivals table) on stdout")

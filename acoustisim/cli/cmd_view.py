@@ -14,21 +14,12 @@ from __future__ import annotations
 
 import argparse
 
+from acoustisim.cli.arguments import int_at_least
 from acoustisim.errors import InputError
 
 
-def _nonnegative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
 def _echo(text: str) -> int | str:
-    return _nonnegative_int(text) if text.strip().lstrip("-").isdigit() else text
+    return int_at_least(0)(text) if text.strip().lstrip("-").isdigit() else text
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -102,7 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     parser.add_argument("scene", metavar="FILE_OR_NAME", help="scene file (.toml) or built-in scene name")
     parser.add_argument("--ping", metavar="PING.h5", help="recording file: pose and, if simulated, true paths")
-    parser.add_argument("--ping-index", type=_nonnegative_int, default=0, metavar="I",
+    parser.add_argument("--ping-index", type=int_at_least(0), default=0, metavar="I",
                         help="which ping of the file (default 0)")
     parser.add_argument("--results", metavar="RESULTS.json", help="localisation results (binsonar localize --json)")
     parser.add_argument("--png", metavar="OUT.png", help="render off-screen to this PNG file")
@@ -114,10 +105,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="draw the time-of-flight ellipsoids of echo N (rank by delay among the centre "
                              "channel's specular and edge echoes) or of the first echo off surface NAME")
     parser.add_argument("--no-paths", action="store_true", help="draw no paths (neither traced nor the ping's)")
-    parser.add_argument("--max-order", type=_nonnegative_int, metavar="N", help="reflection order when tracing")
+    parser.add_argument("--max-order", type=int_at_least(1), metavar="N", help="reflection order when tracing")
     parser.add_argument("--channels", type=_channels, default=(0, 1, 2), metavar="LIST",
                         help="receiver channels whose paths are drawn, e.g. centre or left,right (default all)")
-    parser.add_argument("--max-paths", type=_nonnegative_int, default=10_000, metavar="N",
+    parser.add_argument("--max-paths", type=int_at_least(0), default=10_000, metavar="N",
                         help="draw only the N strongest paths (0: all; default 10000)")
     parser.add_argument("--edge-elements", action="store_true",
                         help="draw every edge-diffraction element instead of one line per edge arrival")
