@@ -238,21 +238,10 @@ def go_amplitude(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.f
     ndarray, shape (n,)
         The pressure factor without the reflection coefficient (positive).
     """
-    d1 = x - a
-    d2 = x - b
-    r1 = np.linalg.norm(d1, axis=1)
-    r2 = np.linalg.norm(d2, axis=1)
-    s1 = d1 / r1[:, None]
-    s2 = d2 / r2[:, None]
-    cos_i = np.abs(np.einsum("ij,ij->i", s1, normal))
-    cos_s = np.abs(np.einsum("ij,ij->i", s2, normal))
-    a1, a2 = np.einsum("ij,ij->i", e1, s1), np.einsum("ij,ij->i", e2, s1)
-    b1, b2 = np.einsum("ij,ij->i", e1, s2), np.einsum("ij,ij->i", e2, s2)
-    h11 = (1.0 - a1 * a1) / r1 + (1.0 - b1 * b1) / r2 + (cos_i + cos_s) * k11
-    h22 = (1.0 - a2 * a2) / r1 + (1.0 - b2 * b2) / r2 + (cos_i + cos_s) * k22
-    h12 = -a1 * a2 / r1 - b1 * b2 / r2
-    det = h11 * h22 - h12 * h12
-    return cos_i / (r1 * r2 * np.sqrt(np.abs(det)))
+    k11 = np.broadcast_to(np.asarray(k11, dtype=float), (len(x),))
+    k22 = np.broadcast_to(np.asarray(k22, dtype=float), (len(x),))
+    amplitude, _ = go_amplitude_general(a, b, x, normal, e1, e2, k11, k22, np.zeros(len(x)))
+    return amplitude
 
 
 def go_amplitude_general(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.float64],
