@@ -35,7 +35,7 @@ ROW_CHUNK = 24
 RawEchoes = list[list[tuple[float, float, float, float, float]]]
 
 # Parameters of the method functions that ``detect`` supplies itself (not user options).
-_SUPPLIED = {"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind"}
+_SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -159,6 +159,7 @@ class PreparedDetector:
         t0_s: float = 0.0,
         full_scale_v: float | None = None,
         on_clipped: str = "flag",
+        adc_step_v: float | None = None,
     ) -> DetectionResult:
         """Detect echoes in one recording or array (see ``detect`` for the arguments).
 
@@ -168,7 +169,8 @@ class PreparedDetector:
             Bad data, or a sample rate or record length other than the prepared ones.
         """
         start = time.perf_counter()
-        signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v)
+        signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v,
+                             adc_step_v)
         if not math.isclose(signals.sample_rate_hz, self.sample_rate_hz, rel_tol=1e-12) or signals.n_samples != self.n_samples:
             raise RecordingError(
                 f"{signals.source}: {signals.n_samples} samples at {signals.sample_rate_hz:g} Hz, but the detector was "
@@ -308,6 +310,7 @@ def detect(
     bandpass_order: int = 4,
     full_scale_v: float | None = None,
     on_clipped: str = "flag",
+    adc_step_v: float | None = None,
     **options: Any,
 ) -> DetectionResult:
     """Detect echoes and estimate their times of flight.
@@ -340,6 +343,11 @@ def detect(
         ADC codes are checked against their code full scale anyway).
     on_clipped : {"flag", "drop", "error"}
         Clipped channels: keep their echoes marked ``clipped`` ("flag"), drop them, or raise.
+    adc_step_v : float, optional
+        ADC code step q (V) of the data (default: a recording's ``volts_per_code``, none for
+        arrays). Every noise estimate is floored at the quantisation noise q / sqrt(12):
+        noise below one code step quantises quiet stretches to constant samples, which would
+        otherwise look noise-free (zero TOF std, SNRs of 150 dB, spurious CFAR echoes).
     **options
         Method options; ``method_options(method)`` lists them with their defaults.
 
@@ -358,7 +366,7 @@ def detect(
     base, _, seed_bandpass = _base(method)
     if on_clipped not in CLIPPED_POLICIES:
         raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
-    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v)
+    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v, adc_step_v)
     band_from_template = isinstance(bandpass_hz, str) or (bandpass_hz is None and seed_bandpass)
     resolved: Template | None = None
     if base != "threshold" or band_from_template or template is not None or signals.template is not None:
@@ -373,6 +381,7 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     method treats rows independently)."""
     base, function = prepared.base, _method_function(prepared.base)
     options = dict(prepared.options)
+    options["noise_floor_v"] = signals.noise_floor_v
     template, plan = prepared.template, prepared._plan
     fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
     if base == "threshold":

@@ -35,6 +35,7 @@ from binsonar.detection.matched import (
     lag_range,
     noise_mean_power,
     refine_peaks,
+    white_noise_power,
 )
 from binsonar.detection.peaks import local_maxima, select_peaks
 from binsonar.recording import RecordingError
@@ -96,6 +97,7 @@ def cfar_threshold(
     pfa: float,
     order: int | None = None,
     censor_cells: int = 0,
+    floor_power: float = 0.0,
 ) -> NDArray[np.float64]:
     """CFAR threshold for every cell of each row.
 
@@ -114,6 +116,11 @@ def cfar_threshold(
         CA only: if > 0, a second pass excludes from every reference set the cells within
         ``censor_cells`` of a first-pass detection (a strong echo would otherwise raise the
         mean and mask a weaker neighbour), with alpha recomputed for the N' cells left.
+    floor_power : float
+        Least mean noise power of a cell (the ADC's quantisation noise through the filter):
+        the CA reference mean is floored at it, the OS k-th reference at its expected value
+        for that noise (floor_power sum_{i<k} 1 / (N - i), the mean k-th order statistic of N
+        unit exponentials); the thresholds are then at least their factor times that floor.
 
     Returns
     -------
@@ -123,8 +130,9 @@ def cfar_threshold(
     n_ref = offsets.size
     index = _reference_index(n, offsets)
     reference = power[:, index]  # (n_rows, N, n_cells)
+    floor_power = float(floor_power)
     if kind == "ca":
-        threshold = ca_alpha(n_ref, pfa) * reference.mean(axis=1)
+        threshold = ca_alpha(n_ref, pfa) * np.maximum(reference.mean(axis=1), floor_power)
         if censor_cells > 0:
             censored = _dilate(power > threshold, censor_cells)
             if censored.any():
@@ -133,14 +141,15 @@ def cfar_threshold(
                 total = np.where(keep, reference, 0.0).sum(axis=1)
                 counts = np.arange(n_ref + 1)
                 alpha = np.concatenate([[np.inf], counts[1:] * (pfa ** (-1.0 / np.maximum(counts[1:], 1)) - 1.0)])
-                second = alpha[count] * total / np.maximum(count, 1)
+                second = alpha[count] * np.maximum(total / np.maximum(count, 1), floor_power)
                 threshold = np.where(count >= 2, second, threshold)
         return threshold
     k = int(round(0.75 * n_ref)) if order is None else int(order)
     if not 1 <= k <= n_ref:
         raise RecordingError(f"os-cfar: order must be in [1, {n_ref}], got {k}")
     kth = np.partition(reference, k - 1, axis=1)[:, k - 1, :]
-    return os_alpha(n_ref, k, pfa) * kth
+    kth_floor = floor_power * float(np.sum(1.0 / (n_ref - np.arange(k))))
+    return os_alpha(n_ref, k, pfa) * np.maximum(kth, kth_floor)
 
 
 def cfar_layout(plan: MatchedPlan, guard_s: float, n_reference: int) -> tuple[NDArray[np.intp], int]:
@@ -174,6 +183,7 @@ def detect_cfar(
     max_echoes: int = 64,
     censor: bool = True,
     search_window_s: tuple[float, float] | None = None,
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """All echoes above the CFAR threshold in each row.
 
@@ -202,6 +212,9 @@ def detect_cfar(
         cells in a second pass, so a strong echo does not mask a weaker one nearby.
     search_window_s : (start_s, stop_s), optional
         Only report TOFs in this window (s after the trigger).
+    noise_floor_v : float
+        Least input noise standard deviation (V), the ADC's quantisation noise: floors the
+        reference levels and the noise estimate (see ``cfar_threshold``).
 
     Returns
     -------
@@ -219,8 +232,9 @@ def detect_cfar(
     power = z.real ** 2 + z.imag ** 2
     cell_s = plan.decimation / plan.sample_rate_hz
     censor = int(math.ceil(plan.mainlobe_fwhm_s / cell_s)) if censor else 0
-    threshold = cfar_threshold(power, offsets, kind, pfa, order, censor)
-    noise = noise_mean_power(power)
+    floor_power = float(white_noise_power(plan, noise_floor_v))
+    threshold = cfar_threshold(power, offsets, kind, pfa, order, censor, floor_power)
+    noise = noise_mean_power(power, floor_power)
     inside = cell_mask(plan, power.shape[1], lag_range(plan, t0_s, search_window_s))
     sidelobes = plan.sidelobes()
     margin = 10.0 ** (sidelobe_margin_db / 10.0)

@@ -83,14 +83,16 @@ def _band_statistic(
     n_env: int,
     scale: float,
     mu: NDArray[np.float64] | None,
+    mu_floor: NDArray[np.float64] | float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """sum_k |z_k|^2 / mu_k on the decimated grid, and mu (estimated if not given)."""
+    """sum_k |z_k|^2 / mu_k on the decimated grid, and mu (estimated if not given, at least
+    ``mu_floor``, shape (K,) or scalar)."""
     import scipy.fft as sfft
 
     z = sfft.ifft(spectrum[:, np.newaxis, :] * masks[np.newaxis], n_env, axis=-1) * scale  # (rows, K, n_env)
     power = z.real ** 2 + z.imag ** 2
     if mu is None:
-        mu = np.maximum(np.median(power, axis=-1) / LN2, np.finfo(float).tiny)  # (rows, K)
+        mu = np.maximum(np.median(power, axis=-1) / LN2, np.maximum(mu_floor, np.finfo(float).tiny))  # (rows, K)
     return (power / mu[..., np.newaxis]).sum(axis=1), mu
 
 
@@ -137,6 +139,7 @@ def detect_energy(
     pfa: float = 1e-3,
     tof: str = "peak",
     where: str = "record",
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Energy-detector echoes of each row.
 
@@ -159,6 +162,9 @@ def detect_energy(
         "peak": the statistic's maximum minus the calibrated offset (unbiased for echoes shaped
         like the template). "crossing": the seed's reading, the time the statistic first
         exceeds the threshold (biased, more so for weaker echoes, like the threshold detector).
+    noise_floor_v : float
+        Least noise standard deviation (V), the ADC's quantisation noise: each band's noise
+        mean is at least that white noise's, noise_floor_v^2 sum(mask_k^2) / n_fft.
 
     Returns
     -------
@@ -196,7 +202,9 @@ def detect_energy(
     length += 1 - length % 2  # odd, centred
     spectrum = sfft.rfft(rows, n_fft, axis=-1)[:, :k_hi]
     n_cells = int(math.floor((n - 1) / decimation)) + 1
-    band, mu = _band_statistic(spectrum, masks, n_env, scale, None)
+    # White noise of variance sigma^2 gives E|z_k|^2 = sigma^2 sum(mask_k^2) / n_fft (Parseval).
+    mu_floor = float(noise_floor_v) ** 2 * np.sum(masks ** 2, axis=-1) / n_fft  # (K,)
+    band, mu = _band_statistic(spectrum, masks, n_env, scale, None, mu_floor)
     stat = _moving_average(band[:, :n_cells], length)
     # Noise law of the statistic: e is the quadratic form (1/L) sum |z_k(t_j)|^2 / mu_k over the
     # K x L band samples in a window, whose normalised covariance is rho_kl(j - i), the inverse

@@ -33,6 +33,12 @@ class Signals:
         The recording's template (None for arrays).
     source : str
         File the waveforms came from, or "array".
+    noise_floor_v : float
+        Standard deviation (V) of the ADC's quantisation noise, q / sqrt(12) for a code step
+        q (the variance of an error uniform over one step): the least noise a quantised record
+        can carry, whatever quiet stretches of it look like (noise below one code step
+        quantises to exactly constant samples). Every detector floors its noise estimates with
+        it. 0 when the step is unknown (float arrays without ``adc_step_v``).
     """
 
     waveforms: NDArray[np.float64] = field(repr=False)
@@ -41,6 +47,7 @@ class Signals:
     clipped: NDArray[np.bool_] = field(repr=False)
     template: Template | None
     source: str
+    noise_floor_v: float = 0.0
 
     @property
     def n_pings(self) -> int:
@@ -66,6 +73,7 @@ class Signals:
             clipped=self.clipped if clipped is None else clipped,
             template=self.template,
             source=self.source,
+            noise_floor_v=self.noise_floor_v,
         )
 
 
@@ -74,11 +82,17 @@ def _clipped_by_full_scale(waveforms: NDArray[np.float64], full_scale_v: float) 
     return np.any(np.abs(waveforms) >= full_scale_v * (1.0 - 1e-9), axis=-1)
 
 
+def quantisation_noise_std_v(step_v: float) -> float:
+    """Standard deviation (V) of the rounding error of an ADC with code step ``step_v``: q / sqrt(12)."""
+    return float(step_v) / math.sqrt(12.0)
+
+
 def as_signals(
     data: Recording | NDArray[np.floating],
     sample_rate_hz: float | None = None,
     t0_s: float = 0.0,
     full_scale_v: float | None = None,
+    adc_step_v: float | None = None,
 ) -> Signals:
     """Validate a recording or an array and return it as ``Signals``.
 
@@ -93,6 +107,9 @@ def as_signals(
     full_scale_v : float, optional
         ADC full scale (V): channels with a sample at or beyond it are flagged as clipped. For a
         recording stored as ADC codes, the code full scale is used as well.
+    adc_step_v : float, optional
+        ADC code step q (V) of the data: sets ``Signals.noise_floor_v`` = q / sqrt(12). For a
+        recording stored as ADC codes its ``volts_per_code`` is used when this is not given.
 
     Raises
     ------
@@ -101,6 +118,10 @@ def as_signals(
     """
     if full_scale_v is not None and not (math.isfinite(full_scale_v) and full_scale_v > 0):
         raise RecordingError(f"full_scale_v must be a finite number > 0, got {full_scale_v!r}")
+    if adc_step_v is not None and not (
+        isinstance(adc_step_v, (int, float)) and math.isfinite(adc_step_v) and adc_step_v > 0
+    ):
+        raise RecordingError(f"adc_step_v must be a finite number > 0, got {adc_step_v!r}")
     if isinstance(data, Recording):
         where = data.source or "recording"
         if sample_rate_hz is not None and not math.isclose(sample_rate_hz, data.sample_rate_hz, rel_tol=1e-12):
@@ -114,7 +135,9 @@ def as_signals(
             clipped |= _clipped_by_full_scale(waveforms, code_full_scale)
         if full_scale_v is not None:
             clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
-        return Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where)
+        step = adc_step_v if adc_step_v is not None else data.volts_per_code
+        floor = 0.0 if step is None else quantisation_noise_std_v(step)
+        return Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where, floor)
 
     where = "array"
     try:
@@ -149,7 +172,8 @@ def as_signals(
     clipped = np.zeros(waveforms.shape[:2], dtype=bool)
     if full_scale_v is not None:
         clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
-    return Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where)
+    floor = 0.0 if adc_step_v is None else quantisation_noise_std_v(adc_step_v)
+    return Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor)
 
 
 def _resample_template(template: Template, sample_rate_hz: float) -> Template:

@@ -32,6 +32,7 @@ from binsonar.detection.matched import (
     lags_by_fft,
     lags_time_domain,
     refine,
+    white_noise_power,
 )
 from binsonar.detection.noise import noise_sigma
 from binsonar.recording import RecordingError
@@ -47,6 +48,7 @@ def detect_local_matched(
     noise_window_s: tuple[float, float] | None = None,
     candidates: int = 5,
     where: str = "record",
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Local matched filter around the most energetic stretches of each row.
 
@@ -66,6 +68,9 @@ def detect_local_matched(
     candidates : int
         Number of coarse peaks (the most energetic windows, a template length apart) tried;
         the one with the strongest correlation near it wins.
+    noise_floor_v : float
+        Least noise standard deviation (V), the ADC's quantisation noise: the noise estimate
+        is never below it.
 
     Returns
     -------
@@ -119,9 +124,9 @@ def detect_local_matched(
     values = lags_by_fft(plan, rows, r, lags)
     values[(lags < lag_lo) | (lags > lag_hi)] = 0.0  # the same lags as the full filter
     lag, power = refine(values, lags)
-    sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where)
-    energy = float(np.sum(plan.template.samples ** 2))
-    noise_mean = 2.0 * sigma ** 2 * energy  # mean |z|^2 of white noise through the filter
+    sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
+                        floor_v=noise_floor_v)
+    noise_mean = white_noise_power(plan, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
     values_out = echo_values(plan, lag, power, noise_mean, plan.threshold_factor(pfa), t0_s)
     out: list[list[tuple[float, float, float, float, float]]] = []
     for k in range(n_rows):

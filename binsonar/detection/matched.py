@@ -310,9 +310,30 @@ def envelope(plan: MatchedPlan, spectrum: NDArray[np.complex128]) -> NDArray[np.
     return z
 
 
-def noise_mean_power(power: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Mean |z|^2 of the noise per row, from the median (exponential law), shape (n_rows,)."""
-    return np.maximum(row_median(power) / LN2, np.finfo(float).tiny)
+def white_noise_power(plan: MatchedPlan, sigma_v: float | NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean |z|^2 of the filter output for white input noise of standard deviation ``sigma_v``.
+
+    z is the input filtered by the impulse response whose (one-sided, analytic) spectrum is
+    ``plan.weights``, so E|z|^2 = sigma^2 sum_l |h_l|^2 = sigma^2 sum_k |w_k|^2 / n_fft
+    (Parseval). For the plain filter (w = 2 conj(S)) this is 2 sigma^2 sum s^2 = 2 sigma^2
+    ``peak_response``, the value used when the plan holds no weights (local matched filter).
+    """
+    sigma2 = np.square(np.asarray(sigma_v, dtype=float))
+    if plan.weights.size:
+        gain = float(np.sum(np.abs(plan.weights) ** 2)) / plan.n_fft
+    else:
+        gain = 2.0 * plan.peak_response
+    return sigma2 * gain
+
+
+def noise_mean_power(power: NDArray[np.float64], floor_power: float = 0.0) -> NDArray[np.float64]:
+    """Mean |z|^2 of the noise per row, from the median (exponential law), shape (n_rows,).
+
+    ``floor_power``: the least it can be (``white_noise_power`` of the ADC's quantisation
+    noise): a quantised record whose noise is below one code step has stretches of exactly
+    constant samples, where the median would otherwise report (almost) no noise.
+    """
+    return np.maximum(row_median(power) / LN2, max(float(floor_power), np.finfo(float).tiny))
 
 
 def lags_time_domain(
@@ -543,6 +564,7 @@ def detect_matched(
     t0_s: float,
     pfa: float = 1e-3,
     search_window_s: tuple[float, float] | None = None,
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Strongest matched-filter echo of each row (the seed's global-maximum peak detection).
 
@@ -558,6 +580,9 @@ def detect_matched(
     search_window_s : (start_s, stop_s), optional
         Only TOFs in this window (s after the trigger), e.g. to skip the transmitter's direct
         cross-talk; default: every lag where the template lies inside the record.
+    noise_floor_v : float
+        Least input noise standard deviation (V), the ADC's quantisation noise: the noise
+        floor of |z|^2 is never below its ``white_noise_power``.
 
     Returns
     -------
@@ -567,7 +592,7 @@ def detect_matched(
     spectrum = filtered_spectrum(plan, rows)
     z = envelope(plan, spectrum)
     power = z.real ** 2 + z.imag ** 2
-    noise = noise_mean_power(power)
+    noise = noise_mean_power(power, float(white_noise_power(plan, noise_floor_v)))
     inside = cell_mask(plan, power.shape[1], lag_range(plan, t0_s, search_window_s))
     coarse = np.argmax(np.where(inside, power, -1.0), axis=1)
     row_index = np.arange(rows.shape[0])

@@ -86,6 +86,7 @@ def noise_sigma(
     t0_s: float,
     noise_window_s: tuple[float, float] | None = None,
     where: str = "record",
+    floor_v: float = 0.0,
 ) -> NDArray[np.float64]:
     """Noise standard deviation per row (V).
 
@@ -97,16 +98,19 @@ def noise_sigma(
     noise_window_s : (start_s, stop_s), optional
         A noise-only window in recording time: the sample standard deviation there. None: the
         robust estimate 1.4826 median(|x|) over stretches spread over the whole record.
+    floor_v : float
+        Least noise the rows can carry (V), e.g. the ADC's quantisation noise q / sqrt(12)
+        (``Signals.noise_floor_v``): the estimate is never below it.
 
     Returns
     -------
     ndarray, shape (n_rows,)
-        Strictly positive (a tiny floor replaces an exactly zero estimate).
+        Strictly positive (a tiny floor replaces an exactly zero estimate), >= ``floor_v``.
     """
     if noise_window_s is not None:
         segment = rows[:, window_indices(noise_window_s, rows.shape[1], sample_rate_hz, t0_s, where)]
         sigma = segment.std(axis=1)
     else:
         sigma = MAD_TO_SIGMA * row_median(np.abs(robust_subsample(rows)))
-    floor = np.finfo(float).tiny ** 0.5
+    floor = max(np.finfo(float).tiny ** 0.5, float(floor_v))
     return np.maximum(sigma, floor)

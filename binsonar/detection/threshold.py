@@ -91,6 +91,7 @@ def detect_threshold(
     calibrate_amplitude_v: float | None = None,
     search_window_s: tuple[float, float] | None = None,
     where: str = "record",
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """First threshold crossing of each row.
 
@@ -117,6 +118,9 @@ def detect_threshold(
     search_window_s : (start_s, stop_s), optional
         Only crossings between these times (s after the trigger), e.g. after the
         transmitter's direct cross-talk.
+    noise_floor_v : float
+        Least noise standard deviation (V), the ADC's quantisation noise: the noise estimate
+        is never below it.
 
     Returns
     -------
@@ -126,7 +130,8 @@ def detect_threshold(
         noise's jitter of the crossing, sigma / slope.
     """
     fs = sample_rate_hz
-    sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where)
+    sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
+                        floor_v=noise_floor_v)
     if level_v is not None:
         if not (math.isfinite(level_v) and level_v > 0):
             raise RecordingError(f"{where}: level_v must be > 0, got {level_v!r}")

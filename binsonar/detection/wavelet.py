@@ -91,6 +91,7 @@ def detect_dwt(
     levels: int | None = None,
     pfa: float = 1e-3,
     where: str = "record",
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """DWT-detector echoes of each row.
 
@@ -106,6 +107,10 @@ def detect_dwt(
         Decomposition depth (default: enough levels to go below the template's band).
     pfa : float
         False-alarm probability per record.
+    noise_floor_v : float
+        Least noise standard deviation (V), the ADC's quantisation noise: the orthogonal
+        transform keeps white noise's variance at every level, so each level's sigma is
+        floored at it.
 
     Returns
     -------
@@ -166,7 +171,7 @@ def detect_dwt(
     details = _details(padded, wavelet, levels)
     # Noise scale of each level from the coefficients over the record only (not the padding).
     sigma = [np.maximum(MAD_TO_SIGMA * np.median(np.abs(d[:, : int(math.ceil(n / 2.0 ** (j + 1)))]), axis=1),
-                        np.finfo(float).tiny) for j, d in enumerate(details)]
+                        max(float(noise_floor_v), np.finfo(float).tiny)) for j, d in enumerate(details)]
     stat = _window_sum(_statistic(details, weights, sigma, finest), window)
     # The periodised transform wraps the record's start (the main bang) onto the zero padding:
     # cells past the record's end are not data.

@@ -21,6 +21,7 @@ from binsonar.detection.matched import (
     noise_mean_power,
     plan_matched,
     refine_peaks,
+    white_noise_power,
 )
 from binsonar.detection.noise import window_indices
 from binsonar.recording import RecordingError, Template
@@ -37,12 +38,18 @@ class InterpolatedPsd:
     ----------
     frequency_hz : ndarray, shape (k,)
     psd : ndarray, shape (k,)
+
+    floor : float
+        Least PSD (the ADC's quantisation noise, 2 sigma_q^2 / fs one-sided), > 0 unless the
+        PSD itself has a positive maximum.
     """
 
-    def __init__(self, frequency_hz: NDArray[np.float64], psd: NDArray[np.float64]) -> None:
+    def __init__(self, frequency_hz: NDArray[np.float64], psd: NDArray[np.float64], floor: float = 0.0) -> None:
         self._f = np.asarray(frequency_hz, dtype=float)
-        p = np.asarray(psd, dtype=float)
-        self._p = np.maximum(p, PSD_FLOOR * max(float(p.max()), np.finfo(float).tiny))
+        p = np.maximum(np.asarray(psd, dtype=float), float(floor))
+        if not float(p.max()) > 0.0:
+            raise ValueError("the noise PSD is zero at every frequency")
+        self._p = np.maximum(p, PSD_FLOOR * float(p.max()))
 
     def __call__(self, frequency_hz: NDArray[np.float64]) -> NDArray[np.float64]:
         """PSD at these frequencies."""
@@ -57,8 +64,18 @@ def estimate_psd(
     nperseg: int,
     noise_window_s: tuple[float, float] | None,
     where: str,
+    noise_floor_v: float = 0.0,
 ) -> InterpolatedPsd:
-    """Welch PSD (Hann window, 50 % overlap, median averaging) of one row's noise-only part."""
+    """Welch PSD (Hann window, 50 % overlap, median averaging) of one row's noise-only part.
+
+    Floored at the one-sided density 2 noise_floor_v^2 / fs of white noise with the ADC's
+    quantisation noise variance.
+
+    Raises
+    ------
+    RecordingError
+        A segment with no noise at all (a dead, all-zero channel) and no floor.
+    """
     from scipy.signal import welch
 
     segment = row if noise_window_s is None else row[window_indices(noise_window_s, row.size, sample_rate_hz, t0_s, where)]
@@ -67,7 +84,13 @@ def estimate_psd(
             f"{where}: the noise segment ({segment.size} samples) is shorter than nperseg={nperseg}"
         )
     f, p = welch(segment, fs=sample_rate_hz, nperseg=nperseg, average="median", detrend=False)
-    return InterpolatedPsd(f, p)
+    try:
+        return InterpolatedPsd(f, p, 2.0 * float(noise_floor_v) ** 2 / sample_rate_hz)
+    except ValueError:
+        raise RecordingError(
+            f"{where}: whitened-matched: a channel has no noise (its noise spectrum is zero: a dead, all-zero "
+            "channel?); nothing to whiten with: pass adc_step_v, or use another method"
+        ) from None
 
 
 def detect_whitened_matched(
@@ -80,6 +103,7 @@ def detect_whitened_matched(
     nperseg: int = 1024,
     noise_window_s: tuple[float, float] | None = None,
     where: str = "record",
+    noise_floor_v: float = 0.0,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Strongest echo of each row after pre-whitening with its own noise PSD.
 
@@ -95,6 +119,9 @@ def detect_whitened_matched(
         with 1024, fine against the pulse's ~300 kHz band).
     noise_window_s : (start_s, stop_s), optional
         Noise-only window for the PSD.
+    noise_floor_v : float
+        Least noise standard deviation (V), the ADC's quantisation noise: floors the PSD and
+        the filter output's noise mean.
 
     Returns
     -------
@@ -107,14 +134,14 @@ def detect_whitened_matched(
     for r in range(rows.shape[0]):  # one filter per channel (its own noise spectrum)
         psd = estimate_psd(
             rows[r], sample_rate_hz=sample_rate_hz, t0_s=t0_s, nperseg=int(nperseg),
-            noise_window_s=noise_window_s, where=where,
+            noise_window_s=noise_window_s, where=where, noise_floor_v=noise_floor_v,
         )
         plan: MatchedPlan = plan_matched(template, rows.shape[1], sample_rate_hz, psd)
         row = rows[r:r + 1]
         spectrum = filtered_spectrum(plan, row)
         z = envelope(plan, spectrum)
         power = z.real ** 2 + z.imag ** 2
-        noise = noise_mean_power(power)
+        noise = noise_mean_power(power, float(white_noise_power(plan, noise_floor_v)))
         coarse = np.argmax(power, axis=1)
         lag, peak = refine_peaks(plan, row, spectrum, np.zeros(1, dtype=np.intp), coarse * plan.decimation)
         values = echo_values(plan, lag, peak, noise, plan.threshold_factor(pfa), t0_s)
