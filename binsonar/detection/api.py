@@ -318,7 +318,8 @@ def detect(
     Parameters
     ----------
     data : Recording or array_like
-        Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples).
+        Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples). Each
+        ping-channel's median (its DC offset) is removed first (``inputs.remove_median``).
     method : str
         One of ``METHODS``: "threshold", "energy", "matched", "whitened-matched",
         "local-matched", "dwt", "ca-cfar", "os-cfar", or the seed's "seed-1" ... "seed-9"

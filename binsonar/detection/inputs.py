@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.detection.noise import robust_subsample, row_median
 from binsonar.recording import Recording, RecordingError, Template
 
 
@@ -87,6 +88,23 @@ def quantisation_noise_std_v(step_v: float) -> float:
     return float(step_v) / math.sqrt(12.0)
 
 
+def remove_median(waveforms: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The waveforms minus each ping-channel's median (its DC offset), shape kept.
+
+    Real ADC data carry an offset, which the band detectors (energy, DWT) would otherwise see
+    as energy switched on and off at the record's edges. The median, over the evenly spread
+    stretches of ``noise.robust_subsample``, is robust to echoes (a few per cent of the
+    samples move it by a few per cent of the noise) and, for data on an ADC's code grid,
+    is itself a code, so the samples stay on a (shifted) code grid. Returned as is (no copy)
+    when every median is already 0.
+    """
+    n_pings, n_channels, n = waveforms.shape
+    median = row_median(robust_subsample(waveforms.reshape(n_pings * n_channels, n)))
+    if not np.any(median != 0.0):
+        return waveforms
+    return waveforms - median.reshape(n_pings, n_channels, 1)
+
+
 def as_signals(
     data: Recording | NDArray[np.floating],
     sample_rate_hz: float | None = None,
@@ -94,7 +112,12 @@ def as_signals(
     full_scale_v: float | None = None,
     adc_step_v: float | None = None,
 ) -> Signals:
-    """Validate a recording or an array and return it as ``Signals``.
+    """Validate a recording or an array and return it as ``Signals``, each ping-channel's DC
+    offset removed.
+
+    The offset is the row's median (``remove_median``), subtracted before any detector runs;
+    clipping is judged on the samples as recorded. An absolute threshold level (the threshold
+    detector's ``level_v``) is therefore measured from that median.
 
     Parameters
     ----------
@@ -137,6 +160,7 @@ def as_signals(
             clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
         step = adc_step_v if adc_step_v is not None else data.volts_per_code
         floor = 0.0 if step is None else quantisation_noise_std_v(step)
+        waveforms = remove_median(waveforms)
         return Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where, floor)
 
     where = "array"
@@ -173,6 +197,7 @@ def as_signals(
     if full_scale_v is not None:
         clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
     floor = 0.0 if adc_step_v is None else quantisation_noise_std_v(adc_step_v)
+    waveforms = remove_median(waveforms)
     return Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor)
 
 
