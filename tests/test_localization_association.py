@@ -71,3 +71,13 @@ def test_cylinders_pass_the_centre_gate():
 
 def test_empty_channels():
     assert associate([np.zeros(0), np.zeros(0), np.zeros(0)], [np.zeros(0)] * 3, G) == []
+
+
+def test_huge_tof_stds_do_not_overflow():
+    # A detector without a timing model may report stds of 1e200 m (or more): squaring them
+    # overflowed (a RuntimeWarning, an error under the project's warning filter). The gate is
+    # then effectively open: the one target is still grouped, with its centre echo.
+    rng = np.random.default_rng(0)
+    lengths, _ = _ping(np.array([[0.1, 1.2, 0.0]]), rng)
+    groups = associate(lengths, [np.full(1, 1e200)] * 3, G)
+    assert len(groups) == 1 and groups[0].centre is not None

@@ -94,7 +94,7 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
     out: list[Association] = []
     if lc.size:
         # The centre's noise plus the pair's (the pair's point solution carries the side noise).
-        s_tot = np.sqrt(sc[None, None, :] ** 2 + s_pair[:, :, None] ** 2)
+        s_tot = np.hypot(sc[None, None, :], s_pair[:, :, None])  # no overflow for huge stds
         half = 0.5 * spread[:, :, None] + n_sigma * s_tot
         dev = np.abs(lc[None, None, :] - middle[:, :, None])
         with np.errstate(invalid="ignore"):
