@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from binsonar.detection.inputs import template_rms_duration_s
 from binsonar.detection.matched import LN2, check_pfa
-from binsonar.detection.peaks import parabolic_offset
+from binsonar.detection.peaks import parabolic_offset, peaks_above
 from binsonar.detection.quadratic_tail import quantile
 from binsonar.preprocess import template_band_hz
 from binsonar.recording import RecordingError, Template
@@ -228,17 +228,8 @@ def detect_energy(
     peak_template = float(np.max(np.abs(s)))
     out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
     for r in range(n_rows):  # per channel: its few regions above the threshold
-        above = stat[r] > threshold
-        if not above.any():
-            continue
-        edges_r = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
-        for a, b in zip(edges_r[::2], edges_r[1::2]):
-            j = a + int(np.argmax(stat[r, a:b]))
-            if 0 < j < n_cells - 1:
-                off, peak = parabolic_offset(stat[r, j - 1:j], stat[r, j:j + 1], stat[r, j + 1:j + 2])
-                off_f, peak_f = float(off[0]), float(peak[0])
-            else:
-                off_f, peak_f = 0.0, float(stat[r, j])
+        starts, indices, offsets, peaks = peaks_above(stat[r], threshold)
+        for a, j, off_f, peak_f in zip(starts.tolist(), indices.tolist(), offsets.tolist(), peaks.tolist()):
             if tof == "peak":
                 tof_s = t0_s + (j + off_f) * cell_s - calibration_s
             else:

@@ -61,6 +61,57 @@ def parabolic_offset(
     return offset, centre - 0.25 * (left - right) * offset
 
 
+def peaks_above(
+    values: NDArray[np.float64], threshold: float
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
+    """One peak per contiguous region of a 1-D statistic above a threshold.
+
+    Each region (maximal run of samples with ``values > threshold``) gives its maximum, refined
+    by ``parabolic_offset`` through its two neighbours (not at the array's first or last
+    sample, where a neighbour is missing: offset 0 and the sample's value).
+
+    Parameters
+    ----------
+    values : ndarray, shape (n,)
+    threshold : float
+
+    Returns
+    -------
+    start : ndarray of int, shape (k,)
+        First sample of each region.
+    index : ndarray of int, shape (k,)
+        Sample of each region's maximum (the first one on a plateau).
+    offset : ndarray, shape (k,)
+        Vertex offset from ``index`` in samples, in [-0.5, 0.5].
+    peak : ndarray, shape (k,)
+        Interpolated value at the vertex.
+    """
+    values = np.asarray(values, dtype=float)
+    n = values.size
+    above = values > threshold
+    bounds = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
+    start, stop = bounds[::2], bounds[1::2]
+    if start.size == 0:
+        empty = np.zeros(0)
+        return start.astype(np.intp), start.astype(np.intp), empty, empty
+    # Maximum of each region: the regions' maxima by reduceat, then their first position.
+    region_max = np.maximum.reduceat(values, start)
+    marker = np.zeros(n, dtype=np.intp)
+    marker[start] = 1
+    region_of = np.cumsum(marker) - 1  # region index of each sample (-1 before the first)
+    hits = np.flatnonzero(above & (values == region_max[np.clip(region_of, 0, None)]))
+    index = hits[np.searchsorted(hits, start)]  # first maximum at or after each region's start
+    inner = (index > 0) & (index < n - 1)
+    i = np.clip(index, 1, max(n - 2, 1))
+    if n >= 3:
+        offset, peak = parabolic_offset(values[i - 1], values[i], values[i + 1])
+    else:
+        offset, peak = np.zeros(index.size), values[index]
+    offset = np.where(inner, offset, 0.0)
+    peak = np.where(inner, peak, values[index])
+    return start.astype(np.intp), index.astype(np.intp), offset, peak
+
+
 def local_maxima(values: NDArray[np.float64], mask: NDArray[np.bool_]) -> NDArray[np.intp]:
     """Indices of the local maxima of a 1-D array where ``mask`` is True (plateaus: first sample)."""
     if values.size < 3:

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from binsonar.detection.inputs import template_rms_duration_s
 from binsonar.detection.matched import check_pfa
 from binsonar.detection.noise import MAD_TO_SIGMA
-from binsonar.detection.peaks import parabolic_offset
+from binsonar.detection.peaks import parabolic_offset, peaks_above
 from binsonar.recording import RecordingError, Template
 
 # Levels holding less than this fraction of the template's energy are ignored.
@@ -187,17 +187,8 @@ def detect_dwt(
     energy_template = float(np.sum(s ** 2))
     out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
     for r in range(n_rows):  # per channel: its few regions above the threshold
-        above = stat[r] > threshold
-        if not above.any():
-            continue
-        bounds = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
-        for a, b in zip(bounds[::2], bounds[1::2]):
-            c = a + int(np.argmax(stat[r, a:b]))
-            if 0 < c < n_cells - 1:
-                o, p = parabolic_offset(stat[r, c - 1:c], stat[r, c:c + 1], stat[r, c + 1:c + 2])
-                o_f, p_f = float(o[0]), float(p[0])
-            else:
-                o_f, p_f = 0.0, float(stat[r, c])
+        _, indices, offsets, peaks = peaks_above(stat[r], threshold)
+        for c, o_f, p_f in zip(indices.tolist(), offsets.tolist(), peaks.tolist()):
             tof = t0_s + (c + o_f + 0.5) * cell_s - calibration_s
             # An echo a * s raises the statistic by about a^2 T_s / sigma^2 (T_s: the clean
             # template's statistic with unit sigma), so a = sqrt(excess sigma^2 / T_s) and
