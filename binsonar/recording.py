@@ -155,11 +155,7 @@ class Recording:
         clipped.setflags(write=False)
         object.__setattr__(self, "clipped", clipped)
         if self.pose is not None:
-            pose = np.array(self.pose, dtype=float)
-            if pose.ndim == 1:
-                pose = np.broadcast_to(pose, (w.shape[0], pose.size)).copy()
-            if pose.shape != (w.shape[0], 6) or not np.all(np.isfinite(pose)):
-                raise RecordingError(f"{where}: pose must be ({w.shape[0]}, 6) finite, got shape {pose.shape}")
+            pose = as_poses(self.pose, w.shape[0], where)
             pose.setflags(write=False)
             object.__setattr__(self, "pose", pose)
         if self.sound_speed_m_s is not None and not (
@@ -185,6 +181,33 @@ class Recording:
     def times_s(self) -> NDArray[np.float64]:
         """Time (s) of each sample after the trigger, shape (n_samples,)."""
         return self.t0_s + np.arange(self.n_samples) / self.sample_rate_hz
+
+
+def as_poses(pose: Any, n_pings: int, where: str) -> NDArray[np.float64]:
+    """Head poses as a new (n_pings, 6) float array: one pose (6,) is repeated for every ping.
+
+    Parameters
+    ----------
+    pose : array_like, shape (6,) or (n_pings, 6)
+        x_m, y_m, z_m, yaw_deg, pitch_deg, roll_deg (per ping).
+    n_pings : int
+    where : str
+        Names the source in the error message.
+
+    Raises
+    ------
+    RecordingError
+        Another shape, or a non-finite value.
+    """
+    try:
+        poses = np.array(pose, dtype=float)
+    except (TypeError, ValueError):
+        raise RecordingError(f"{where}: pose must be ({n_pings}, 6) finite numbers, got {pose!r}") from None
+    if poses.ndim == 1:
+        poses = np.broadcast_to(poses, (n_pings, poses.size)).copy()
+    if poses.shape != (n_pings, 6) or not np.all(np.isfinite(poses)):
+        raise RecordingError(f"{where}: pose must be ({n_pings}, 6) finite, got shape {poses.shape}")
+    return poses
 
 
 def _attr(attrs: Mapping[str, Any], key: str, where: str) -> Any:

@@ -38,3 +38,19 @@ def test_rotation_is_proper_and_round_trip():
 def test_bad_pose_rejected():
     with pytest.raises(ValueError, match="pose"):
         head_to_tank([0, 1, 0], [0, 0, 0, np.nan, 0, 0])
+
+
+def test_as_poses_broadcasts_one_pose_and_names_bad_ones():
+    # The one pose validation shared by Recording and localize.
+    from binsonar.recording import RecordingError, as_poses
+
+    one = [1.0, 2.0, 0.5, 90.0, 0.0, 0.0]
+    poses = as_poses(one, 3, "here")
+    assert poses.shape == (3, 6) and np.all(poses == np.array(one))
+    poses[0, 0] = 7.0  # a new array: writable, the rows independent
+    assert poses[1, 0] == 1.0
+    per_ping = np.arange(12.0).reshape(2, 6)
+    assert np.array_equal(as_poses(per_ping, 2, "here"), per_ping)
+    for bad in ([0, 0, 0], np.zeros((3, 6)), [0, 0, 0, np.nan, 0, 0], "north"):
+        with pytest.raises(RecordingError, match="here: pose must be"):
+            as_poses(bad, 2, "here")

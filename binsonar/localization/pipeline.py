@@ -21,7 +21,7 @@ from binsonar.localization.association import associate
 from binsonar.localization.estimate import EstimationConfig, target_from_path_lengths
 from binsonar.localization.fusion import FusedTarget, fuse, group_across_pings, observations_of
 from binsonar.localization.target import Target
-from binsonar.recording import Recording, RecordingError
+from binsonar.recording import Recording, RecordingError, as_poses
 
 
 class LocalizationError(RecordingError):
@@ -273,17 +273,21 @@ def localize(
     n_pings = detections.n_pings
     pose_arr: NDArray[np.float64] | None = None
     if poses is not None:
-        pose_arr = np.array(poses, dtype=float)
-        if pose_arr.ndim == 1:
-            pose_arr = np.broadcast_to(pose_arr, (n_pings, pose_arr.size)).copy()
-        elif n_pings == 1 and pose_arr.ndim == 2 and pose_arr.shape[0] > 1 and pose_arr.shape[1] == 6:
+        try:
+            given = np.array(poses, dtype=float)
+        except (TypeError, ValueError):
+            given = poses  # as_poses names the problem
+        if (n_pings == 1 and isinstance(given, np.ndarray) and given.ndim == 2 and given.shape[0] > 1
+                and given.shape[1] == 6):
             # The pings were averaged into one: that is meaningful only for one pose.
-            if not np.allclose(pose_arr, pose_arr[0], rtol=0.0, atol=1e-9):
-                raise LocalizationError(f"{where}: the {pose_arr.shape[0]} averaged pings were recorded at "
+            if not np.allclose(given, given[0], rtol=0.0, atol=1e-9):
+                raise LocalizationError(f"{where}: the {given.shape[0]} averaged pings were recorded at "
                                         "different poses; average pings of one pose only")
-            pose_arr = pose_arr[:1].copy()
-        if pose_arr.shape != (n_pings, 6) or not np.all(np.isfinite(pose_arr)):
-            raise LocalizationError(f"{where}: pose must be ({n_pings}, 6) finite, got shape {pose_arr.shape}")
+            given = given[:1]
+        try:
+            pose_arr = as_poses(given, n_pings, where)
+        except RecordingError as exc:
+            raise LocalizationError(str(exc)) from None
 
     per_ping: list[tuple[Target, ...]] = []
     unassociated: list[int] = []
