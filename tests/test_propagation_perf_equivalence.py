@@ -80,3 +80,40 @@ def test_complete_columns_matches_the_per_field_reference_in_both_layouts():
         # the source columns are left untouched
         np.testing.assert_array_equal(filled["departure_dir"], rows["departure_dir"])
         np.testing.assert_array_equal(filled["geometric_gain"], rows["geometric_gain"])
+
+
+def test_ray_caster_fast_paths_agree_with_the_general_queries():
+    scene = _scene()
+    rc = RayCaster.from_scene(scene)
+    rng = np.random.default_rng(5)
+    n = 3000
+    # rays inside the closed tank all hit; a tenth start outside it, pointing away: misses
+    origins = rng.uniform((0.2, 0.2, 0.2), (8.8, 2.8, 0.8), (n, 3))
+    origins[: n // 10] = (20.0, 1.5, 0.5)
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    directions[: n // 10] = (1.0, 0.0, 0.0)
+    general = rc.intersect(origins, directions)
+    fast = rc.intersect(origins, directions, unit_directions=True)
+    assert 0 < np.count_nonzero(~general.hit) < n
+    for name in ("distance_m", "triangle", "surface", "normal"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(general, name), err_msg=name)
+    # misses carry the documented sentinels; hits the face normal of the hit triangle
+    assert np.all(np.isnan(general.normal[~general.hit])) and np.all(np.isinf(general.distance_m[~general.hit]))
+    assert np.all(general.surface[~general.hit] == -1)
+    np.testing.assert_array_equal(general.normal[general.hit], rc.face_normals[general.triangle[general.hit]])
+
+    targets = rng.uniform((0.2, 0.2, 0.2), (8.8, 2.8, 0.8), (n, 3))
+    targets[:50] = origins[:50] + 1e-5  # shorter than 2 eps: never blocked
+    seg = targets - origins
+    length = np.linalg.norm(seg, axis=1)
+    blocked = rc.occluded(origins, targets)
+    assert 0 < np.count_nonzero(blocked) < n and not np.any(blocked[:50])
+    np.testing.assert_array_equal(rc.occluded_rays(origins, seg / length[:, None], length), blocked)
+    ball_patch = rc.patch_index[rc.surface_index == scene.surface_names.index("ball")][0]
+    exclude = np.full((n, 2), -1)
+    exclude[::2, 0] = ball_patch
+    with_exclusion = rc.occluded(origins, targets, exclude_patches=exclude)
+    assert np.count_nonzero(with_exclusion) < np.count_nonzero(blocked)  # some legs only crossed the ball
+    np.testing.assert_array_equal(
+        rc.occluded_rays(origins, seg / length[:, None], length, exclude_patches=exclude), with_exclusion)

@@ -218,27 +218,37 @@ class RayCaster:
         return int(self.faces.shape[0])
 
     # ------------------------------------------------------------------ queries
-    def _run(self, origins: NDArray[np.float64], directions: NDArray[np.float64],
+    def _to_float32(self, points: NDArray[np.float64]) -> NDArray[np.float32]:
+        """``points - shift`` as a C-contiguous float32 (n, 3) array, in one pass (the subtraction
+        is done in float64 and rounded once, as ``(points - shift).astype(float32)`` would)."""
+        out = np.empty(points.shape, dtype=np.float32)
+        np.subtract(points, self._shift, out=out, casting="unsafe")
+        return out
+
+    def _run(self, origins32: NDArray[np.float32], directions: NDArray[np.float64],
              tfar: NDArray[np.float64] | None, query: str) -> Any:
-        o32 = np.ascontiguousarray(origins - self._shift, dtype=np.float32)
+        """One Embree call; ``origins32`` already shifted and float32 (see :meth:`_to_float32`)."""
         d32 = np.ascontiguousarray(directions, dtype=np.float32)
+        output = 1 if query == "INTERSECT" else None
         if tfar is None:
-            return self._embree.run(o32, d32, query=query, output=1 if query == "INTERSECT" else None)
+            return self._embree.run(origins32, d32, query=query, output=output)
         t32 = np.ascontiguousarray(tfar, dtype=np.float32)
-        return self._embree.run(o32, d32, dists=t32, query=query, output=1 if query == "INTERSECT" else None)
+        return self._embree.run(origins32, d32, dists=t32, query=query, output=output)
 
     def intersect(self, origins: ArrayLike, directions: ArrayLike,
-                  max_distance_m: ArrayLike | None = None) -> RayHits:
+                  max_distance_m: ArrayLike | None = None, *, unit_directions: bool = False) -> RayHits:
         """First hit of each ray.
 
         Parameters
         ----------
         origins : array_like, shape (n, 3)
-            Ray origins (tank frame, m).
+            Ray origins (tank frame, m). A broadcast single point (stride 0) is fine.
         directions : array_like, shape (n, 3)
-            Ray directions (normalised here).
+            Ray directions (normalised here unless ``unit_directions``).
         max_distance_m : array_like, shape (n,) or scalar, optional
             Ignore hits farther than this (m).
+        unit_directions : bool
+            The caller guarantees unit directions: skip the normalisation (a pass over the rays).
 
         Returns
         -------
@@ -250,15 +260,24 @@ class RayCaster:
         if n == 0 or self.triangle_count == 0:
             return RayHits(np.full(n, np.inf), np.full(n, -1, np.int64), np.full(n, -1, np.int64),
                            np.full((n, 3), np.nan))
-        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        if not unit_directions:
+            d = d / np.linalg.norm(d, axis=1, keepdims=True)
         tfar = None if max_distance_m is None else np.broadcast_to(np.asarray(max_distance_m, float), (n,))
-        out = self._run(o, d, tfar, "INTERSECT")
-        tri = np.asarray(out["primID"], dtype=np.int64)
+        out = self._run(self._to_float32(o), d, tfar, "INTERSECT")
+        tri = out["primID"].astype(np.int64)
         hit = tri >= 0
-        dist = np.where(hit, np.asarray(out["tfar"], dtype=float), np.inf)
-        safe = np.where(hit, tri, 0)
-        surface = np.where(hit, self.surface_index[safe], -1)
-        normal = np.where(hit[:, None], self.face_normals[safe], np.nan)
+        tfar32 = out["tfar"]
+        if bool(hit.all()):  # a closed tank: no scatter/gather, every gather below is direct
+            return RayHits(tfar32.astype(float), tri, self.surface_index[tri], self.face_normals[tri])
+        # gather metadata of the hits only
+        idx = np.flatnonzero(hit)
+        tri_hit = tri[idx]
+        dist = np.full(n, np.inf)
+        dist[idx] = tfar32[idx]
+        surface = np.full(n, -1, dtype=np.int64)
+        surface[idx] = self.surface_index[tri_hit]
+        normal = np.full((n, 3), np.nan)
+        normal[idx] = self.face_normals[tri_hit]
         return RayHits(dist, tri, surface, normal)
 
     def occluded(self, origins: ArrayLike, targets: ArrayLike, eps: float = DEFAULT_EPS_M,
@@ -285,29 +304,69 @@ class RayCaster:
         if o.shape != t.shape or o.ndim != 2 or o.shape[1] != 3:
             raise ValueError(f"origins and targets must both be (n, 3), got {o.shape} and {t.shape}")
         n = o.shape[0]
+        if n == 0 or self.triangle_count == 0:
+            return np.zeros(n, dtype=bool)
+        seg = t - o
+        length = np.linalg.norm(seg, axis=1)
+        # (zero-length segments give NaN directions here; they are never cast, being short)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = seg / length[:, None]
+        return self.occluded_rays(o, d, length, eps=eps, exclude_patches=exclude_patches)
+
+    def occluded_rays(self, origins: ArrayLike, unit_directions: ArrayLike, lengths_m: ArrayLike,
+                      eps: float = DEFAULT_EPS_M, exclude_patches: ArrayLike | None = None) -> NDArray[np.bool_]:
+        """:meth:`occluded` for segments given as origin, unit direction and length.
+
+        For callers that have the directions and lengths already (the diffuse tracer's legs to
+        the receivers): no target points, no norms recomputed.
+
+        Parameters
+        ----------
+        origins : array_like, shape (n, 3)
+            Segment starts (tank frame, m).
+        unit_directions : array_like, shape (n, 3)
+            Unit directions (not normalised here).
+        lengths_m : array_like, shape (n,)
+            Segment lengths (m).
+        eps, exclude_patches
+            As in :meth:`occluded`.
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+        """
+        o = np.atleast_2d(np.asarray(origins, dtype=float))
+        d = np.atleast_2d(np.asarray(unit_directions, dtype=float))
+        length = np.asarray(lengths_m, dtype=float).reshape(-1)
+        n = o.shape[0]
+        if d.shape != o.shape or o.shape[1:] != (3,) or length.shape != (n,):
+            raise ValueError(f"origins {o.shape}, directions {d.shape} and lengths {length.shape} do not agree")
         blocked = np.zeros(n, dtype=bool)
         if n == 0 or self.triangle_count == 0:
             return blocked
-        seg = t - o
-        length = np.linalg.norm(seg, axis=1)
         live = length > 2.0 * eps
-        if not np.any(live):
-            return blocked
-        idx = np.flatnonzero(live)
-        d = seg[idx] / length[idx, None]
-        start = o[idx] + eps * d
-        remaining = length[idx] - 2.0 * eps
+        if bool(live.all()):
+            idx = np.arange(n)
+        else:
+            idx = np.flatnonzero(live)
+            if idx.size == 0:
+                return blocked
+            o, d, length = o[idx], d[idx], length[idx]
+        start = eps * d
+        start += o
+        remaining = length - 2.0 * eps
         if exclude_patches is None:
-            hits = np.asarray(self._run(start, d, remaining, "OCCLUDED"))
+            hits = np.asarray(self._run(self._to_float32(start), d, remaining, "OCCLUDED"))
             blocked[idx] = hits >= 0
             return blocked
         exclude = np.asarray(exclude_patches, dtype=np.int64)
         if exclude.ndim == 1:
             exclude = exclude[:, None]
-        exclude = exclude[idx]
+        if idx.size < n:
+            exclude = exclude[idx]
         for _ in range(_MAX_EXCLUSION_PASSES):
-            out = self._run(start, d, remaining, "INTERSECT")
-            tri = np.asarray(out["primID"], dtype=np.int64)
+            out = self._run(self._to_float32(start), d, remaining, "INTERSECT")
+            tri = out["primID"].astype(np.int64)
             hit = tri >= 0
             patch = np.where(hit, self.patch_index[np.where(hit, tri, 0)], -2)
             excluded_hit = hit & np.any(patch[:, None] == exclude, axis=1)
@@ -315,7 +374,7 @@ class RayCaster:
             again = excluded_hit
             if not np.any(again):
                 return blocked
-            dist = np.asarray(out["tfar"], dtype=float)[again]
+            dist = out["tfar"][again].astype(float)
             # step past the excluded triangle: float32 round-off at the hit is ~1e-6 of the
             # coordinate scale, so advance by a few of those.
             step = dist + 1e-6 * (1.0 + dist)
