@@ -448,27 +448,6 @@ def refine_window(plan: MatchedPlan) -> int:
     return int(math.ceil(plan.decimation)) + 2
 
 
-@dataclass(frozen=True)
-class PeakEstimates:
-    """Refined peaks of the matched filter, one entry per peak.
-
-    Attributes
-    ----------
-    row : ndarray of int
-    lag : ndarray of float
-        Full-rate samples.
-    power : ndarray of float
-        |z|^2 at the peak.
-    noise_mean : ndarray of float
-        Mean noise |z|^2 of the peak's row.
-    """
-
-    row: NDArray[np.intp]
-    lag: NDArray[np.float64]
-    power: NDArray[np.float64]
-    noise_mean: NDArray[np.float64]
-
-
 def refine_peaks(
     plan: MatchedPlan,
     rows: NDArray[np.float64],
