@@ -205,20 +205,43 @@ def _assemble(context: SolveContext, mirrors: PlanarMirrors, cand: _Candidates, 
     return chains, idx
 
 
-def _mixed_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
-                  chain_base: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
-    """Chains [n_before mirrors, one curved primitive, n_after mirrors], every primitive at once."""
+def _mixed_chains(context: SolveContext, prepared: PreparedScene, max_order: int, chain_base: int,
+                  first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[list[_Chains], int]:
+    """Chains [n_before mirrors, one curved primitive, n_after mirrors] of every split with
+    n_before + 1 + n_after <= ``max_order``, every primitive at once.
+
+    The candidates of all splits share one specular-point solve and one geometric-optics
+    amplitude evaluation (both row-wise), instead of one per split.
+    """
     mirrors = prepared.mirrors
-    cand = _candidates(context, mirrors, prepared.curved_seen_by, n_before, n_after, first, last)
-    a_pt = cand.images_before[:, -1]
-    b_pt = cand.images_after[:, -1]
-    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, cand.reflector, a_pt, b_pt)
-    surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)
-    patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)
-    chains, idx = _assemble(context, mirrors, cand, x, normal, valid, surfaces[cand.reflector],
-                            patches[cand.reflector], "curved", chain_base + cand.chain)
-    chains.spreading = go_amplitude(a_pt[idx], b_pt[idx], x[idx], normal[idx], e1[idx], e2[idx], k1[idx], k2[idx])
-    return chains, chain_base + cand.n_chains
+    splits = [(n_before, n_after) for n_before in range(max_order) for n_after in range(max_order - n_before)]
+    cands, bases = [], []
+    for n_before, n_after in splits:
+        cand = _candidates(context, mirrors, prepared.curved_seen_by, n_before, n_after, first, last)
+        cands.append(cand)
+        bases.append(chain_base)
+        chain_base += cand.n_chains
+    sizes = [cand.reflector.size for cand in cands]
+    bounds = np.cumsum([0] + sizes)
+    reflector = np.concatenate([cand.reflector for cand in cands])
+    a_pt = np.concatenate([cand.images_before[:, -1] for cand in cands])
+    b_pt = np.concatenate([cand.images_after[:, -1] for cand in cands])
+    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, reflector, a_pt, b_pt)
+    surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)[reflector]
+    patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)[reflector]
+    groups, picked = [], []
+    for cand, base, lo, hi in zip(cands, bases, bounds[:-1], bounds[1:]):
+        part = slice(lo, hi)
+        chains, idx = _assemble(context, mirrors, cand, x[part], normal[part], valid[part], surfaces[part],
+                                patches[part], "curved", base + cand.chain)
+        groups.append(chains)
+        picked.append(lo + idx)
+    rows = np.concatenate(picked)
+    spreading = go_amplitude(a_pt[rows], b_pt[rows], x[rows], normal[rows], e1[rows], e2[rows], k1[rows], k2[rows])
+    counts = np.cumsum([0] + [p.size for p in picked])
+    for chains, lo, hi in zip(groups, counts[:-1], counts[1:]):
+        chains.spreading = spreading[lo:hi]
+    return groups, chain_base
 
 
 def _smooth_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
@@ -357,10 +380,8 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
         chains, chain_base = _planar_chains(context, mirrors, order, chain_base, first, last)
         groups.append(chains)
     if prepared.curved:
-        for n_before in range(max_order):
-            for n_after in range(max_order - n_before):
-                chains, chain_base = _mixed_chains(context, prepared, n_before, n_after, chain_base, first, last)
-                groups.append(chains)
+        mixed, chain_base = _mixed_chains(context, prepared, max_order, chain_base, first, last)
+        groups.extend(mixed)
     if prepared.smooth:
         for n_before in range(max_order):
             for n_after in range(max_order - n_before):
