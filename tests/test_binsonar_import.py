@@ -41,3 +41,30 @@ def test_running_every_detector_never_loads_the_simulator():
     )
     loaded = _loaded_after(statement)
     assert "acoustisim" not in loaded and "scenes" not in loaded and "matplotlib" not in loaded
+
+
+def test_no_module_level_mutable_state():
+    # Team standard: no module-level mutable state. Every binsonar module's public and private
+    # globals (dunders aside) must be immutable: no list, dict, set or bytearray, and numpy
+    # arrays read-only. Imports every submodule (scipy and friends too): run in-process.
+    import importlib
+    import pkgutil
+
+    import numpy as np
+
+    import binsonar
+
+    offenders = []
+    for info in pkgutil.walk_packages(binsonar.__path__, "binsonar."):
+        module = importlib.import_module(info.name)
+        for name, value in vars(module).items():
+            if name.startswith("__") and name != "__all__":
+                continue
+            if isinstance(value, (list, dict, set, bytearray)) or (
+                isinstance(value, np.ndarray) and value.flags.writeable
+            ):
+                offenders.append(f"{info.name}.{name}")
+    assert not offenders, offenders
+    for package in ("binsonar.cli", "binsonar.detection", "binsonar.localization"):
+        exported = importlib.import_module(package).__all__
+        assert isinstance(exported, tuple) and all(isinstance(n, str) and n for n in exported), package

@@ -2,4 +2,4 @@
 
 from binsonar.cli.main import main
 
-__all__ = ["main"]
+__all__ = ("main",)

@@ -9,7 +9,7 @@ scipy / PyWavelets when it runs.
 from binsonar.detection.api import BASE_METHODS, METHODS, PreparedDetector, detect, method_options, prepare
 from binsonar.detection.echo import DetectionResult, Echo
 
-__all__ = [
+__all__ = (
     "BASE_METHODS",
     "METHODS",
     "DetectionResult",
@@ -18,4 +18,4 @@ __all__ = [
     "detect",
     "method_options",
     "prepare",
-]
+)

@@ -21,10 +21,10 @@ from binsonar.localization.point import (
     fit_point, point_from_path_lengths, point_path_lengths, seed_path_lengths, seed_point_covariance)
 from binsonar.localization.target import Target
 
-__all__ = [
+__all__ = (
     "ArrayGeometry", "Association", "EstimationConfig", "FusedTarget", "LocalizationConfig", "LocalizationError",
     "LocalizationResult", "ModelFit", "PoseObservation", "Target", "associate", "circle_path_lengths", "classify",
     "fit_circle", "fit_plane", "fit_point", "fuse", "head_to_tank", "head_to_tank_rotation", "localize",
     "plane_path_lengths", "point_from_path_lengths", "point_path_lengths", "seed_path_lengths",
     "seed_point_covariance", "tank_to_head", "target_from_path_lengths", "tri_aural_approximation",
-]
+)
