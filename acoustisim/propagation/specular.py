@@ -284,13 +284,12 @@ def _smooth_chains(context: SolveContext, prepared: PreparedScene, n_before: int
     return merged, chain_base
 
 
-def _reflection_product(chains: _Chains, prepared: PreparedScene, context: SolveContext) -> NDArray[np.complex128]:
-    """Product over the chain's vertices of R(cos theta_incidence) (n,), complex."""
+def _incidence_cosines(chains: _Chains) -> list[NDArray[np.float64]]:
+    """|cos| of the incidence angle at each vertex j of the chains: k arrays (n,)."""
     n = chains.length.shape[0]
-    total = np.ones(n, dtype=complex)
-    rho, c = context.density_kg_m3, context.sound_speed_m_s
+    cosines = []
     previous = np.zeros((n, 3))
-    for j, (source, index) in enumerate(chains.material):
+    for j in range(len(chains.material)):
         leg = chains.vertices[:, j + 1] - chains.vertices[:, j]
         norm = np.linalg.norm(leg, axis=1, keepdims=True)
         incoming = leg / np.where(norm > 0, norm, 1.0)
@@ -301,19 +300,45 @@ def _reflection_product(chains: _Chains, prepared: PreparedScene, context: Solve
             mirrored = previous - 2.0 * np.einsum("ij,ij->i", previous, n_prev)[:, None] * n_prev
             incoming = np.where(norm > 1e-12, incoming, mirrored)
         previous = incoming
-        cos_i = np.abs(np.einsum("ij,ij->i", incoming, chains.normal[:, j]))
-        if source == "mirror":
-            table = prepared.mirrors.materials
-        elif source == "curved":
-            table = tuple(r.material for r in prepared.curved)
-        else:
-            table = tuple(r.material for r in prepared.smooth)
-        r = np.ones(n, dtype=complex)
+        cosines.append(np.abs(np.einsum("ij,ij->i", incoming, chains.normal[:, j])))
+    return cosines
+
+
+def _reflection_products(groups: list[_Chains], prepared: PreparedScene, context: SolveContext
+                         ) -> list[NDArray[np.complex128]]:
+    """Product over each chain's vertices of R(cos theta_incidence), for every group: (n_g,) complex.
+
+    The coefficients of every vertex of every group are evaluated together, one
+    ``Material.reflection_coefficient`` call per (reflector kind, material), then multiplied in
+    vertex order per chain.
+    """
+    rho, c = context.density_kg_m3, context.sound_speed_m_s
+    tables = {"mirror": prepared.mirrors.materials, "curved": tuple(r.material for r in prepared.curved),
+              "smooth": tuple(r.material for r in prepared.smooth)}
+    cosines = [_incidence_cosines(chains) for chains in groups]
+    # every (group, vertex) slot, by reflector kind: its material indices and cosines concatenated
+    slots: dict[str, list[tuple[int, int]]] = {}
+    for g, chains in enumerate(groups):
+        for j, (source, _) in enumerate(chains.material):
+            slots.setdefault(source, []).append((g, j))
+    factors: dict[tuple[int, int], NDArray[np.complex128]] = {}
+    for source, where in slots.items():
+        index = np.concatenate([groups[g].material[j][1] for g, j in where])
+        cos_i = np.concatenate([cosines[g][j] for g, j in where])
+        r = np.ones(index.size, dtype=complex)
         for m in np.unique(index):
             sel = index == m
-            r[sel] = table[int(m)].reflection_coefficient(cos_i[sel], rho, c)
-        total *= r
-    return total
+            r[sel] = tables[source][int(m)].reflection_coefficient(cos_i[sel], rho, c)
+        bounds = np.cumsum([0] + [cosines[g][j].size for g, j in where])
+        for (g, j), lo, hi in zip(where, bounds[:-1], bounds[1:]):
+            factors[(g, j)] = r[lo:hi]
+    products = []
+    for g, chains in enumerate(groups):
+        total = np.ones(chains.length.shape[0], dtype=complex)
+        for j in range(len(chains.material)):
+            total *= factors[(g, j)]
+        products.append(total)
+    return products
 
 
 def _select(chains: _Chains, keep: NDArray[np.bool_]) -> _Chains:
@@ -402,7 +427,7 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     if origins:
         blocked_legs = prepared.raycaster.occluded(
             np.concatenate(origins), np.concatenate(targets), exclude_patches=np.concatenate(excludes))
-    out = [empty_paths_array(0)]
+    live: list[_Chains] = []
     offset = 0
     for chains in groups:
         n, legs = chains.vertices.shape[0], chains.vertices.shape[1] - 1
@@ -410,8 +435,9 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
             continue
         blocked = blocked_legs[offset:offset + n * legs].reshape(n, legs).any(axis=1)
         offset += n * legs
-        chains = _select(chains, ~blocked)
-        reflection = _reflection_product(chains, prepared, context)
+        live.append(_select(chains, ~blocked))
+    out = [empty_paths_array(0)]
+    for chains, reflection in zip(live, _reflection_products(live, prepared, context)):
         if chains.phase is not None:
             # R in the physics convention exp(-i omega t) and the stationary-point phase in the
             # engineering one: convert the latter back before multiplying
@@ -435,7 +461,11 @@ def _deduplicate_rows(rows: NDArray[Any]) -> NDArray[Any]:
     points = np.nan_to_num(rows["points_m"], nan=0.0).reshape(rows.size, -1)
     ids = np.sort(rows["object_ids"].astype(np.int64), axis=1)
     key = np.column_stack([rows["channel"], rows["order"], ids, np.round(points / 1e-9)]).astype(np.int64)
-    _, first = np.unique(key, axis=0, return_index=True)
+    # unique over whole rows as one opaque byte string each (np.unique(axis=0) does the same
+    # through a structured dtype, with more overhead); return_index gives first occurrences
+    key = np.ascontiguousarray(key)
+    _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
+                         return_index=True)
     return rows[np.sort(first)]
 
 
