@@ -100,7 +100,13 @@ def _preprocess(
     bandpass_hz: tuple[float, float] | None,
     bandpass_order: int,
 ) -> Signals:
-    """Average the pings and/or band-pass them (``binsonar.preprocess``)."""
+    """Average the pings and/or band-pass them (``binsonar.preprocess``).
+
+    The quantisation noise floor (``Signals.noise_floor_v``) is kept as it is: exact for
+    noise below one code step, whose rounding errors are the same in every ping (averaging
+    does not reduce them); conservative (an over-estimate, by up to sqrt(n_pings) and by the
+    band-pass's share of the band) when the noise dithers the ADC.
+    """
     from binsonar.preprocess import average_pings, bandpass
 
     waveforms = signals.waveforms
