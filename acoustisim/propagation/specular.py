@@ -175,16 +175,22 @@ def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[
 
 def _assemble(context: SolveContext, mirrors: PlanarMirrors, cand: _Candidates, x: NDArray[np.float64],
               normal: NDArray[np.float64], valid: NDArray[np.bool_], surface_of: NDArray[np.int64],
-              patch_of: NDArray[np.int64], source: str, chain: NDArray[np.int64]
+              patch_of: NDArray[np.int64], source: str, chain: NDArray[np.int64],
+              traced: tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.bool_]] | None = None
               ) -> tuple[_Chains, NDArray[np.int64]]:
     """Back-trace the planar points of candidates with a reflector point ``x`` and build the chains.
 
-    Returns the chains and the candidate rows they came from (to pick the amplitudes).
+    ``traced``: the back-traces (points before, valid, reversed points after, valid) when the
+    caller has them already (:func:`_backtrace_batched`). Returns the chains and the candidate
+    rows they came from (to pick the amplitudes).
     """
     n_before = cand.seq_before.shape[1]
     n_after = cand.seq_after.shape[1]
-    pts_b, ok1 = backtrace(mirrors, cand.images_before, cand.seq_before, x)
-    pts_a_rev, ok2 = backtrace(mirrors, cand.images_after, cand.seq_after[:, ::-1], x)
+    if traced is None:
+        pts_b, ok1 = backtrace(mirrors, cand.images_before, cand.seq_before, x)
+        pts_a_rev, ok2 = backtrace(mirrors, cand.images_after, cand.seq_after[:, ::-1], x)
+    else:
+        pts_b, ok1, pts_a_rev, ok2 = traced
     idx = np.flatnonzero(valid & ok1 & ok2)
     n = idx.size
     tx = context.transmitter_m
@@ -203,6 +209,31 @@ def _assemble(context: SolveContext, mirrors: PlanarMirrors, cand: _Candidates, 
                 + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
     chains = _Chains(vertices, surface, patch, normals, material, length, np.zeros(n), cand.channel[idx], chain[idx])
     return chains, idx
+
+
+def _backtrace_batched(mirrors: PlanarMirrors, jobs: list[tuple[NDArray[np.float64], NDArray[np.int64],
+                                                                  NDArray[np.float64]]]
+                       ) -> list[tuple[NDArray[np.float64], NDArray[np.bool_]]]:
+    """:func:`backtrace` of several (images, sequences, end) jobs, one call per sequence length.
+
+    ``backtrace`` is row-wise, so jobs with sequences of equal length are concatenated and
+    traced together, then split back (in the order of ``jobs``).
+    """
+    results: list[tuple[NDArray[np.float64], NDArray[np.bool_]] | None] = [None] * len(jobs)
+    for k in sorted({seq.shape[1] for _, seq, _ in jobs}):
+        members = [i for i, (_, seq, _) in enumerate(jobs) if seq.shape[1] == k]
+        sizes = [jobs[i][1].shape[0] for i in members]
+        if k == 0:  # nothing to trace: no points, every chain valid
+            for i, size in zip(members, sizes):
+                results[i] = (np.zeros((size, 0, 3)), np.ones(size, dtype=bool))
+            continue
+        points, valid = backtrace(mirrors, np.concatenate([jobs[i][0] for i in members]),
+                                  np.concatenate([jobs[i][1] for i in members]),
+                                  np.concatenate([jobs[i][2] for i in members]))
+        bounds = np.cumsum([0] + sizes)
+        for i, lo, hi in zip(members, bounds[:-1], bounds[1:]):
+            results[i] = (points[lo:hi], valid[lo:hi])
+    return results  # type: ignore[return-value]
 
 
 def _mixed_chains(context: SolveContext, prepared: PreparedScene, max_order: int, chain_base: int,
@@ -229,11 +260,17 @@ def _mixed_chains(context: SolveContext, prepared: PreparedScene, max_order: int
     x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, reflector, a_pt, b_pt)
     surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)[reflector]
     patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)[reflector]
+    # the planar points on both sides of every split, one back-trace per sequence length
+    jobs = []
+    for cand, lo, hi in zip(cands, bounds[:-1], bounds[1:]):
+        jobs.append((cand.images_before, cand.seq_before, x[lo:hi]))
+        jobs.append((cand.images_after, cand.seq_after[:, ::-1], x[lo:hi]))
+    traced = _backtrace_batched(mirrors, jobs)
     groups, picked = [], []
-    for cand, base, lo, hi in zip(cands, bases, bounds[:-1], bounds[1:]):
+    for s, (cand, base, lo, hi) in enumerate(zip(cands, bases, bounds[:-1], bounds[1:])):
         part = slice(lo, hi)
         chains, idx = _assemble(context, mirrors, cand, x[part], normal[part], valid[part], surfaces[part],
-                                patches[part], "curved", base + cand.chain)
+                                patches[part], "curved", base + cand.chain, traced[2 * s] + traced[2 * s + 1])
         groups.append(chains)
         picked.append(lo + idx)
     rows = np.concatenate(picked)
