@@ -115,15 +115,6 @@ def test_threshold_fires_on_the_echo_not_on_the_first_sample():
 def test_other_detectors_see_one_echo_with_a_finite_snr(method):
     result = detect(_quantised_recording(), method)
     echoes = _echoes(result)
-    if method == "energy":
-        # Known limitation, not of the floor: at 2E/N0 = 83 dB the energy detector's own time
-        # side lobes (its filter bank's) cross the threshold 45-60 us either side of the echo,
-        # with float Gaussian noise of sigma_q as well (scores 1.0-1.2; quantised noise-only
-        # records give no false alarm in 90 tries). Here one such (score 1.03) remains (3
-        # without the floor). The echoes themselves must be there, once per channel.
-        near = [e for e in echoes if abs(e.tof_s - DELAY) < 1e-6]
-        assert len(near) == 3 and len(echoes) <= 4
-        echoes = near
     assert len(echoes) == 3
     expected_db = 10 * math.log10(AMPLITUDE ** 2 * pulse_energy() / SIGMA_Q ** 2)
     for e in echoes:

@@ -2,8 +2,8 @@
 energy of each summed, integrated over a window, and compared with a threshold.
 
 Implementation: the template's band [f_lo, f_hi] (where its power spectrum is within
-``band_db`` of its maximum) is covered by ``n_bands`` contiguous, power-complementary
-raised-cosine band-pass filters applied in the frequency domain; each band's analytic output z_k is formed on a
+``band_db`` of its maximum) is covered by ``n_bands`` contiguous, power-complementary,
+smooth-edged band-pass filters (``filter_bank``) applied in the frequency domain; each band's analytic output z_k is formed on a
 decimated grid (as in ``matched``). The statistic is
 
     e(t) = moving average over T_int of sum_k |z_k(t)|^2 / mu_k,
@@ -49,12 +49,15 @@ def _moving_average(x: NDArray[np.float64], length: int) -> NDArray[np.float64]:
 
 
 def filter_bank(frequency_cycles: NDArray[np.float64], low: float, high: float, n_bands: int) -> NDArray[np.float64]:
-    """Power-complementary raised-cosine filter bank (times 2, for the analytic outputs).
+    """Power-complementary filter bank with smooth edges (times 2, for the analytic outputs).
 
-    Band k is cos(pi/2 (f - c_k) / D) for |f - c_k| < D, centres c_k spaced D apart from
-    ``low`` to ``high`` (one band: centred, half-width (high - low) / 2): adjacent bands add up
-    to a flat total power response, and the smooth edges keep each filter's impulse response
-    short (no long sinc tails from ideal edges).
+    Band k is cos(pi/2 nu(|f - c_k| / D)) for |f - c_k| < D, centres c_k spaced D apart from
+    ``low`` to ``high`` (one band: centred, half-width (high - low) / 2), with Meyer's
+    polynomial nu(t) = t^4 (35 - 84 t + 70 t^2 - 20 t^3): nu(t) + nu(1 - t) = 1, so adjacent
+    bands add up to a flat total power response (cos^2 a + cos^2(pi/2 - a) = 1), and nu is
+    flat to third order at 0 and 1, so each band is C3-smooth: its impulse response decays
+    like 1/t^5. (A plain raised cosine, cos(pi/2 x), has a kink at its edges, whose 1/t^2
+    tail rose above the noise 45-60 us from an echo at 2E/N0 = 83 dB: false echoes.)
 
     Parameters
     ----------
@@ -74,7 +77,9 @@ def filter_bank(frequency_cycles: NDArray[np.float64], low: float, high: float, 
         centres = np.linspace(low, high, n_bands)
         spacing = (high - low) / (n_bands - 1)
     x = (frequency_cycles[np.newaxis, :] - centres[:, np.newaxis]) / spacing
-    return 2.0 * np.where(np.abs(x) < 1.0, np.cos(0.5 * np.pi * x), 0.0)
+    t = np.minimum(np.abs(x), 1.0)
+    nu = t ** 4 * (35.0 - 84.0 * t + 70.0 * t ** 2 - 20.0 * t ** 3)  # Meyer's: nu(t) + nu(1 - t) = 1
+    return 2.0 * np.cos(0.5 * np.pi * nu)
 
 
 def _band_statistic(
