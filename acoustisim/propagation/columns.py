@@ -18,6 +18,29 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
 
 
+def _off_axis_parts(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64],
+                    axis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """|d x a| and d . a of directions given by components x, y, z (any equal shapes) and a (3,).
+
+    The same products and sums as ``np.cross`` / ``np.linalg.norm``. Negating d negates every
+    product exactly, so -d gives the same |d x a| and exactly -(d . a).
+    """
+    ax, ay, az = float(axis[0]), float(axis[1]), float(axis[2])
+    cx = y * az - z * ay
+    cy = z * ax - x * az
+    cz = x * ay - y * ax
+    cx *= cx
+    cy *= cy
+    cz *= cz
+    cx += cy
+    cx += cz
+    sin_part = np.sqrt(cx, out=cx)
+    cos_part = x * ax
+    cos_part += y * ay
+    cos_part += z * az
+    return sin_part, cos_part
+
+
 def off_axis_angle(directions: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArray[np.float64]:
     """Angle (rad, in [0, pi]) between unit vectors (n, 3) and a unit axis (3,).
 
@@ -26,15 +49,13 @@ def off_axis_angle(directions: NDArray[np.float64], axis: NDArray[np.float64]) -
     ``directions`` (a structured-array field) is read once, without temporaries of shape (n, 3).
     """
     d = np.asarray(directions, dtype=float)
-    a = np.asarray(axis, dtype=float)
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
-    ax, ay, az = float(a[0]), float(a[1]), float(a[2])
-    cx = y * az - z * ay
-    cy = z * ax - x * az
-    cz = x * ay - y * ax
-    sin_part = np.sqrt(cx * cx + cy * cy + cz * cz)
-    cos_part = x * ax + y * ay + z * az
+    sin_part, cos_part = _off_axis_parts(d[..., 0], d[..., 1], d[..., 2], np.asarray(axis, dtype=float))
     return np.arctan2(sin_part, cos_part)
+
+
+def _components(directions: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Directions (n, 3) (e.g. a strided structured field) as contiguous component rows (3, n)."""
+    return np.ascontiguousarray(np.asarray(directions, dtype=float).T)
 
 
 _DERIVED = ("angle_tx_rad", "angle_rx_rad", "directivity_tx", "directivity_rx", "absorption_db", "amplitude")
@@ -55,17 +76,22 @@ def _float_block(rows: NDArray[Any], names: tuple[str, ...]) -> NDArray[np.float
     return rows.view(overlay)["block"]
 
 
-def _run_starts(directions: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Whether each row (n, 3) differs from the previous one (True for the first row).
+def _run_starts(components: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether each direction, given as component rows (3, n), differs from the previous one
+    (True for the first).
 
     Rows of one diffuse scattering event (or of one edge element) going to several receivers
     share their departure direction and sit next to each other, so the transmitter-side columns
     are computed once per run of equal directions.
     """
-    start = np.ones(directions.shape[0], dtype=bool)
-    if directions.shape[0] > 1:
-        same = directions[1:] == directions[:-1]
-        start[1:] = ~(same[:, 0] & same[:, 1] & same[:, 2])
+    n = components.shape[1]
+    start = np.ones(n, dtype=bool)
+    if n > 1:
+        x, y, z = components
+        same = x[1:] == x[:-1]
+        same &= y[1:] == y[:-1]
+        same &= z[1:] == z[:-1]
+        np.logical_not(same, out=start[1:])
     return start
 
 
@@ -91,23 +117,34 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     f0 = context.centre_frequency_hz
     a = context.piston_radius_m
     length = np.ascontiguousarray(rows["path_length_m"])
-    departure = np.ascontiguousarray(rows["departure_dir"])
+    # (6, n): the derived columns, each contiguous, written to the rows in one pass at the end
+    derived = np.empty((len(_DERIVED), n))
+    angle_tx, angle_rx, directivity_tx, directivity_rx, absorption, amplitude = derived
+    departure = _components(rows["departure_dir"])
     start = _run_starts(departure)
     heads = np.flatnonzero(start)
     if heads.size < n:
-        angle_tx_heads = off_axis_angle(departure[heads], context.boresight)
-        directivity_tx_heads = piston_directivity(angle_tx_heads, f0, a, c)
+        sin_part, cos_part = _off_axis_parts(*departure[:, heads], context.boresight)
+        angle_heads = np.arctan2(sin_part, cos_part)
         run = np.cumsum(start) - 1
-        angle_tx = angle_tx_heads[run]
-        directivity_tx = directivity_tx_heads[run]
+        np.take(angle_heads, run, out=angle_tx)
+        np.take(piston_directivity(angle_heads, f0, a, c), run, out=directivity_tx)
     else:
-        angle_tx = off_axis_angle(departure, context.boresight)
-        directivity_tx = piston_directivity(angle_tx, f0, a, c)
-    angle_rx = off_axis_angle(-np.ascontiguousarray(rows["arrival_dir"]), context.boresight)
-    directivity_rx = piston_directivity(angle_rx, f0, a, c)
-    absorption = context.absorption_db_per_m * length
-    amplitude = np.abs(rows["geometric_gain"] * directivity_tx * directivity_rx) * 10.0 ** (-absorption / 20.0)
-    derived = np.column_stack([angle_tx, angle_rx, directivity_tx, directivity_rx, absorption, amplitude])
+        sin_part, cos_part = _off_axis_parts(*departure, context.boresight)
+        np.arctan2(sin_part, cos_part, out=angle_tx)
+        directivity_tx[:] = piston_directivity(angle_tx, f0, a, c)
+    del departure
+    # the wave comes from -arrival_dir: same |d x a|, cosine negated (exactly)
+    sin_part, cos_part = _off_axis_parts(*_components(rows["arrival_dir"]), context.boresight)
+    np.negative(cos_part, out=cos_part)
+    np.arctan2(sin_part, cos_part, out=angle_rx)
+    directivity_rx[:] = piston_directivity(angle_rx, f0, a, c)
+    np.multiply(length, context.absorption_db_per_m, out=absorption)
+    np.multiply(rows["geometric_gain"], directivity_tx, out=amplitude)
+    amplitude *= directivity_rx
+    np.abs(amplitude, out=amplitude)
+    amplitude *= 10.0 ** (-absorption / 20.0)
+    derived = derived.T
     block = _float_block(rows, _DERIVED)
     if block is not None:  # one strided pass over the rows instead of one per field
         block[:] = derived
