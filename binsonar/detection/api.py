@@ -35,7 +35,11 @@ ROW_CHUNK = 24
 RawEchoes = list[list[tuple[float, float, float, float, float]]]
 
 # Parameters of the method functions that ``detect`` supplies itself (not user options).
-_SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v"})
+_SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v", "dc_v"})
+# Base methods that take the waveforms as recorded plus each row's DC offset (``dc_v``) and
+# fold it into their arithmetic, with the result they would give on the offset-free copy:
+# no pass over the record to make that copy. The others get ``Signals.without_dc()``.
+FOLDS_DC = frozenset({"threshold"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -176,7 +180,7 @@ class PreparedDetector:
         """
         start = time.perf_counter()
         signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v,
-                             adc_step_v)
+                             adc_step_v, remove_dc=False)
         if not math.isclose(signals.sample_rate_hz, self.sample_rate_hz, rel_tol=1e-12) or signals.n_samples != self.n_samples:
             raise RecordingError(
                 f"{signals.source}: {signals.n_samples} samples at {signals.sample_rate_hz:g} Hz, but the detector was "
@@ -193,6 +197,8 @@ class PreparedDetector:
                 f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped "
                 f"channel(s))"
             )
+        if self.base not in FOLDS_DC or self.average or self.bandpass_hz is not None:
+            signals = signals.without_dc()
         signals = _preprocess(signals, self.average, self.bandpass_hz, self.bandpass_order)
         n_pings, n_channels, n = signals.waveforms.shape
         rows = signals.waveforms.reshape(n_pings * n_channels, n)
@@ -373,7 +379,7 @@ def detect(
     base, _, seed_bandpass = _base(method)
     if on_clipped not in CLIPPED_POLICIES:
         raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
-    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v, adc_step_v)
+    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v, adc_step_v, remove_dc=False)
     band_from_template = isinstance(bandpass_hz, str) or (bandpass_hz is None and seed_bandpass)
     resolved: Template | None = None
     if base != "threshold" or band_from_template or template is not None or signals.template is not None:
@@ -391,18 +397,22 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     options["noise_floor_v"] = signals.noise_floor_v
     template, plan = prepared.template, prepared._plan
     fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
+    dc = None if signals.dc_v is None else signals.dc_v.reshape(-1)  # per row, as ``rows``
     if base == "threshold":
-        call = lambda chunk: function(chunk, sample_rate_hz=fs, t0_s=t0, template=template, where=where, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, sample_rate_hz=fs, t0_s=t0, template=template, where=where,  # noqa: E731
+                                            dc_v=dc_v, **options)
     elif base in ("energy", "whitened-matched", "dwt"):
-        call = lambda chunk: function(chunk, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)  # noqa: E731
     elif base == "matched":
-        call = lambda chunk: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
     elif base == "local-matched":
-        call = lambda chunk: function(chunk, plan, t0_s=t0, where=where, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, where=where, **options)  # noqa: E731
     else:
         kind = "ca" if base == "ca-cfar" else "os"
-        call = lambda chunk: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
+    if dc is not None and base not in FOLDS_DC:
+        raise RecordingError(f"{where}: internal: method {base!r} was given waveforms with their DC offset in them")
     out: RawEchoes = []
     for start in range(0, rows.shape[0], ROW_CHUNK):  # chunks of rows, vectorised inside
-        out.extend(call(rows[start:start + ROW_CHUNK]))
+        out.extend(call(rows[start:start + ROW_CHUNK], None if dc is None else dc[start:start + ROW_CHUNK]))
     return out

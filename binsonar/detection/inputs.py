@@ -40,6 +40,13 @@ class Signals:
         can carry, whatever quiet stretches of it look like (noise below one code step
         quantises to exactly constant samples). Every detector floors its noise estimates with
         it. 0 when the step is unknown (float arrays without ``adc_step_v``).
+    dc_v : ndarray, shape (n_pings, n_channels), or None
+        Each ping-channel's DC offset (its median, ``row_offsets``) still present in
+        ``waveforms``; None when it has been removed (or is 0). Detectors that can fold the
+        offset into their own arithmetic (threshold: compare x with median +/- level;
+        local-matched: corrected energies and correlations) take the waveforms as recorded and
+        the offsets, which saves a full copy of the record; the others get
+        ``without_dc()``.
     """
 
     waveforms: NDArray[np.float64] = field(repr=False)
@@ -49,6 +56,7 @@ class Signals:
     template: Template | None
     source: str
     noise_floor_v: float = 0.0
+    dc_v: NDArray[np.float64] | None = field(default=None, repr=False)
 
     @property
     def n_pings(self) -> int:
@@ -65,8 +73,15 @@ class Signals:
         """Samples per channel."""
         return int(self.waveforms.shape[2])
 
+    def without_dc(self) -> "Signals":
+        """These signals with the DC offsets ``dc_v`` subtracted (self when there are none)."""
+        if self.dc_v is None:
+            return self
+        return self.with_waveforms(self.waveforms - self.dc_v[:, :, np.newaxis])
+
     def with_waveforms(self, waveforms: NDArray[np.float64], clipped: NDArray[np.bool_] | None = None) -> "Signals":
-        """A copy with other waveforms (same sample rate and time origin)."""
+        """A copy with other waveforms (same sample rate and time origin), offsets removed
+        (``dc_v`` None): the caller gives waveforms with no DC left in them."""
         return Signals(
             waveforms=waveforms,
             sample_rate_hz=self.sample_rate_hz,
@@ -88,6 +103,16 @@ def quantisation_noise_std_v(step_v: float) -> float:
     return float(step_v) / math.sqrt(12.0)
 
 
+def row_offsets(waveforms: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """Each ping-channel's median (its DC offset), shape (n_pings, n_channels); None when
+    every one is exactly 0 (see ``remove_median``)."""
+    n_pings, n_channels, n = waveforms.shape
+    median = row_median(robust_subsample(waveforms.reshape(n_pings * n_channels, n)))
+    if not np.any(median != 0.0):
+        return None
+    return median.reshape(n_pings, n_channels)
+
+
 def remove_median(waveforms: NDArray[np.float64]) -> NDArray[np.float64]:
     """The waveforms minus each ping-channel's median (its DC offset), shape kept.
 
@@ -98,11 +123,10 @@ def remove_median(waveforms: NDArray[np.float64]) -> NDArray[np.float64]:
     is itself a code, so the samples stay on a (shifted) code grid. Returned as is (no copy)
     when every median is already 0.
     """
-    n_pings, n_channels, n = waveforms.shape
-    median = row_median(robust_subsample(waveforms.reshape(n_pings * n_channels, n)))
-    if not np.any(median != 0.0):
+    median = row_offsets(waveforms)
+    if median is None:
         return waveforms
-    return waveforms - median.reshape(n_pings, n_channels, 1)
+    return waveforms - median[:, :, np.newaxis]
 
 
 def as_signals(
@@ -111,9 +135,10 @@ def as_signals(
     t0_s: float = 0.0,
     full_scale_v: float | None = None,
     adc_step_v: float | None = None,
+    remove_dc: bool = True,
 ) -> Signals:
     """Validate a recording or an array and return it as ``Signals``, each ping-channel's DC
-    offset removed.
+    offset removed (or, with ``remove_dc=False``, measured and carried in ``Signals.dc_v``).
 
     The offset is the row's median (``remove_median``), subtracted before any detector runs;
     clipping is judged on the samples as recorded. An absolute threshold level (the threshold
@@ -133,6 +158,9 @@ def as_signals(
     adc_step_v : float, optional
         ADC code step q (V) of the data: sets ``Signals.noise_floor_v`` = q / sqrt(12). For a
         recording stored as ADC codes its ``volts_per_code`` is used when this is not given.
+    remove_dc : bool
+        Subtract the offsets from a copy of the waveforms (default), or leave the waveforms as
+        they are and return the offsets as ``dc_v`` (the caller removes or folds them).
 
     Raises
     ------
@@ -160,8 +188,9 @@ def as_signals(
             clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
         step = adc_step_v if adc_step_v is not None else data.volts_per_code
         floor = 0.0 if step is None else quantisation_noise_std_v(step)
-        waveforms = remove_median(waveforms)
-        return Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where, floor)
+        signals = Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where, floor,
+                          row_offsets(waveforms))
+        return signals.without_dc() if remove_dc else signals
 
     where = "array"
     try:
@@ -197,8 +226,8 @@ def as_signals(
     if full_scale_v is not None:
         clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
     floor = 0.0 if adc_step_v is None else quantisation_noise_std_v(adc_step_v)
-    waveforms = remove_median(waveforms)
-    return Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor)
+    signals = Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor, row_offsets(waveforms))
+    return signals.without_dc() if remove_dc else signals
 
 
 def _resample_template(template: Template, sample_rate_hz: float) -> Template:

@@ -87,6 +87,7 @@ def noise_sigma(
     noise_window_s: tuple[float, float] | None = None,
     where: str = "record",
     floor_v: float = 0.0,
+    offset_v: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Noise standard deviation per row (V).
 
@@ -101,6 +102,10 @@ def noise_sigma(
     floor_v : float
         Least noise the rows can carry (V), e.g. the ADC's quantisation noise q / sqrt(12)
         (``Signals.noise_floor_v``): the estimate is never below it.
+    offset_v : ndarray, shape (n_rows,), optional
+        DC offset of each row still in ``rows`` (``Signals.dc_v``): subtracted from the samples
+        the estimate uses (the robust estimate's few thousand, not the whole row), so the
+        result is that of ``rows - offset_v``.
 
     Returns
     -------
@@ -109,8 +114,11 @@ def noise_sigma(
     """
     if noise_window_s is not None:
         segment = rows[:, window_indices(noise_window_s, rows.shape[1], sample_rate_hz, t0_s, where)]
-        sigma = segment.std(axis=1)
+        sigma = segment.std(axis=1)  # the standard deviation ignores a constant offset
     else:
-        sigma = MAD_TO_SIGMA * row_median(np.abs(robust_subsample(rows)))
+        sample = robust_subsample(rows)
+        if offset_v is not None:
+            sample = sample - offset_v.reshape((-1,) + (1,) * (sample.ndim - 1))
+        sigma = MAD_TO_SIGMA * row_median(np.abs(sample))
     floor = max(np.finfo(float).tiny ** 0.5, float(floor_v))
     return np.maximum(sigma, floor)

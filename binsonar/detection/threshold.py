@@ -24,15 +24,26 @@ _BLOCK = 16384
 _CHUNK = 64
 
 
-def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> NDArray[np.intp]:
-    """Index of the first sample with |x| >= level in each row (-1 where none).
+def first_crossings(
+    rows: NDArray[np.float64], level: NDArray[np.float64], offset: NDArray[np.float64] | None = None
+) -> NDArray[np.intp]:
+    """Index of the first sample with |x - offset| >= level in each row (-1 where none).
 
     Parameters
     ----------
     rows : ndarray, shape (n_rows, n_samples)
     level : ndarray, shape (n_rows,)
+    offset : ndarray, shape (n_rows,), optional
+        DC offset of each row (default 0), subtracted block by block (no copy of the rows).
     """
     n_rows, n = rows.shape
+    if offset is None:
+        offset = np.zeros(n_rows)
+
+    def magnitude(samples: NDArray[np.float64], which: NDArray[np.intp] | slice) -> NDArray[np.float64]:
+        out = samples - offset[which].reshape((-1,) + (1,) * (samples.ndim - 1))
+        return np.abs(out, out=out)
+
     found = np.full(n_rows, -1, dtype=np.intp)
     pending = np.arange(n_rows)
     for start in range(0, n, _BLOCK):  # blocks of samples, vectorised inside
@@ -41,9 +52,9 @@ def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> ND
         source = rows if pending.size == n_rows else rows[pending]  # a view while all are pending
         parts = []
         if usable > start:
-            parts.append(np.abs(source[:, start:usable]).reshape(pending.size, -1, _CHUNK).max(axis=2))
+            parts.append(magnitude(source[:, start:usable], pending).reshape(pending.size, -1, _CHUNK).max(axis=2))
         if usable < stop:  # the ragged end of the record: one shorter chunk
-            parts.append(np.abs(source[:, usable:stop]).max(axis=1, keepdims=True))
+            parts.append(magnitude(source[:, usable:stop], pending).max(axis=1, keepdims=True))
         peaks = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
         above = peaks >= level[pending, np.newaxis]
         hit = above.any(axis=1)
@@ -51,7 +62,7 @@ def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64]) -> ND
             chunk = np.argmax(above[hit], axis=1)
             first = start + chunk * _CHUNK
             index = np.minimum(first[:, np.newaxis] + np.arange(_CHUNK), n - 1)
-            samples = np.abs(rows[pending[hit, np.newaxis], index]) >= level[pending[hit], np.newaxis]
+            samples = magnitude(rows[pending[hit, np.newaxis], index], pending[hit]) >= level[pending[hit], np.newaxis]
             found[pending[hit]] = first + np.argmax(samples, axis=1)
         pending = pending[~hit]
         if pending.size == 0:
@@ -92,6 +103,7 @@ def detect_threshold(
     search_window_s: tuple[float, float] | None = None,
     where: str = "record",
     noise_floor_v: float = 0.0,
+    dc_v: NDArray[np.float64] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """First threshold crossing of each row.
 
@@ -121,6 +133,10 @@ def detect_threshold(
     noise_floor_v : float
         Least noise standard deviation (V), the ADC's quantisation noise: the noise estimate
         is never below it.
+    dc_v : ndarray, shape (n_rows,), optional
+        DC offset of each row still in ``rows`` (``Signals.dc_v``): folded into the
+        comparisons (|x - dc| >= level, block by block) and the measurements, so the result is
+        that of ``rows - dc_v`` without a copy of the record.
 
     Returns
     -------
@@ -131,7 +147,8 @@ def detect_threshold(
     """
     fs = sample_rate_hz
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
-                        floor_v=noise_floor_v)
+                        floor_v=noise_floor_v, offset_v=dc_v)
+    offset = np.zeros(rows.shape[0]) if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
     if level_v is not None:
         if not (math.isfinite(level_v) and level_v > 0):
             raise RecordingError(f"{where}: level_v must be > 0, got {level_v!r}")
@@ -156,20 +173,20 @@ def detect_threshold(
         stop = min(n, int(math.floor((stop_s - t0_s) * fs)) + 1) if math.isfinite(stop_s) else n
         if stop - first < 2:
             raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
-    found = first_crossings(rows[:, first:stop], level)
+    found = first_crossings(rows[:, first:stop], level, offset)
     found = np.where(found >= 0, found + first, -1)
     out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
     hit = np.flatnonzero(found >= 0)
     if hit.size == 0:
         return out
     i = found[hit]
-    before = np.abs(rows[hit, np.maximum(i - 1, 0)])
-    after = np.abs(rows[hit, i])
+    before = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
+    after = np.abs(rows[hit, i] - offset[hit])
     frac = np.where(i > 0, _fraction(before, after, level[hit]), 0.0)
     crossing = t0_s + (i - 1 + frac) / fs
     tof = crossing - offset_s
     index = np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)
-    segment = rows[hit[:, np.newaxis], index]
+    segment = rows[hit[:, np.newaxis], index] - offset[hit, np.newaxis]
     amplitude = np.abs(segment).max(axis=1)
     total = (segment ** 2).sum(axis=1)
     # A noise-free record has (almost) no noise floor: cap the SNR at 200 dB.

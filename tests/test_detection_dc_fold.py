@@ -1,0 +1,85 @@
+"""Detectors that fold the DC offset into their arithmetic (``api.FOLDS_DC``) give, on the
+record as recorded plus its offsets, what they give on the offset-free copy.
+
+The folded path subtracts the same per-row median from the same samples (block by block
+instead of in one copy), so the floating-point results are identical, not merely close: the
+test compares with ``==``. A fold that forgot a term (the offset in the comparisons, the
+noise estimate, the amplitude window or the interpolation) would shift the TOF or amplitude
+by a large fraction of the 2 V offset used here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from binsonar.detection.api import FOLDS_DC
+from binsonar.detection.inputs import as_signals
+from binsonar.detection.noise import noise_sigma
+from binsonar.detection.threshold import detect_threshold, first_crossings
+from test_detection_signals import FS, echo_rows, noise_sigma_for, pulse_template
+
+N = 8192
+DELAYS = np.array([150e-6, 200e-6, 250e-6])
+OFFSETS = np.array([2.0, -1.5, 0.3])  # V, per channel, >> the 0.5 V echoes
+
+
+def _record(seed: int = 5) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    sigma = noise_sigma_for(30.0, 0.5)
+    return echo_rows(DELAYS, N, 0.5) + rng.standard_normal((3, N)) * sigma + OFFSETS[:, np.newaxis]
+
+
+def test_as_signals_can_carry_the_offsets_instead_of_removing_them():
+    x = _record()
+    kept = as_signals(x, FS, remove_dc=False)
+    removed = as_signals(x, FS)
+    assert kept.waveforms is x or np.shares_memory(kept.waveforms, x)  # no copy
+    assert kept.dc_v.shape == (1, 3)
+    assert removed.dc_v is None
+    # The median of noise around the offset: within 0.1 sigma (~0.02 sigma standard error).
+    assert np.allclose(kept.dc_v[0], OFFSETS, rtol=0.0, atol=0.1 * noise_sigma_for(30.0, 0.5))
+    assert np.array_equal(kept.without_dc().waveforms, removed.waveforms)
+
+
+@pytest.mark.parametrize("level_v", [None, 0.4])  # 0.4 V: 6.2 sigma, below the 0.5 V echoes
+def test_threshold_folded_equals_threshold_on_the_offset_free_copy(level_v):
+    x = _record()
+    kept = as_signals(x, FS, remove_dc=False)
+    rows = kept.waveforms[0]
+    dc = kept.dc_v[0]
+    common = dict(sample_rate_hz=FS, t0_s=0.0, template=pulse_template(), level_v=level_v)
+    folded = detect_threshold(rows, dc_v=dc, **common)
+    copied = detect_threshold(kept.without_dc().waveforms[0], **common)
+    assert folded == copied
+    assert [len(e) for e in folded] == [1, 1, 1]
+    for c, echoes in enumerate(folded):
+        assert abs(echoes[0][0] - DELAYS[c]) < 2e-6  # the echo, not the offset
+
+
+def test_first_crossings_with_offset_matches_a_brute_force_scan():
+    rng = np.random.default_rng(3)
+    # Ragged length (not a multiple of the chunk or block), a crossing in the ragged end, a
+    # row with none, and offsets large enough that ignoring them would cross at sample 0.
+    rows = rng.standard_normal((4, 40_003)) + np.array([[5.0], [-5.0], [0.0], [1.0]])
+    rows[0, 20_000] += 9.0
+    rows[1, 39_999] -= 9.0
+    level = np.full(4, 7.0)
+    offset = np.array([5.0, -5.0, 0.0, 1.0])
+    expected = [int(np.argmax(hit)) if hit.any() else -1 for hit in np.abs(rows - offset[:, None]) >= level[:, None]]
+    assert first_crossings(rows, level, offset).tolist() == expected
+    assert expected[0] == 20_000 and expected[1] == 39_999 and expected[3] == -1
+
+
+def test_noise_sigma_with_offset_is_that_of_the_shifted_rows():
+    x = _record()
+    dc = np.array([2.0, -1.5, 0.3])
+    shifted = x - dc[:, np.newaxis]
+    assert np.array_equal(noise_sigma(x, sample_rate_hz=FS, t0_s=0.0, offset_v=dc),
+                          noise_sigma(shifted, sample_rate_hz=FS, t0_s=0.0))
+
+
+def test_the_folding_methods_are_known_base_methods():
+    from binsonar.detection.api import BASE_METHODS
+
+    assert FOLDS_DC and FOLDS_DC <= set(BASE_METHODS)
