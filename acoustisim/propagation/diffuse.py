@@ -390,7 +390,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     # No surface scatters (e.g. an empty free field): nothing to trace.
     bounces = int(config.diffuse_bounces) if np.any(mu_of_surface > 0.0) else 0
     for bounce in range(bounces):  # a handful of bounces
-        hits = raycaster.intersect(origins, directions)
+        hits = raycaster.intersect(origins, directions, unit_directions=True)  # unit by construction
         surface = hits.surface
         mu = mu_of_surface[np.maximum(surface, 0)]
         # a scattering surface hit from its front (a missed ray's normal is NaN: not < 0)
@@ -433,7 +433,9 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
         test = np.flatnonzero(clear & near.reshape(-1))
         if test.size:
             hit_test, rx_test = np.divmod(test, n_rx)
-            clear[test] = ~raycaster.occluded(points[hit_test], rx[rx_test])
+            lengths = r2.reshape(-1)[test]
+            unit = to_rx.reshape(-1, 3)[test] / lengths[:, None]
+            clear[test] = ~raycaster.occluded_rays(points[hit_test], unit, lengths)
         flat = np.flatnonzero(clear)
         hit_idx, rx_idx = np.divmod(flat, n_rx)
         r2_sel = r2.reshape(-1)[flat]
