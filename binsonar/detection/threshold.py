@@ -17,11 +17,13 @@ from numpy.typing import NDArray
 from binsonar.detection.noise import noise_sigma
 from binsonar.recording import RecordingError, Template
 
-# The search for the first crossing proceeds in blocks of this many samples (all channels at
-# once) and stops at the first block where every channel has crossed; inside a block it looks
-# at the maxima of |x| over chunks first, then at the samples of the first chunk that crossed.
-_BLOCK = 16384
-_CHUNK = 64
+# The search for the first crossing proceeds in blocks of _BLOCK samples (all channels at
+# once) and stops at the first block where every channel has crossed. A block of a row is
+# viewed as (_BLOCK // _COLUMNS, _COLUMNS) samples and reduced over its first axis (element-wise
+# maxima and minima of contiguous vectors: SIMD, no temporaries the size of the block); only
+# a block whose column extremes cross is then scanned sample by sample.
+_COLUMNS = 1024
+_BLOCK = 16 * _COLUMNS
 
 
 def first_crossings(
@@ -34,36 +36,32 @@ def first_crossings(
     rows : ndarray, shape (n_rows, n_samples)
     level : ndarray, shape (n_rows,)
     offset : ndarray, shape (n_rows,), optional
-        DC offset of each row (default 0), subtracted block by block (no copy of the rows).
+        DC offset of each row (default 0), subtracted only where needed (no copy of the rows).
+
+    Notes
+    -----
+    Exact: fl(x - c) is non-decreasing in x, so max(x) - c = max(x - c) and
+    c - min(x) = max(c - x) in floating point, and the coarse test on a block's extremes is
+    true exactly when some sample of the block satisfies the sample-wise test.
     """
     n_rows, n = rows.shape
-    if offset is None:
-        offset = np.zeros(n_rows)
-
-    def magnitude(samples: NDArray[np.float64], which: NDArray[np.intp] | slice) -> NDArray[np.float64]:
-        out = samples - offset[which].reshape((-1,) + (1,) * (samples.ndim - 1))
-        return np.abs(out, out=out)
-
+    offset = np.zeros(n_rows) if offset is None else np.asarray(offset, dtype=float)
     found = np.full(n_rows, -1, dtype=np.intp)
     pending = np.arange(n_rows)
     for start in range(0, n, _BLOCK):  # blocks of samples, vectorised inside
         stop = min(start + _BLOCK, n)
-        usable = start + (stop - start) // _CHUNK * _CHUNK
+        width = stop - start
+        columns = _COLUMNS if width % _COLUMNS == 0 else width  # the ragged end: one long row
         source = rows if pending.size == n_rows else rows[pending]  # a view while all are pending
-        parts = []
-        if usable > start:
-            parts.append(magnitude(source[:, start:usable], pending).reshape(pending.size, -1, _CHUNK).max(axis=2))
-        if usable < stop:  # the ragged end of the record: one shorter chunk
-            parts.append(magnitude(source[:, usable:stop], pending).max(axis=1, keepdims=True))
-        peaks = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-        above = peaks >= level[pending, np.newaxis]
-        hit = above.any(axis=1)
+        view = source[:, start:stop].reshape(pending.size, width // columns, columns)
+        dc = offset[pending, np.newaxis]
+        threshold = level[pending, np.newaxis]
+        hit = ((view.max(axis=1) - dc >= threshold) | (dc - view.min(axis=1) >= threshold)).any(axis=1)
         if hit.any():
-            chunk = np.argmax(above[hit], axis=1)
-            first = start + chunk * _CHUNK
-            index = np.minimum(first[:, np.newaxis] + np.arange(_CHUNK), n - 1)
-            samples = magnitude(rows[pending[hit, np.newaxis], index], pending[hit]) >= level[pending[hit], np.newaxis]
-            found[pending[hit]] = first + np.argmax(samples, axis=1)
+            rows_hit = pending[hit]
+            magnitude = rows[rows_hit, start:stop] - offset[rows_hit, np.newaxis]
+            above = np.abs(magnitude, out=magnitude) >= level[rows_hit, np.newaxis]
+            found[rows_hit] = start + np.argmax(above, axis=1)
         pending = pending[~hit]
         if pending.size == 0:
             break
