@@ -83,3 +83,49 @@ def test_the_folding_methods_are_known_base_methods():
     from binsonar.detection.api import BASE_METHODS
 
     assert FOLDS_DC and FOLDS_DC <= set(BASE_METHODS)
+
+
+def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
+    from binsonar.detection.local import detect_local_matched
+    from binsonar.detection.matched import plan_matched
+
+    x = _record()
+    kept = as_signals(x, FS, remove_dc=False)
+    plan = plan_matched(pulse_template(), N, FS, full=False)
+    folded = detect_local_matched(kept.waveforms[0], plan, t0_s=0.0, dc_v=kept.dc_v[0])
+    copied = detect_local_matched(kept.without_dc().waveforms[0], plan, t0_s=0.0)
+    assert [len(e) for e in folded] == [len(e) for e in copied] == [1, 1, 1]
+    # Not bit-identical: the folded correlation is z(x) - dc * sum(taps) instead of z(x - dc),
+    # and the block energies are summed in another order. Rounding of terms of up to
+    # |dc| sum|taps| ~ 2 V x 100 against a 0.5 V echo's z: relative errors ~1e-13, i.e.
+    # 1e-13 of a 50 ns sample in the TOF. Tolerances 1e-15 s and 1e-9 relative: many orders
+    # above the rounding, many below a forgotten term (the 2 V offset's correlation with the
+    # taps, or its energy, would move the peak or the noise estimate grossly).
+    for a, b in zip(folded, copied):
+        assert abs(a[0][0] - b[0][0]) < 1e-15
+        assert np.allclose(a[0][1:], b[0][1:], rtol=1e-9, atol=0.0)
+    for c, echoes in enumerate(folded):
+        assert abs(echoes[0][0] - DELAYS[c]) < 0.1e-6
+
+
+def test_dc_correlation_is_the_correlation_of_a_constant_record():
+    from binsonar.detection.local import block_energies, dc_correlation
+    from binsonar.detection.matched import lags_time_domain, plan_matched
+
+    plan = plan_matched(pulse_template(), 1000, FS, full=False)
+    constant = np.full((2, 1000), 1.0) * np.array([[0.7], [-2.0]])
+    # Lags where the analytic taps overlap the record partly (both edges) and fully.
+    lags = np.array([[-50, 0, 400], [10, 790, 999]])
+    for k in range(2):
+        direct = lags_time_domain(plan, constant, np.array([k, k, k]), lags[k][:, np.newaxis])[:, 0]
+        assert np.allclose(dc_correlation(plan, 1000, constant[k, :1], lags[k][np.newaxis])[0], direct,
+                           rtol=1e-12, atol=1e-12)
+    # Energies of x - dc per block, against the direct sum (rounding only).
+    rng = np.random.default_rng(1)
+    rows = rng.standard_normal((2, 5000)) + 3.0
+    dc = np.array([3.0, 2.5])
+    expected = ((rows[:, :4992] - dc[:, None]) ** 2).reshape(2, 416, 12).sum(axis=2)
+    assert np.allclose(block_energies(rows, 12, 416, dc), expected, rtol=1e-12, atol=0.0)
+    # Several chunks of blocks (2500 blocks of 2 samples, chunks of 1024 blocks).
+    expected = ((rows - dc[:, None]) ** 2).reshape(2, 2500, 2).sum(axis=2)
+    assert np.allclose(block_energies(rows, 2, 2500, dc), expected, rtol=1e-12, atol=0.0)

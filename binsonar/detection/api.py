@@ -39,7 +39,7 @@ _SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "wh
 # Base methods that take the waveforms as recorded plus each row's DC offset (``dc_v``) and
 # fold it into their arithmetic, with the result they would give on the offset-free copy:
 # no pass over the record to make that copy. The others get ``Signals.without_dc()``.
-FOLDS_DC = frozenset({"threshold"})
+FOLDS_DC = frozenset({"threshold", "local-matched"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -406,7 +406,7 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     elif base == "matched":
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
     elif base == "local-matched":
-        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, where=where, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, where=where, dc_v=dc_v, **options)  # noqa: E731
     else:
         kind = "ca" if base == "ca-cfar" else "os"
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
