@@ -176,8 +176,12 @@ def detect_local_matched(
     else:
         energy = block_energies(rows, block, n_blocks, dc)
     span = min(4, n_blocks)
-    cumulative = np.cumsum(np.pad(energy, ((0, 0), (1, 0))), axis=1)
-    window_energy = cumulative[:, span:] - cumulative[:, :-span]
+    # Moving sum of ``span`` blocks as ``span`` shifted slices (a few adds over the block
+    # energies; no padded copy, no running sum and its cancellation).
+    n_windows = n_blocks - span + 1
+    window_energy = energy[:, :n_windows].copy()
+    for k in range(1, span):  # at most 3 slices
+        window_energy += energy[:, k:k + n_windows]
     taps = plan.analytic_template_conj
     reference = int(np.argmax(np.abs(taps))) - plan.analytic_offset  # template envelope maximum
     # Lag of each window (its centre minus the template's envelope maximum): only those where
