@@ -129,3 +129,20 @@ def test_dc_correlation_is_the_correlation_of_a_constant_record():
     # Several chunks of blocks (2500 blocks of 2 samples, chunks of 1024 blocks).
     expected = ((rows - dc[:, None]) ** 2).reshape(2, 2500, 2).sum(axis=2)
     assert np.allclose(block_energies(rows, 2, 2500, dc), expected, rtol=1e-12, atol=0.0)
+
+
+def test_first_crossings_at_part_and_block_boundaries_match_a_brute_force_scan():
+    # Crossings at the first/last sample of a 1024-sample part and of a 16384-sample block,
+    # rows crossing in different blocks (the pending rows change between blocks), one
+    # crossing downwards only, and a record length that leaves a ragged final block.
+    rng = np.random.default_rng(8)
+    n = 100_001
+    positions = [0, 1023, 1024, 16383, 16384, 99_999]
+    rows = rng.standard_normal((len(positions), n)) * 0.1 - 0.4
+    for r, i in enumerate(positions):
+        rows[r, i] += 5.0 if r % 2 else -5.0
+    offset = np.full(len(positions), -0.4)
+    level = np.full(len(positions), 3.0)
+    expected = [int(np.argmax(h)) if h.any() else -1 for h in np.abs(rows - offset[:, None]) >= level[:, None]]
+    assert expected == positions
+    assert first_crossings(rows, level, offset).tolist() == positions

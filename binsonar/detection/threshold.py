@@ -19,9 +19,9 @@ from binsonar.recording import RecordingError, Template
 
 # The search for the first crossing proceeds in blocks of _BLOCK samples (all channels at
 # once) and stops at the first block where every channel has crossed. A block of a row is
-# viewed as (_BLOCK // _COLUMNS, _COLUMNS) samples and reduced over its first axis (element-wise
-# maxima and minima of contiguous vectors: SIMD, no temporaries the size of the block); only
-# a block whose column extremes cross is then scanned sample by sample.
+# viewed as (_BLOCK // _COLUMNS, _COLUMNS) samples, i.e. parts of _COLUMNS contiguous samples,
+# whose maxima and minima are taken (SIMD reductions, no temporaries the size of the block);
+# only the first part whose extremes cross is then scanned sample by sample.
 _COLUMNS = 1024
 _BLOCK = 16 * _COLUMNS
 
@@ -41,8 +41,8 @@ def first_crossings(
     Notes
     -----
     Exact: fl(x - c) is non-decreasing in x, so max(x) - c = max(x - c) and
-    c - min(x) = max(c - x) in floating point, and the coarse test on a block's extremes is
-    true exactly when some sample of the block satisfies the sample-wise test.
+    c - min(x) = max(c - x) in floating point, and the coarse test on a part's extremes is
+    true exactly when some sample of the part satisfies the sample-wise test.
     """
     n_rows, n = rows.shape
     offset = np.zeros(n_rows) if offset is None else np.asarray(offset, dtype=float)
@@ -52,16 +52,20 @@ def first_crossings(
         stop = min(start + _BLOCK, n)
         width = stop - start
         columns = _COLUMNS if width % _COLUMNS == 0 else width  # the ragged end: one long row
-        source = rows if pending.size == n_rows else rows[pending]  # a view while all are pending
-        view = source[:, start:stop].reshape(pending.size, width // columns, columns)
+        # A view while all rows are pending, else a copy of this block of the pending ones.
+        source = rows[:, start:stop] if pending.size == n_rows else rows[pending, start:stop]
+        view = source.reshape(pending.size, width // columns, columns)
         dc = offset[pending, np.newaxis]
         threshold = level[pending, np.newaxis]
-        hit = ((view.max(axis=1) - dc >= threshold) | (dc - view.min(axis=1) >= threshold)).any(axis=1)
+        crossed = (view.max(axis=2) - dc >= threshold) | (dc - view.min(axis=2) >= threshold)  # (rows, parts)
+        hit = crossed.any(axis=1)
         if hit.any():
             rows_hit = pending[hit]
-            magnitude = rows[rows_hit, start:stop] - offset[rows_hit, np.newaxis]
+            first = start + np.argmax(crossed[hit], axis=1) * columns  # the first part that crosses
+            index = first[:, np.newaxis] + np.arange(columns)
+            magnitude = rows[rows_hit[:, np.newaxis], index] - offset[rows_hit, np.newaxis]
             above = np.abs(magnitude, out=magnitude) >= level[rows_hit, np.newaxis]
-            found[rows_hit] = start + np.argmax(above, axis=1)
+            found[rows_hit] = first + np.argmax(above, axis=1)
         pending = pending[~hit]
         if pending.size == 0:
             break
