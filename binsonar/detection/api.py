@@ -333,7 +333,9 @@ def detect(
     ----------
     data : Recording or array_like
         Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples). Each
-        ping-channel's median (its DC offset) is removed first (``inputs.remove_median``).
+        ping-channel's median (its DC offset) is removed first (``inputs.remove_median``);
+        the methods in ``FOLDS_DC`` (threshold, local-matched) instead fold it into their
+        arithmetic, with the same result (to rounding) and no copy of the record.
     method : str
         One of ``METHODS``: "threshold", "energy", "matched", "whitened-matched",
         "local-matched", "dwt", "ca-cfar", "os-cfar", or the seed's "seed-1" ... "seed-9"
