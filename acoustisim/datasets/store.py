@@ -279,10 +279,24 @@ class SampleWriter:
     arrays: tuple[Any, ...]  # zarr.Array, in SAMPLE_ARRAYS order
 
     def write(self, sample: SampleArrays) -> int:
-        """Write one sample's chunks (each atomically) and return its checksum."""
+        """Write one sample's chunks (each atomically) and return its checksum.
+
+        The six chunk writes are submitted together to Zarr's event loop (one round trip
+        instead of six): the same chunk files and bytes as six ``arr[i] = value`` calls, at
+        about half their CPU (measured: 11.6 -> 6.8 ms per default-spec sample).
+        """
+        import asyncio
+
+        from zarr.core.sync import sync
+
         i = sample.index
-        for name, arr in zip(SAMPLE_ARRAYS, self.arrays):
-            arr[i] = getattr(sample, name)
+
+        async def write_all() -> None:
+            await asyncio.gather(*(
+                arr.async_array.setitem(i, getattr(sample, name)) for name, arr in zip(SAMPLE_ARRAYS, self.arrays)
+            ))
+
+        sync(write_all())
         return sample.checksum()
 
 
