@@ -151,7 +151,7 @@ def sample_checksum(values: Mapping[str, Any]) -> int:
         if name == "scene_json":
             h.update(str(value).encode("utf-8"))
         else:
-            h.update(np.ascontiguousarray(value).tobytes())
+            h.update(np.ascontiguousarray(value).reshape(-1).view(np.uint8))  # the bytes, no copy
     return int.from_bytes(h.digest(), "little")
 
 
