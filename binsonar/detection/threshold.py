@@ -48,6 +48,7 @@ def first_crossings(
     offset = np.zeros(n_rows) if offset is None else np.asarray(offset, dtype=float)
     found = np.full(n_rows, -1, dtype=np.intp)
     pending = np.arange(n_rows)
+    dc, threshold = offset[:, np.newaxis], level[:, np.newaxis]  # of the pending rows
     for start in range(0, n, _BLOCK):  # blocks of samples, vectorised inside
         stop = min(start + _BLOCK, n)
         width = stop - start
@@ -55,8 +56,6 @@ def first_crossings(
         # A view while all rows are pending, else a copy of this block of the pending ones.
         source = rows[:, start:stop] if pending.size == n_rows else rows[pending, start:stop]
         view = source.reshape(pending.size, width // columns, columns)
-        dc = offset[pending, np.newaxis]
-        threshold = level[pending, np.newaxis]
         crossed = (view.max(axis=2) - dc >= threshold) | (dc - view.min(axis=2) >= threshold)  # (rows, parts)
         hit = crossed.any(axis=1)
         if hit.any():
@@ -66,9 +65,10 @@ def first_crossings(
             magnitude = rows[rows_hit[:, np.newaxis], index] - offset[rows_hit, np.newaxis]
             above = np.abs(magnitude, out=magnitude) >= level[rows_hit, np.newaxis]
             found[rows_hit] = first + np.argmax(above, axis=1)
-        pending = pending[~hit]
-        if pending.size == 0:
-            break
+            pending = pending[~hit]
+            if pending.size == 0:
+                break
+            dc, threshold = offset[pending, np.newaxis], level[pending, np.newaxis]
     return found
 
 
