@@ -7,6 +7,7 @@ Usage
 
 Default mode, all measured in this run on the same samples of the spec:
   - baseline: build + simulate each sample in a plain Python loop (no Dask, no Zarr);
+  - the in-process task's stages (simulate, labels, write + checksum): median CPU per sample;
   - in-process generate (``--workers 0``): the baseline plus the Zarr writes and completion;
   - Dask LocalCluster with 1 and 2 worker processes, each warmed up first on a 2-sample run
     (imports and caches; cluster start-up is not per-sample cost).
@@ -75,6 +76,28 @@ def _worker_cpu_s(client) -> float:
     return sum(client.run(cpu).values())
 
 
+def stage_breakdown(spec, samples, workdir: Path) -> None:
+    """Median CPU per sample of each stage of the in-process task: simulate, labels, write."""
+    from acoustisim.datasets.generate import open_or_create
+    from acoustisim.datasets.labels import sample_arrays, vocabularies
+
+    vocab = vocabularies(spec)
+    writer = open_or_create(spec, workdir / "stages.zarr", vocab).writer()
+    cpu: dict[str, list[float]] = {"simulate": [], "labels": [], "write + checksum": []}
+    for sample in samples:
+        c0 = time.process_time()
+        scene, simulation, snr_reference = simulate_sample(spec, sample)
+        c1 = time.process_time()
+        arrays = sample_arrays(spec, sample, scene, simulation, vocab, snr_reference)
+        c2 = time.process_time()
+        writer.write(arrays)
+        c3 = time.process_time()
+        for name, value in zip(cpu, (c1 - c0, c2 - c1, c3 - c2)):
+            cpu[name].append(value)
+    print("in-process task stages, median CPU per sample: " + ", ".join(
+        f"{name} {statistics.median(values) * 1e3:.1f} ms" for name, values in cpu.items()))
+
+
 def throughput(spec_path: Path, n: int, workdir: Path) -> None:
     from distributed import Client
 
@@ -94,6 +117,7 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
     print(f"baseline plain loop (build + simulate): median {statistics.median(times) * 1e3:.1f} ms/sample, "
           f"{base_rate:.3f} samples/s, {loop_cpu / n * 1e3:.1f} ms CPU/sample")
 
+    stage_breakdown(spec, samples, workdir)
     generate(dataclasses.replace(spec, n_samples=2), workdir / "warm0.zarr", workers=0, progress=False)
     out = workdir / "w0.zarr"
     t0, c0 = time.perf_counter(), time.process_time()

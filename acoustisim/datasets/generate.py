@@ -350,6 +350,12 @@ LOCAL_CLUSTER_CONFIG = {
     # and faulted in afresh. Measured on 10 default-spec samples in one worker: 1.08 s of
     # system time with it, 0.02 s without (user time 2.0 s either way). Keep glibc's default.
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    # Every server (scheduler, nannies: all in the driver process; workers) checks every 20 ms
+    # that its event loop is not blocked, and each nanny polls its worker's memory every
+    # 100 ms. Once a second is plenty for tasks of ~0.1-1 s: the idle driver's CPU falls from
+    # 2.7 % to 0.6 % of a core with one worker (measured, same run).
+    "distributed.admin.tick.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
 }
 
 
