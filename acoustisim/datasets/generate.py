@@ -6,8 +6,9 @@ Order of work
    runs: a spec whose placements cannot be satisfied fails here, naming the key.
 2. The store is created, or, if it exists, checked to come from the same spec; samples
    already recorded complete are skipped (resume).
-3. One task per missing sample: build the scene, simulate, write the sample's own chunks
-   (each chunk file atomically) and return its checksum. Tasks run on a
+3. One task per few missing samples (:func:`samples_per_task`): for each, build the scene,
+   simulate, write the sample's own chunks (each chunk file atomically); return the
+   checksums. Tasks run on a
    ``distributed.LocalCluster`` of ``workers`` single-threaded processes (default), on the
    scheduler at ``scheduler`` (its workers must see the store's path), or, with
    ``workers=0``, in this process without Dask.
@@ -15,7 +16,8 @@ Order of work
    returned. A run killed at any moment leaves no sample marked complete that is not fully
    written; running the same command again does the rest.
 
-At most ``4 x workers`` tasks are in flight, so memory stays flat however many samples.
+At most ``2 x workers`` tasks (each of at most :data:`MAX_SAMPLES_PER_TASK` samples) are in
+flight, so memory stays flat however many samples.
 """
 
 from __future__ import annotations
@@ -50,6 +52,10 @@ FLUSH_INTERVAL_S = 1.0
 """Longest time completed samples wait before the driver records them."""
 FLUSH_BATCH = 256
 """Most completed samples recorded in one write."""
+MAX_SAMPLES_PER_TASK = 4
+"""Samples one Dask task makes in turn. The driver (which hosts a LocalCluster's scheduler)
+spends ~10-20 ms of CPU per task whatever its size (measured with 0.25 s sleeping tasks on
+this machine), ~5-10 % of a default-spec sample; four samples per task divide that by four."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +65,9 @@ class SampleResult:
     index: int
     checksum: int
     elapsed_s: float
+    simulate_cpu_s: float = 0.0
+    """CPU time (s) of the thread that built and simulated the sample (the plain simulator's
+    cost: the reference of the overhead figures in ``benchmarks/bench_dataset.py``)."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +94,9 @@ class GenerateReport:
         Worker processes used (0: in-process; the cluster's count with a scheduler).
     scheduler : str
         "in-process", "local-cluster" or the scheduler address.
+    simulate_cpu_s : float
+        Sum over the samples made by this run of the CPU time (s) their task's thread spent
+        building and simulating them (the rest of the run's CPU is the dataset machinery).
     """
 
     path: str
@@ -97,6 +109,7 @@ class GenerateReport:
     samples_per_s: float
     workers: int
     scheduler: str
+    simulate_cpu_s: float = 0.0
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -183,11 +196,37 @@ def simulate_sample(spec: DatasetSpec, sample: SampleDescription) -> tuple[Any, 
 
 def make_sample(spec: DatasetSpec, sample: SampleDescription, writer: SampleWriter, vocab: Vocabularies) -> SampleResult:
     """The task: simulate one sample, write its chunks, return its checksum."""
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.thread_time()
     scene, simulation, snr_reference = simulate_sample(spec, sample)
+    simulate_cpu = time.thread_time() - cpu_start  # the simulator is single-threaded (checked: = process time)
     arrays = sample_arrays(spec, sample, scene, simulation, vocab, snr_reference)
     checksum = writer.write(arrays)
-    return SampleResult(sample.index, checksum, time.perf_counter() - start)
+    return SampleResult(sample.index, checksum, time.perf_counter() - start, simulate_cpu)
+
+
+def make_samples(spec: DatasetSpec, samples: list[SampleDescription], writer: SampleWriter,
+                 vocab: Vocabularies) -> list[SampleResult]:
+    """The Dask task: :func:`make_sample` for a few samples in turn (fewer tasks, less overhead).
+
+    Raises
+    ------
+    RuntimeError
+        Naming the sample that failed (the batch's earlier samples are written but, as the
+        task does not return, not recorded: a resume redoes them identically).
+    """
+    results = []
+    for sample in samples:
+        try:
+            results.append(make_sample(spec, sample, writer, vocab))
+        except Exception as exc:
+            raise RuntimeError(f"sample {sample.index}: {type(exc).__name__}: {exc}") from exc
+    return results
+
+
+def samples_per_task(n_todo: int, n_workers: int) -> int:
+    """Samples per Dask task: up to :data:`MAX_SAMPLES_PER_TASK`, while keeping at least about
+    four tasks per worker (load balance at the end of a short run)."""
+    return max(1, min(MAX_SAMPLES_PER_TASK, -(-n_todo // (4 * max(n_workers, 1)))))
 
 
 def store_shape(spec: DatasetSpec) -> StoreShape:
@@ -274,9 +313,11 @@ class _Recorder:
         self.pending: list[SampleResult] = []
         self.last = time.monotonic()
         self.n_recorded = 0
+        self.simulate_cpu_s = 0.0
 
     def add(self, result: SampleResult) -> None:
         self.pending.append(result)
+        self.simulate_cpu_s += result.simulate_cpu_s
         self.bar.update(1)
         if len(self.pending) >= FLUSH_BATCH or time.monotonic() - self.last >= FLUSH_INTERVAL_S:
             self.flush()
@@ -298,20 +339,22 @@ def _run_in_process(spec: DatasetSpec, samples: list[SampleDescription], writer:
 
 
 def _run_on_client(client: Any, spec: DatasetSpec, samples: list[SampleDescription], writer: SampleWriter,
-                   vocab: Vocabularies, recorder: _Recorder, window: int) -> None:
+                   vocab: Vocabularies, recorder: _Recorder, n_workers: int) -> None:
     from distributed import as_completed
 
     spec_f, writer_f, vocab_f = client.scatter([spec, writer, vocab], broadcast=True)
-    queue = iter(samples)
+    per_task = samples_per_task(len(samples), n_workers)
+    window = 2 * max(n_workers, 1)  # one task running and one queued per worker
+    queue = iter([samples[k:k + per_task] for k in range(0, len(samples), per_task)])
     futures = as_completed()
-    index_of: dict[str, int] = {}
+    index_of: dict[str, list[int]] = {}
 
     def submit_next() -> None:
-        sample = next(queue, None)
-        if sample is not None:
-            future = client.submit(make_sample, spec_f, sample, writer_f, vocab_f, pure=False,
-                                   key=f"dataset-sample-{sample.index}-{time.monotonic_ns()}")
-            index_of[future.key] = sample.index
+        batch = next(queue, None)
+        if batch is not None:
+            future = client.submit(make_samples, spec_f, batch, writer_f, vocab_f, pure=False,
+                                   key=f"dataset-samples-{batch[0].index}-{time.monotonic_ns()}")
+            index_of[future.key] = [sample.index for sample in batch]
             futures.add(future)
 
     for _ in range(window):
@@ -319,13 +362,14 @@ def _run_on_client(client: Any, spec: DatasetSpec, samples: list[SampleDescripti
     try:
         for future in futures:
             try:
-                result = future.result()
+                results = future.result()
             except Exception as exc:
-                raise RuntimeError(f"sample {index_of.get(future.key)} failed: {type(exc).__name__}: {exc} "
+                raise RuntimeError(f"task of samples {index_of.get(future.key)} failed: {type(exc).__name__}: {exc} "
                                    "(samples completed so far are recorded; rerun to resume)") from exc
             index_of.pop(future.key, None)
             future.release()
-            recorder.add(result)
+            for result in results:
+                recorder.add(result)
             submit_next()
     finally:
         for future in list(futures.futures):
@@ -450,7 +494,7 @@ def generate(
             if client is None:
                 _run_in_process(spec, todo, writer, vocab, recorder)
             else:
-                _run_on_client(client, spec, todo, writer, vocab, recorder, window=4 * max(n_workers, 1))
+                _run_on_client(client, spec, todo, writer, vocab, recorder, n_workers)
         finally:
             recorder.flush()
             bar.close()
@@ -477,7 +521,9 @@ def generate(
         samples_per_s=recorder.n_recorded / elapsed if elapsed > 0 else float("nan"),
         workers=n_workers,
         scheduler=mode,
+        simulate_cpu_s=recorder.simulate_cpu_s,
     )
 
 
-__all__ = ["GenerateReport", "SampleResult", "SpecError", "code_version", "generate", "make_sample", "simulate_sample"]
+__all__ = ["GenerateReport", "SampleResult", "SpecError", "code_version", "generate", "make_sample", "make_samples",
+           "simulate_sample"]
