@@ -34,6 +34,7 @@ source solver's business.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +46,8 @@ from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, PATH_DTYPE, empty_paths_array
+from acoustisim.propagation.ray_threads import resolve_threads, run_in_order
+from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
 
 UNIFORM_FRACTION = 0.5
 """Share a of the rays drawn uniformly over the sphere; the rest follow D^2."""
@@ -89,8 +92,18 @@ def speckle_polar(points_m: NDArray[np.float64], seed: int) -> tuple[NDArray[np.
     phase : ndarray, shape (n,)
         arg X in [-pi, pi) (rad), uniform.
     """
-    cells = np.floor(np.asarray(points_m, dtype=float) / SPECKLE_CELL_M).astype(np.int64).view(np.uint64)
-    key = (cells[:, 0] * _PRIME_X) ^ (cells[:, 1] * _PRIME_Y) ^ (cells[:, 2] * _PRIME_Z)
+    points = np.asarray(points_m, dtype=float)
+    return _speckle_components(points[:, 0], points[:, 1], points[:, 2], seed)
+
+
+def _speckle_components(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64],
+                        seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`speckle_polar` of points given as coordinate arrays (n,) x 3 (m)."""
+    key = None
+    for column, prime in ((x, _PRIME_X), (y, _PRIME_Y), (z, _PRIME_Z)):
+        cell = np.floor(column / SPECKLE_CELL_M).astype(np.int64).view(np.uint64)
+        cell *= prime
+        key = cell if key is None else np.bitwise_xor(key, cell, out=key)
     h = _splitmix64(key ^ _splitmix64(np.array([seed], dtype=np.uint64)))
     h2 = _splitmix64(h)
     u1 = (h >> np.uint64(11)).astype(np.float64) * 2.0**-53
@@ -128,12 +141,146 @@ def _basis(axis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.f
     return u, np.cross(axis, u)
 
 
-def _frames(normals: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per-row orthonormal tangents (n, 3) x 2 of unit normals (n, 3)."""
-    helper = np.where(np.abs(normals[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    u = np.cross(normals, helper)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    return u, np.cross(normals, u)
+def _tangents(nx: NDArray[np.float64], ny: NDArray[np.float64], nz: NDArray[np.float64]) -> tuple[
+        NDArray[np.float64], NDArray[np.float64]]:
+    """Orthonormal tangents (3, n) x 2 of unit normals given as columns (n,) x 3.
+
+    t1 = n x h / |n x h| with h = x (or y where |n_x| >= 0.9), t2 = n x t1.
+    """
+    use_x = np.abs(nx) < 0.9
+    # n x (1, 0, 0) = (0, nz, -ny);  n x (0, 1, 0) = (-nz, 0, nx)
+    t1 = np.empty((3, nx.size))
+    np.multiply(-nz, ~use_x, out=t1[0])
+    np.copyto(t1[1], np.where(use_x, nz, 0.0))
+    np.copyto(t1[2], np.where(use_x, -ny, nx))
+    t1 /= np.sqrt(t1[0] * t1[0] + t1[1] * t1[1] + t1[2] * t1[2])
+    t2 = np.empty_like(t1)
+    np.subtract(ny * t1[2], nz * t1[1], out=t2[0])
+    np.subtract(nz * t1[0], nx * t1[2], out=t2[1])
+    np.subtract(nx * t1[1], ny * t1[0], out=t2[2])
+    return t1, t2
+
+
+def _unit_circle(phi: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """cos(phi), sin(phi) (n,) for a uniformly random azimuth ``phi`` (rad), exactly on the unit circle.
+
+    The trigonometry is done in float32 (seven times faster than float64 in numpy here), then
+    the pair is rescaled to unit length in float64: the azimuth moves by ~1e-7 rad, which for a
+    uniform azimuth changes nothing but the draw, and the directions stay unit to 1e-16.
+    """
+    phi32 = phi.astype(np.float32)
+    c = np.cos(phi32).astype(np.float64)
+    s = np.sin(phi32).astype(np.float64)
+    scale = c * c
+    scale += s * s
+    np.sqrt(scale, out=scale)
+    c /= scale
+    s /= scale
+    return c, s
+
+
+@dataclass(frozen=True, eq=False)
+class _LobeTable:
+    """The two sampling densities of the transmitted rays, the lobe one tabulated in cos(theta).
+
+    The lobe density is D^2 averaged over :data:`_COS_CELLS` cells of equal width in
+    cos(theta), so that sampling a cell, then cos(theta) uniformly in it, has an exactly
+    known pdf. A share :data:`UNIFORM_FRACTION` of the rays is drawn uniformly over the sphere,
+    the rest from the lobe density, in fixed numbers (the first of each chunk uniform): with
+    N_u and N_l rays from each, a ray's solid angle 1 / (N_u / 4 pi + N_l p_lobe(w)) makes the
+    estimator unbiased (the balance heuristic of multiple importance sampling, Veach 1997,
+    eq. 9.13); it equals 1 / (N pdf) of the mixture pdf of the module docstring, with less
+    variance than drawing each ray's density at random.
+
+    Attributes
+    ----------
+    edges : ndarray, shape (_COS_CELLS + 1,)
+        Cell edges in cos(theta), from the axis (1) backwards (-1).
+    mass : ndarray, shape (_COS_CELLS,)
+        Cumulative lobe power over the cells.
+    power : ndarray, shape (_COS_CELLS,)
+        Lobe power of each cell (0 behind the piston).
+    lobe_pdf : ndarray, shape (_COS_CELLS,)
+        The lobe pdf (per steradian) of a direction in each cell.
+    last_cell : int
+        The last cell with power (the lobe density's support ends there).
+    """
+
+    edges: NDArray[np.float64]
+    mass: NDArray[np.float64]
+    power: NDArray[np.float64]
+    lobe_pdf: NDArray[np.float64]
+    last_cell: int
+
+    @classmethod
+    def create(cls, context: SolveContext) -> "_LobeTable":
+        """The table for ``context``'s piston radius, centre frequency and sound speed."""
+        edges = np.linspace(1.0, -1.0, _COS_CELLS + 1)  # cos(theta) from the axis backwards
+        centres = np.arccos(0.5 * (edges[1:] + edges[:-1]))
+        power = piston_directivity(centres, context.centre_frequency_hz, context.piston_radius_m,
+                                   context.sound_speed_m_s) ** 2
+        # the lobe density covers the forward hemisphere only (2 J1(x)/x, x = k a sin(theta), is
+        # symmetric about 90 degrees, a baffled piston radiates nothing behind); the back is
+        # left to the uniform share
+        power = np.where(centres < 0.5 * np.pi, power, 0.0)
+        mass = np.cumsum(power)
+        lobe_pdf = power / (mass[-1] * 2.0 * np.pi * (2.0 / _COS_CELLS))  # per steradian, per cell
+        return cls(edges, mass, power, lobe_pdf, int(np.flatnonzero(power > 0.0)[-1]))
+
+    @staticmethod
+    def uniform_count(n: int) -> int:
+        """Rays drawn uniformly among ``n`` of one chunk (at least one: a lone ray is uniform)."""
+        return max(1, int(round(UNIFORM_FRACTION * n))) if n else 0
+
+    def draw(self, n: int, totals: tuple[int, int], frame: tuple[NDArray[np.float64], ...],
+             rng: np.random.Generator) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Directions of ``n`` rays as components (3, n), and their solid angles (n,) (sr).
+
+        ``frame`` = (e1, e2, boresight): the transmitter's orthonormal frame (see :func:`_basis`).
+
+        The first :meth:`uniform_count` rays are uniform over the sphere, the others follow the
+        lobe; ``totals`` = (N_u, N_l) over every chunk of the solve set the solid angles.
+        Two random numbers per ray: the cell and the position in it come from one (the
+        position of u M within the cell's share of the cumulative mass M is uniform), the
+        azimuth from the other.
+        """
+        width = 2.0 / _COS_CELLS
+        n_uniform = self.uniform_count(n)
+        u = rng.random((2, n))
+        cos_t = np.empty(n)
+        np.multiply(u[0, :n_uniform], -2.0, out=cos_t[:n_uniform])
+        cos_t[:n_uniform] += 1.0
+        cell_of = np.empty(n, dtype=np.int64)
+        x = u[0, n_uniform:] * self.mass[-1]
+        cell = np.searchsorted(self.mass, x, side="right")
+        np.minimum(cell, self.last_cell, out=cell)
+        cell_of[n_uniform:] = cell
+        within = x - self.mass[cell]
+        within /= self.power[cell]
+        within += 1.0  # (x - mass before the cell) / power, in [0, 1] up to rounding
+        np.clip(within, 0.0, 1.0, out=within)
+        within *= -width
+        np.add(self.edges[cell], within, out=cos_t[n_uniform:])
+        sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
+        a, b = _unit_circle(2.0 * np.pi * u[1])
+        a *= sin_t
+        b *= sin_t
+        e1, e2, boresight = frame
+        # component by component (contiguous 1-D passes; no BLAS matmul, whose threads
+        # contend on a busy machine, and no (n, 3) broadcasts over a length-3 inner axis)
+        directions = np.empty((3, n))
+        for k in range(3):  # the three coordinates
+            column = directions[k]
+            np.multiply(a, e1[k], out=column)
+            column += b * e2[k]
+            column += cos_t * boresight[k]
+        uniform_cells = ((1.0 - cos_t[:n_uniform]) * (_COS_CELLS / 2.0)).astype(np.int64)
+        np.minimum(uniform_cells, _COS_CELLS - 1, out=cell_of[:n_uniform])
+        n_u, n_l = totals
+        density = self.lobe_pdf[cell_of]
+        density *= n_l
+        density += n_u / (4.0 * np.pi)
+        return directions, np.reciprocal(density, out=density)
 
 
 def sample_directions(
@@ -158,38 +305,10 @@ def sample_directions(
     solid_angle : ndarray, shape (n,)
         dOmega = 1 / (n pdf) (sr); sums to 4 pi in expectation.
     """
-    # the lobe density: D^2 averaged over _COS_CELLS cells of equal width in cos(theta), so
-    # that sampling a cell, then cos(theta) uniformly in it, has an exactly known pdf
-    edges = np.linspace(1.0, -1.0, _COS_CELLS + 1)  # cos(theta) from the axis backwards
-    centres = np.arccos(0.5 * (edges[1:] + edges[:-1]))
-    power = piston_directivity(centres, context.centre_frequency_hz, context.piston_radius_m, context.sound_speed_m_s) ** 2
-    # the lobe density covers the forward hemisphere only (2 J1(x)/x, x = k a sin(theta), is
-    # symmetric about 90 degrees, a baffled piston radiates nothing behind); the back is left
-    # to the uniform share
-    power = np.where(centres < 0.5 * np.pi, power, 0.0)
-    mass = np.cumsum(power)
-    width = 2.0 / _COS_CELLS
-    lobe_pdf = power / (mass[-1] * 2.0 * np.pi * width)  # per steradian, per cell
-    u = rng.random((4, n))
-    cos_t = 1.0 - 2.0 * u[1]  # the uniform share
-    lobe = np.flatnonzero(u[0] >= UNIFORM_FRACTION)
-    cell = np.minimum(np.searchsorted(mass, u[1, lobe] * mass[-1], side="right"), _COS_CELLS - 1)
-    cos_t[lobe] = edges[cell] - u[2, lobe] * width
-    sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
-    phi = 2.0 * np.pi * u[3]
-    e1, e2 = _basis(boresight)
-    a, b = sin_t * np.cos(phi), sin_t * np.sin(phi)
-    # column by column (contiguous 1-D passes; no BLAS matmul, whose threads contend on a
-    # busy 2-core machine, and no (n, 3) broadcasts over a length-3 inner axis)
-    directions = np.empty((n, 3))
-    for k in range(3):  # the three coordinates
-        column = a * e1[k]
-        column += b * e2[k]
-        column += cos_t * boresight[k]
-        directions[:, k] = column
-    cell_of = np.minimum(((1.0 - cos_t) * (_COS_CELLS / 2.0)).astype(np.int64), _COS_CELLS - 1)
-    pdf = UNIFORM_FRACTION / (4.0 * np.pi) + (1.0 - UNIFORM_FRACTION) * lobe_pdf[cell_of]
-    return directions, 1.0 / (n * pdf)
+    n_uniform = _LobeTable.uniform_count(n)
+    axis = np.asarray(boresight, dtype=float)
+    directions, solid_angle = _LobeTable.create(context).draw(n, (n_uniform, n - n_uniform), (*_basis(axis), axis), rng)
+    return np.ascontiguousarray(directions.T), solid_angle
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,13 +358,18 @@ class ObjectScreen:
 
     def near(self, points_m: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Whether the legs from each point (n, 3) to the receivers may cross an object (n,)."""
-        n = points_m.shape[0]
+        return self.near_components(points_m[:, 0], points_m[:, 1], points_m[:, 2])
+
+    def near_components(self, x: NDArray[np.float64], y: NDArray[np.float64],
+                        z: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """:meth:`near` for points given as coordinate arrays (n,) x 3 (m)."""
+        n = x.shape[0]
         if self.lo is None:
             return np.ones(n, dtype=bool)
         if self.lo.shape[0] == 0:
             return np.zeros(n, dtype=bool)
         # float32 columns: the rounding (1e-6 m over a 10 m leg) is far inside the margin
-        start = [np.ascontiguousarray(points_m[:, k], dtype=np.float32) for k in range(3)]
+        start = [np.asarray(column, dtype=np.float32) for column in (x, y, z)]
         span = [np.float32(self.centre[k]) - start[k] for k in range(3)]
         for column in span:  # a (near-)zero span, a leg in a slab's plane: no inf or 0 x inf
             column[np.abs(column) < 1e-30] = np.float32(1e-30)
@@ -339,20 +463,355 @@ class DiffuseEvents:
     arrival_dir: NDArray[np.float64]
 
 
-def _concatenate(parts: list[NDArray[Any]], empty: NDArray[Any]) -> NDArray[Any]:
-    if not parts:
-        return empty
-    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+CHUNK_RAYS = 1 << 14
+"""Rays per chunk of work. Chunks are traced independently (each with its own random stream,
+seeded by ``(config.seed, chunk index)``) and their events concatenated in chunk order, so the
+result does not depend on the number of threads that trace them."""
+
+VISIBILITY_MODES: tuple[str, ...] = ("exact", "centre")
+"""How the legs scattering point -> receiver are tested for occlusion: ``"exact"`` tests every
+receiver's leg; ``"centre"`` tests only the leg to the receiver nearest the receivers' centroid
+(the thesis sonar's centre transducer) and shares the answer with the other receivers (an
+approximation: a point can be hidden from one receiver and not from another 65 mm away)."""
 
 
-def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
+@dataclass(frozen=True, eq=False)
+class _Tracer:
+    """What every chunk of rays reads (shared, read-only, by the threads).
+
+    Attributes
+    ----------
+    raycaster : RayCaster
+    lobe : _LobeTable
+    mu, plane_offset : ndarray, shape (n_triangles,)
+        Lambert mu of each triangle's surface; its plane's offset (m).
+    normal : ndarray, shape (3, n_triangles)
+        Unit normals as components.
+    surface : ndarray of int64, shape (n_triangles,)
+    transmitter : ndarray, shape (3,)
+    frame : tuple of ndarray, shape (3,)
+        (e1, e2, boresight): the transmitter's orthonormal frame.
+    receivers : ndarray, shape (n_rx, 3)
+    screen : ObjectScreen
+    at_transmitter : ndarray of bool, shape (n_rx,)
+        Receivers at the transmitter: a first hit's leg back to them is its own ray, clear.
+    reference : int or None
+        The receiver whose occlusion is shared by all (``"centre"`` visibility), None (exact).
+    seed, bounces, n_rays : int
+    totals : tuple of int
+        Rays drawn uniformly and from the lobe, over all chunks (see :class:`_LobeTable`).
+    """
+
+    raycaster: RayCaster
+    lobe: _LobeTable
+    mu: NDArray[np.float64]
+    plane_offset: NDArray[np.float64]
+    normal: NDArray[np.float64]
+    surface: NDArray[np.int64]
+    transmitter: NDArray[np.float64]
+    frame: tuple[NDArray[np.float64], ...]
+    receivers: NDArray[np.float64]
+    screen: ObjectScreen
+    at_transmitter: NDArray[np.bool_]
+    reference: int | None
+    seed: int
+    bounces: int
+    n_rays: int
+    totals: tuple[int, int]
+
+
+@dataclass(frozen=True)
+class _ChunkEvents:
+    """:class:`DiffuseEvents` of one chunk of rays, with chunk-local event indices and vectors as
+    components: ``points``, ``departure`` (3, m), ``arrival`` (3, k)."""
+
+    points: NDArray[np.float64]
+    surface: NDArray[np.int64]
+    parent: NDArray[np.int64]
+    bounce: NDArray[np.int64]
+    departure: NDArray[np.float64]
+    event: NDArray[np.int64]
+    channel: NDArray[np.int64]
+    length: NDArray[np.float64]
+    gain: NDArray[np.float64]
+    phase: NDArray[np.float64]
+    arrival: NDArray[np.float64]
+
+
+def _join(parts: list[NDArray[Any]], axis: int = 0) -> NDArray[Any]:
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=axis)
+
+
+def _columns(components: NDArray[np.float64], index: NDArray[np.int64]) -> NDArray[np.float64]:
+    """``components[:, index]`` of a (3, n) array, one 1-D gather per row (numpy's 2-D fancy
+    indexing along the last axis is several times slower)."""
+    out = np.empty((3, index.size))
+    for k in range(3):  # the three coordinates
+        out[k] = components[k][index]
+    return out
+
+
+def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | None, n: int) -> NDArray[np.float32]:
+    """A C-contiguous float32 (n, 3) array of components (3, n) (or (3, 1), broadcast) minus ``shift``."""
+    out = np.empty((n, 3), dtype=np.float32)
+    for k in range(3):  # the three coordinates
+        if shift is None:
+            out[:, k] = components[k]
+        else:
+            np.subtract(components[k], shift[k], out=out[:, k], casting="unsafe")
+    return out
+
+
+def _receptions(tracer: _Tracer, bounce: int, points: NDArray[np.float64], normal: NDArray[np.float64]) -> tuple[
+        NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Next-event estimation from scattering points (3, h) with normals (3, h) to every receiver.
+
+    Returns
+    -------
+    hit, channel : ndarray of int64, shape (k,)
+        The (point, receiver) pairs whose receiver is in front of the face and whose leg is
+        clear, point-major (the receivers of one point adjacent).
+    r2 : ndarray, shape (k,)
+        Leg lengths (m).
+    cos_r2 : ndarray, shape (k,)
+        r2 sin(g_s) (m).
+    arrival : ndarray, shape (3, k)
+        Unit leg directions (point -> receiver).
+    """
+    rx = tracer.receivers
+    n_rx, h = rx.shape[0], points.shape[1]
+    to_rx = np.empty((3, n_rx, h))  # component, receiver, point
+    r2 = np.empty((n_rx, h))
+    cos_r2 = np.empty((n_rx, h))
+    scratch = np.empty(h)
+    for j in range(n_rx):  # the receivers (three)
+        for k in range(3):  # the three coordinates
+            np.subtract(rx[j, k], points[k], out=to_rx[k, j])
+        np.multiply(to_rx[0, j], to_rx[0, j], out=r2[j])
+        np.multiply(to_rx[0, j], normal[0], out=cos_r2[j])
+        for k in (1, 2):
+            np.multiply(to_rx[k, j], to_rx[k, j], out=scratch)
+            r2[j] += scratch
+            np.multiply(to_rx[k, j], normal[k], out=scratch)
+            cos_r2[j] += scratch
+    np.sqrt(r2, out=r2)
+    # (point, receiver) pairs in front of the scattering face, point-major (h, n_rx)
+    clear = np.empty((h, n_rx), dtype=bool)
+    for j in range(n_rx):  # the receivers (three)
+        np.greater(cos_r2[j], 0.0, out=clear[:, j])
+    # legs that may cross an object (boundaries cannot block them: see ObjectScreen)
+    near = tracer.screen.near_components(points[0], points[1], points[2])
+    tested = [j for j in range(n_rx) if not (bounce == 0 and tracer.at_transmitter[j])]
+    if tracer.reference is not None:  # one receiver's leg decides for all
+        tested = [tracer.reference] if tracer.reference in tested else []
+    eps = DEFAULT_EPS_M
+    legs = []  # per tested receiver: the points whose leg Embree tests
+    for j in tested:
+        candidate = clear[:, j] & near
+        candidate &= r2[j] > 2.0 * eps  # shorter legs are never blocked
+        legs.append(np.flatnonzero(candidate))
+    n_legs = sum(leg.size for leg in legs)
+    if n_legs:
+        shift = tracer.raycaster.shift_m
+        start32 = np.empty((n_legs, 3), dtype=np.float32)
+        unit32 = np.empty((n_legs, 3), dtype=np.float32)
+        length32 = np.empty(n_legs, dtype=np.float32)
+        bounds = np.cumsum([0] + [leg.size for leg in legs])
+        for j, leg, a, b in zip(tested, legs, bounds[:-1], bounds[1:]):
+            length = r2[j][leg]
+            np.subtract(length, 2.0 * eps, out=length32[a:b], casting="unsafe")
+            for k in range(3):  # the three coordinates
+                unit = to_rx[k, j][leg]
+                unit /= length
+                unit32[a:b, k] = unit
+                unit *= eps
+                unit += points[k][leg]
+                np.subtract(unit, shift[k], out=start32[a:b, k], casting="unsafe")
+        blocked = tracer.raycaster.occluded_segments32(start32, unit32, length32)
+        if tracer.reference is not None:
+            clear[legs[0][blocked[bounds[0]:bounds[1]]]] = False  # hidden from every receiver
+        else:
+            for j, leg, a, b in zip(tested, legs, bounds[:-1], bounds[1:]):
+                clear[leg[blocked[a:b]], j] = False
+    selected = np.flatnonzero(clear)  # point-major
+    hit = selected // n_rx
+    channel = selected - hit * n_rx
+    source = channel * h
+    source += hit  # into the (n_rx, h) arrays
+    r2_sel = r2.reshape(-1)[source]
+    arrival = np.empty((3, selected.size))
+    for k in range(3):  # the three coordinates
+        np.divide(to_rx[k].reshape(-1)[source], r2_sel, out=arrival[k])
+    return hit, channel, r2_sel, cos_r2.reshape(-1)[source], arrival
+
+
+def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
+    """Trace chunk ``chunk`` (rays ``chunk CHUNK_RAYS`` onwards) through every bounce."""
+    n = min(CHUNK_RAYS, tracer.n_rays - chunk * CHUNK_RAYS)
+    rng = np.random.default_rng([tracer.seed, chunk])
+    raycaster = tracer.raycaster
+    shift = raycaster.shift_m
+    directions, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng)
+    departure = directions
+    origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
+    travelled: NDArray[np.float64] | float = 0.0
+    parent = np.full(n, -1, dtype=np.int64)
+    ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
+    rc: dict[str, list[NDArray[Any]]] = {k: [] for k in ("event", "channel", "length", "gain", "phase", "arrival")}
+    next_event = 0
+    for bounce in range(tracer.bounces):  # a handful of bounces
+        m = directions.shape[1]
+        triangle = raycaster.first_hit_triangles32(_float32_rows(origins, shift, m), _float32_rows(directions, None, m))
+        missed = triangle < 0
+        triangle = triangle.astype(np.int64)
+        triangle[missed] = 0
+        mu = tracer.mu[triangle]
+        mu[missed] = 0.0
+        normal = _columns(tracer.normal, triangle)
+        cos_in = directions[0] * normal[0]
+        cos_in += directions[1] * normal[1]
+        cos_in += directions[2] * normal[2]
+        # a scattering surface hit from its front
+        keep = (mu > 0.0) & (cos_in < 0.0)
+        n_hits = int(np.count_nonzero(keep))
+        if n_hits == 0:
+            break
+        if n_hits < m:
+            live = np.flatnonzero(keep)
+            triangle, mu, cos_in, weight, parent = triangle[live], mu[live], cos_in[live], weight[live], parent[live]
+            normal, directions, departure = _columns(normal, live), _columns(directions, live), _columns(departure, live)
+            if origins.shape[1] > 1:
+                origins = _columns(origins, live)
+            if bounce:
+                travelled = travelled[live]
+        # the hit on the triangle's plane, in float64 (Embree only chose the triangle)
+        distance = tracer.plane_offset[triangle]
+        for k in range(3):  # the three coordinates
+            distance -= normal[k] * origins[k]
+        distance /= cos_in
+        points = np.empty((3, n_hits))
+        for k in range(3):  # the three coordinates
+            np.multiply(directions[k], distance, out=points[k])
+            points[k] += origins[k]
+        travelled = travelled + distance
+        ev["points"].append(points)
+        ev["surface"].append(tracer.surface[triangle])
+        ev["parent"].append(parent)
+        ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
+        ev["departure"].append(departure)
+
+        # next-event estimation: |X| sqrt(mu sin(g_s) dOmega) / r2 = |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3)
+        magnitude, phase = _speckle_components(points[0], points[1], points[2], tracer.seed)
+        magnitude *= np.sqrt(weight * mu)
+        hit, channel, r2, cos_r2, arrival = _receptions(tracer, bounce, points, normal)
+        gain = r2 * r2
+        gain *= r2
+        np.divide(cos_r2, gain, out=gain)
+        np.sqrt(gain, out=gain)
+        gain *= magnitude[hit]
+        r2 += travelled[hit]
+        rc["event"].append(next_event + hit)
+        rc["channel"].append(channel)
+        rc["length"].append(r2)
+        rc["gain"].append(gain)
+        rc["phase"].append(phase[hit])
+        rc["arrival"].append(arrival)
+        parent = next_event + np.arange(n_hits)
+        next_event += n_hits
+        if bounce + 1 >= tracer.bounces:
+            break
+        # continue in a cosine-weighted direction about the normal: weight x (pi mu)
+        u = rng.random((2, n_hits))
+        radius = np.sqrt(u[0])
+        along_1, along_2 = _unit_circle(2.0 * np.pi * u[1])
+        along_1 *= radius
+        along_2 *= radius
+        along_n = np.sqrt(np.maximum(1.0 - u[0], 0.0))
+        t1, t2 = _tangents(normal[0], normal[1], normal[2])
+        directions = t1
+        directions *= along_1
+        t2 *= along_2
+        directions += t2
+        directions += normal * along_n
+        weight = weight * math.pi * mu
+        origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
+    if not ev["points"]:
+        i0, f0, v0 = np.zeros(0, np.int64), np.zeros(0), np.zeros((3, 0))
+        return _ChunkEvents(v0, i0, i0, i0, v0, i0, i0, f0, f0, f0, v0)
+    return _ChunkEvents(
+        points=_join(ev["points"], axis=1), surface=_join(ev["surface"]), parent=_join(ev["parent"]),
+        bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), event=_join(rc["event"]),
+        channel=_join(rc["channel"]), length=_join(rc["length"]), gain=_join(rc["gain"]), phase=_join(rc["phase"]),
+        arrival=_join(rc["arrival"], axis=1),
+    )
+
+
+def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | None,
+                  visibility: str) -> list[_ChunkEvents]:
+    """Validate the knobs, set up the tracer and trace every chunk (in chunk order)."""
+    n_rays = int(config.diffuse_rays)
+    if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
+        raise InputError(
+            f"solver.diffuse_rays = {config.diffuse_rays!r} with diffuse_bounces = {config.diffuse_bounces!r}: "
+            f"more than {MAX_RAY_EVENTS} scattering events; use fewer rays"
+        )
+    workers = resolve_threads(threads)
+    if visibility not in VISIBILITY_MODES:
+        raise InputError(f"diffuse visibility = {visibility!r}: must be one of {', '.join(VISIBILITY_MODES)}")
+    scene = context.scene
+    raycaster = context.raycaster
+    mu_of_surface = np.array(
+        [b.material.diffuse_mu for b in scene.boundaries] + [o.material.diffuse_mu for o in scene.objects], dtype=float
+    )
+    # No surface scatters (e.g. an empty free field): nothing to trace.
+    if n_rays <= 0 or raycaster.triangle_count == 0 or not np.any(mu_of_surface > 0.0):
+        return []
+    tx = np.asarray(context.transmitter_m, dtype=float)
+    rx = np.asarray(context.receivers_m, dtype=float)
+    boresight = np.asarray(context.boresight, dtype=float)
+    reference = None
+    if visibility == "centre":
+        reference = int(np.argmin(np.linalg.norm(rx - rx.mean(axis=0), axis=1)))
+    sizes = [CHUNK_RAYS] * (n_rays // CHUNK_RAYS) + ([n_rays % CHUNK_RAYS] if n_rays % CHUNK_RAYS else [])
+    n_uniform = sum(_LobeTable.uniform_count(size) for size in sizes)
+    tracer = _Tracer(
+        raycaster=raycaster,
+        lobe=_LobeTable.create(context),
+        mu=mu_of_surface[raycaster.surface_index],
+        plane_offset=raycaster.plane_offset,
+        normal=np.ascontiguousarray(raycaster.face_normals.T),
+        surface=raycaster.surface_index,
+        transmitter=tx,
+        frame=(*_basis(boresight), boresight),
+        receivers=rx,
+        screen=ObjectScreen.create(scene, rx),
+        at_transmitter=np.all(rx == tx, axis=1),
+        reference=reference,
+        seed=int(config.seed),
+        bounces=int(config.diffuse_bounces),
+        n_rays=n_rays,
+        totals=(n_uniform, n_rays - n_uniform),
+    )
+    n_chunks = -(-n_rays // CHUNK_RAYS)
+    return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers)
+
+
+def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
+                  visibility: str = "exact") -> DiffuseEvents:
     """Trace ``config.diffuse_rays`` rays through ``config.diffuse_bounces`` Lambert scatterings.
+
+    The rays are traced in chunks of :data:`CHUNK_RAYS` on up to ``threads`` threads; the result
+    is the same for any thread count.
 
     Parameters
     ----------
     context : SolveContext
     config : SolverConfig
         ``diffuse_rays``, ``diffuse_bounces``, ``seed``.
+    threads : int or None
+        Worker threads (>= 1); None: every core available to the process.
+    visibility : {"exact", "centre"}
+        See :data:`VISIBILITY_MODES`.
 
     Returns
     -------
@@ -361,125 +820,80 @@ def trace_diffuse(context: SolveContext, config: SolverConfig) -> DiffuseEvents:
     Raises
     ------
     InputError
-        If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`.
+        If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`, or ``threads`` or
+        ``visibility`` is invalid.
     """
-    n_rays = int(config.diffuse_rays)
-    if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
-        raise InputError(
-            f"solver.diffuse_rays = {config.diffuse_rays!r} with diffuse_bounces = {config.diffuse_bounces!r}: "
-            f"more than {MAX_RAY_EVENTS} scattering events; use fewer rays"
-        )
-    rng = np.random.default_rng(config.seed)
-    raycaster = context.raycaster
-    scene = context.scene
-    mu_of_surface = np.array(
-        [b.material.diffuse_mu for b in scene.boundaries] + [o.material.diffuse_mu for o in scene.objects]
-    )
-    tx = np.asarray(context.transmitter_m, dtype=float)
-    rx = np.asarray(context.receivers_m, dtype=float)
-    directions, weight = sample_directions(n_rays, np.asarray(context.boresight, dtype=float), context, rng)
-    screen = ObjectScreen.create(scene, rx)
-    at_transmitter = np.all(rx == tx, axis=1)  # (the thesis sonar's centre transducer)
-    departure = directions
-    origins = np.broadcast_to(tx, (n_rays, 3))
-    travelled = np.zeros(n_rays)
-    parent = np.full(n_rays, -1, dtype=np.int64)
-    ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
-    rc: dict[str, list[NDArray[Any]]] = {k: [] for k in ("event", "channel", "length", "gain", "phase", "arrival")}
-    next_event = 0
-    # No surface scatters (e.g. an empty free field): nothing to trace.
-    bounces = int(config.diffuse_bounces) if np.any(mu_of_surface > 0.0) else 0
-    for bounce in range(bounces):  # a handful of bounces
-        hits = raycaster.intersect(origins, directions, unit_directions=True)  # unit by construction
-        surface = hits.surface
-        mu = mu_of_surface[np.maximum(surface, 0)]
-        # a scattering surface hit from its front (a missed ray's normal is NaN: not < 0)
-        front = np.einsum("ij,ij->i", directions, hits.normal) < 0.0
-        keep = front & (surface >= 0) & (mu > 0.0)
-        n_hits = int(np.count_nonzero(keep))
-        if n_hits == 0:
-            break
-        # in a closed tank every ray scatters: then no gathers
-        live = None if n_hits == keep.size else np.flatnonzero(keep)
-
-        def alive(values: NDArray[Any]) -> NDArray[Any]:
-            return values if live is None else values[live]
-
-        normal, directions, distance, mu = alive(hits.normal), alive(directions), alive(hits.distance_m), alive(mu)
-        points = distance[:, None] * directions
-        points += alive(origins)
-        weight, departure, parent = alive(weight), alive(departure), alive(parent)
-        travelled = alive(travelled) + distance
-        surface = alive(surface)
-        ev["points"].append(points)
-        ev["surface"].append(surface)
-        ev["parent"].append(parent)
-        ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
-        ev["departure"].append(departure)
-
-        # next-event estimation to every receiver
-        n_rx = rx.shape[0]
-        to_rx = rx[None, :, :] - points[:, None, :]  # (n_hits, n_rx, 3)
-        r2 = np.sqrt(np.einsum("ijk,ijk->ij", to_rx, to_rx))
-        sin_gs = np.einsum("ijk,ik->ij", to_rx, normal) / r2
-        magnitude, phase = speckle_polar(points, config.seed)
-        gain = (magnitude * np.sqrt(weight * mu))[:, None] * np.sqrt(np.maximum(sin_gs, 0.0)) / r2
-        # (hit, receiver) pairs in front of the face; Embree tests only the legs that may
-        # cross an object (boundaries cannot block them: see ObjectScreen)
-        clear = (sin_gs > 0.0).reshape(-1)
-        near = np.repeat(screen.near(points), n_rx).reshape(n_hits, n_rx)
-        if bounce == 0:  # a first hit's leg back to a receiver at the transmitter is its own ray
-            near[:, at_transmitter] = False
-        test = np.flatnonzero(clear & near.reshape(-1))
-        if test.size:
-            hit_test, rx_test = np.divmod(test, n_rx)
-            lengths = r2.reshape(-1)[test]
-            unit = to_rx.reshape(-1, 3)[test] / lengths[:, None]
-            clear[test] = ~raycaster.occluded_rays(points[hit_test], unit, lengths)
-        flat = np.flatnonzero(clear)
-        hit_idx, rx_idx = np.divmod(flat, n_rx)
-        r2_sel = r2.reshape(-1)[flat]
-        rc["event"].append(next_event + hit_idx)
-        rc["channel"].append(rx_idx)
-        rc["length"].append(travelled[hit_idx] + r2_sel)
-        rc["gain"].append(gain.reshape(-1)[flat])
-        rc["phase"].append(phase[hit_idx])
-        arrival = to_rx.reshape(-1, 3)[flat]
-        arrival /= r2_sel[:, None]
-        rc["arrival"].append(arrival)
-        parent = next_event + np.arange(n_hits)
-        next_event += n_hits
-        if bounce + 1 >= int(config.diffuse_bounces):
-            break
-        # continue in a cosine-weighted direction about the normal: weight x (pi mu)
-        u = rng.random((n_hits, 2))
-        radius = np.sqrt(u[:, 0])
-        phi = 2.0 * np.pi * u[:, 1]
-        t1, t2 = _frames(normal)
-        directions = (
-            (radius * np.cos(phi))[:, None] * t1
-            + (radius * np.sin(phi))[:, None] * t2
-            + np.sqrt(np.maximum(1.0 - u[:, 0], 0.0))[:, None] * normal
-        )
-        weight = weight * math.pi * mu
-        origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
+    chunks = _trace_chunks(context, config, threads, visibility)
     i0, f0, v0 = np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3))
-    return DiffuseEvents(
-        points_m=_concatenate(ev["points"], v0),
-        surface=_concatenate(ev["surface"], i0),
-        parent=_concatenate(ev["parent"], i0),
-        bounce=_concatenate(ev["bounce"], i0),
-        departure_dir=_concatenate(ev["departure"], v0),
-        event=_concatenate(rc["event"], i0),
-        channel=_concatenate(rc["channel"], i0),
-        path_length_m=_concatenate(rc["length"], f0),
-        gain=_concatenate(rc["gain"], f0),
-        phase_rad=_concatenate(rc["phase"], f0),
-        arrival_dir=_concatenate(rc["arrival"], v0),
-    )
+    if not chunks:
+        return DiffuseEvents(v0, i0, i0, i0, v0, i0, i0, f0, f0, f0, v0)
+    offsets = np.cumsum([0] + [c.surface.size for c in chunks[:-1]])
+
+    def vectors(name: str) -> Callable[[], NDArray[Any]]:  # (3, m) per chunk -> (m, 3)
+        return lambda: np.concatenate([getattr(c, name) for c in chunks], axis=1).T
+
+    def scalars(name: str) -> Callable[[], NDArray[Any]]:
+        return lambda: np.concatenate([getattr(c, name) for c in chunks])
+
+    def indices(name: str, null: bool) -> Callable[[], NDArray[Any]]:  # chunk-local -> global
+        def join() -> NDArray[Any]:
+            out = np.concatenate([getattr(c, name) for c in chunks])
+            start = 0
+            for c, offset in zip(chunks, offsets):
+                part = out[start:start + getattr(c, name).size]
+                part += offset if not null else np.where(part >= 0, offset, 0)
+                start += part.size
+            return out
+        return join
+
+    # one task per field: the copies run outside the GIL, on the threads
+    joins = {
+        "points_m": vectors("points"), "surface": scalars("surface"), "parent": indices("parent", True),
+        "bounce": scalars("bounce"), "departure_dir": vectors("departure"), "event": indices("event", False),
+        "channel": scalars("channel"), "path_length_m": scalars("length"), "gain": scalars("gain"),
+        "phase_rad": scalars("phase"), "arrival_dir": vectors("arrival"),
+    }
+    fields = run_in_order(lambda join: join(), list(joins.values()), resolve_threads(threads))
+    return DiffuseEvents(**dict(zip(joins, fields)))
 
 
-def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
+def _pack_rows(rows: NDArray[Any], chunk: _ChunkEvents, first_path_id: int) -> None:
+    """Write one chunk's receptions into its slice ``rows`` of the PATH_DTYPE table."""
+    e = chunk.event
+    rows["path_id"] = first_path_id + e
+    rows["channel"] = chunk.channel
+    rows["kind"] = int(PathKind.DIFFUSE)
+    order = chunk.bounce[e]
+    rows["order"] = order
+    rows["path_length_m"] = chunk.length
+    rows["geometric_gain"] = chunk.gain
+    rows["phase_rad"] = chunk.phase
+    departure = rows["departure_dir"]
+    arrival = rows["arrival_dir"]
+    for k in range(3):  # the three coordinates
+        departure[:, k] = chunk.departure[k][e]
+        arrival[:, k] = chunk.arrival[k]
+    # interaction chains: walk each event's parents back to the first hit
+    surfaces = rows["object_ids"]
+    points = rows["points_m"]
+    surfaces[...] = -1
+    points[...] = np.nan
+    current = e.copy()
+    level = order - 1
+    for _ in range(int(order.max()) if order.size else 0):  # a handful of bounces
+        alive = current >= 0
+        store = alive & (level < MAX_INTERACTIONS)
+        idx = np.flatnonzero(store)
+        event, slot = current[idx], level[idx]
+        surfaces[idx, slot] = chunk.surface[event]
+        for k in range(3):  # the three coordinates
+            points[idx, slot, k] = chunk.points[k][event]
+        current = np.where(alive, chunk.parent[np.maximum(current, 0)], -1)
+        level = level - 1
+
+
+def diffuse_paths(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
+                  visibility: str = "exact") -> NDArray[Any]:
     """Diffuse reverberation rows for one sonar pose.
 
     Parameters
@@ -487,47 +901,34 @@ def diffuse_paths(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
     context : SolveContext
     config : SolverConfig
         ``diffuse_rays`` (0 gives no rows), ``diffuse_bounces``, ``seed``.
+    threads : int or None
+        Worker threads tracing and packing the chunks (>= 1); None: every available core.
+        The rows are the same for any value.
+    visibility : {"exact", "centre"}
+        See :data:`VISIBILITY_MODES` ("centre" approximates).
 
     Returns
     -------
     structured ndarray of PATH_DTYPE, shape (n,)
         One row per (scattering event, receiver) with ``kind = DIFFUSE``, ``order`` the bounce
         number, ``path_id`` from ``context.first_path_id`` upwards, one per scattering event
-        (shared by the receivers that see it), and the other mechanism columns;
-        :func:`~acoustisim.propagation.columns.complete_columns`, which
+        (shared by the receivers that see it, whose rows are adjacent), and the other mechanism
+        columns; :func:`~acoustisim.propagation.columns.complete_columns`, which
         :func:`~acoustisim.propagation.solve` applies to every mechanism's rows, derives the
         delay, angles, directivities, absorption and amplitude.
     """
     if int(config.diffuse_rays) <= 0:
         return empty_paths_array(0)
-    events = trace_diffuse(context, config)
-    e = events.event
-    rows = np.zeros(e.size, dtype=PATH_DTYPE)
-    rows["path_id"] = context.first_path_id + e
-    rows["channel"] = events.channel
-    rows["kind"] = int(PathKind.DIFFUSE)
-    order = events.bounce[e]
-    rows["order"] = order
-    rows["path_length_m"] = events.path_length_m
-    rows["geometric_gain"] = events.gain
-    rows["phase_rad"] = events.phase_rad
-    rows["departure_dir"] = events.departure_dir[e]
-    rows["arrival_dir"] = events.arrival_dir
-    # interaction chains: walk each event's parents back to the first hit
-    surfaces = np.full((e.size, MAX_INTERACTIONS), -1, dtype=np.int16)
-    points = np.full((e.size, MAX_INTERACTIONS, 3), np.nan)
-    current = e.copy()
-    level = order - 1
-    for _ in range(int(order.max()) if order.size else 0):  # a handful of bounces
-        alive = current >= 0
-        store = alive & (level < MAX_INTERACTIONS)
-        idx = np.flatnonzero(store)
-        surfaces[idx, level[idx]] = events.surface[current[idx]]
-        points[idx, level[idx]] = events.points_m[current[idx]]
-        current = np.where(alive, events.parent[np.maximum(current, 0)], -1)
-        level = level - 1
-    rows["object_ids"] = surfaces
-    rows["points_m"] = points
+    chunks = _trace_chunks(context, config, threads, visibility)
+    sizes = [c.event.size for c in chunks]
+    rows = np.zeros(sum(sizes), dtype=PATH_DTYPE)
+    row_start = np.cumsum([0] + sizes)
+    event_start = np.cumsum([0] + [c.surface.size for c in chunks])
+    first = int(context.first_path_id)
+    run_in_order(
+        lambda k: _pack_rows(rows[row_start[k]:row_start[k + 1]], chunks[k], first + int(event_start[k])),
+        range(len(chunks)), resolve_threads(threads),
+    )
     return rows
 
 
@@ -542,4 +943,7 @@ __all__ = [
     "speckle",
     "speckle_polar",
     "trace_diffuse",
+    "CHUNK_RAYS",
+    "VISIBILITY_MODES",
+    "ObjectScreen",
 ]

@@ -118,6 +118,8 @@ class RayCaster:
     patch_surface : ndarray of int64, shape (n_patches,)
         Surface index of each patch.
     surface_names : tuple of str
+    plane_offset : ndarray, shape (n_triangles,)
+        ``face_normals . v0`` of each triangle (m): its plane is ``{x : n . x = plane_offset}``.
     """
 
     vertices: NDArray[np.float64] = field(repr=False)
@@ -127,6 +129,7 @@ class RayCaster:
     patch_index: NDArray[np.int64] = field(repr=False)
     patch_surface: NDArray[np.int64] = field(repr=False)
     surface_names: tuple[str, ...]
+    plane_offset: NDArray[np.float64] = field(repr=False)
     _shift: NDArray[np.float64] = field(repr=False)
     _embree: Any = field(repr=False)
     _buffers: tuple[Any, ...] = field(repr=False)
@@ -199,14 +202,16 @@ class RayCaster:
         def stack(blocks: list[NDArray[Any]], shape: tuple[int, ...], dtype: Any) -> NDArray[Any]:
             return np.concatenate(blocks) if blocks else np.zeros(shape, dtype=dtype)
 
+        face_normals = stack(normal_blocks, (0, 3), float)
         return cls(
             vertices=vertices,
             faces=faces,
-            face_normals=stack(normal_blocks, (0, 3), float),
+            face_normals=face_normals,
             surface_index=stack(surface_blocks, (0,), np.int64),
             patch_index=stack(patch_blocks, (0,), np.int64),
             patch_surface=stack(patch_surface, (0,), np.int64),
             surface_names=scene.surface_names,
+            plane_offset=np.einsum("ij,ij->i", face_normals, vertices[faces[:, 0]]) if not empty else np.zeros(0),
             _shift=shift,
             _embree=embree,
             _buffers=(vertices32, faces32),
@@ -217,7 +222,61 @@ class RayCaster:
         """Number of triangles in the Embree scene."""
         return int(self.faces.shape[0])
 
+    @property
+    def shift_m(self) -> NDArray[np.float64]:
+        """The offset (3,) (m) subtracted from tank coordinates before the float32 Embree scene."""
+        return self._shift
+
     # ------------------------------------------------------------------ queries
+    def first_hit_triangles32(self, origins32: NDArray[np.float32],
+                              directions32: NDArray[np.float32]) -> NDArray[np.int32]:
+        """Low-level batched first-hit query: the triangle index only.
+
+        For callers that prepare Embree's buffers themselves (the diffuse tracer) and compute
+        the hit distance from the triangle's plane (:attr:`plane_offset`, in float64).
+        Releases the GIL: threads may query concurrently.
+
+        Parameters
+        ----------
+        origins32 : ndarray of float32, shape (n, 3), C-contiguous
+            Ray origins minus :attr:`shift_m` (m).
+        directions32 : ndarray of float32, shape (n, 3), C-contiguous
+            Unit directions.
+
+        Returns
+        -------
+        ndarray of int32, shape (n,)
+            Global triangle index, -1 where nothing was hit.
+        """
+        if origins32.shape[0] == 0 or self.triangle_count == 0:
+            return np.full(origins32.shape[0], -1, dtype=np.int32)
+        return self._embree.run(origins32, directions32, query="INTERSECT")
+
+    def occluded_segments32(self, starts32: NDArray[np.float32], directions32: NDArray[np.float32],
+                            lengths32: NDArray[np.float32]) -> NDArray[np.bool_]:
+        """Low-level batched occlusion query on prepared float32 buffers.
+
+        No end shrinking and no patch exclusion (see :meth:`occluded_rays` for those).
+        Releases the GIL: threads may query concurrently.
+
+        Parameters
+        ----------
+        starts32 : ndarray of float32, shape (n, 3), C-contiguous
+            Segment starts minus :attr:`shift_m` (m).
+        directions32 : ndarray of float32, shape (n, 3), C-contiguous
+            Unit directions.
+        lengths32 : ndarray of float32, shape (n,), C-contiguous
+            Segment lengths (m).
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+            Whether a triangle lies on each segment.
+        """
+        if starts32.shape[0] == 0 or self.triangle_count == 0:
+            return np.zeros(starts32.shape[0], dtype=bool)
+        return np.asarray(self._embree.run(starts32, directions32, dists=lengths32, query="OCCLUDED")) >= 0
+
     def _to_float32(self, points: NDArray[np.float64]) -> NDArray[np.float32]:
         """``points - shift`` as a C-contiguous float32 (n, 3) array, in one pass (the subtraction
         is done in float64 and rounded once, as ``(points - shift).astype(float32)`` would)."""
