@@ -86,17 +86,16 @@ def test_the_folding_methods_are_known_base_methods():
 
 
 def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
-    from binsonar.detection.local import detect_local_matched
-    from binsonar.detection.matched import plan_matched
+    from binsonar.detection.local import detect_local_matched, plan_local
 
     x = _record()
     kept = as_signals(x, FS, remove_dc=False)
-    plan = plan_matched(pulse_template(), N, FS, full=False)
+    plan = plan_local(pulse_template(), N, FS)
     folded = detect_local_matched(kept.waveforms[0], plan, t0_s=0.0, dc_v=kept.dc_v[0])
     copied = detect_local_matched(kept.without_dc().waveforms[0], plan, t0_s=0.0)
     assert [len(e) for e in folded] == [len(e) for e in copied] == [1, 1, 1]
     # Not bit-identical: the folded correlation is z(x) - dc * sum(taps) instead of z(x - dc),
-    # and the block energies are summed in another order. Rounding of terms of up to
+    # and the block correlations are those of x minus dc times the tone's sum. Rounding of terms of up to
     # |dc| sum|taps| ~ 2 V x 100 against a 0.5 V echo's z: relative errors ~1e-13, i.e.
     # 1e-13 of a 50 ns sample in the TOF. Tolerances 1e-15 s and 1e-9 relative: many orders
     # above the rounding, many below a forgotten term (the 2 V offset's correlation with the
@@ -109,7 +108,7 @@ def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
 
 
 def test_dc_correlation_is_the_correlation_of_a_constant_record():
-    from binsonar.detection.local import block_energies, dc_correlation
+    from binsonar.detection.local import block_tone_power, dc_correlation, plan_local
     from binsonar.detection.matched import lags_time_domain, plan_matched
 
     plan = plan_matched(pulse_template(), 1000, FS, full=False)
@@ -120,15 +119,21 @@ def test_dc_correlation_is_the_correlation_of_a_constant_record():
         direct = lags_time_domain(plan, constant, np.array([k, k, k]), lags[k][:, np.newaxis])[:, 0]
         assert np.allclose(dc_correlation(plan, 1000, constant[k, :1], lags[k][np.newaxis])[0], direct,
                            rtol=1e-12, atol=1e-12)
-    # Energies of x - dc per block, against the direct sum (rounding only).
+    # Block tone powers of x - dc, against the direct sums (rounding only); the record length
+    # is not a multiple of the block (the ragged end is left out).
+    local = plan_local(pulse_template(), 5000, FS)
     rng = np.random.default_rng(1)
     rows = rng.standard_normal((2, 5000)) + 3.0
     dc = np.array([3.0, 2.5])
-    expected = ((rows[:, :4992] - dc[:, None]) ** 2).reshape(2, 416, 12).sum(axis=2)
-    assert np.allclose(block_energies(rows, 12, 416, dc), expected, rtol=1e-12, atol=0.0)
-    # Several chunks of blocks (2500 blocks of 2 samples, chunks of 1024 blocks).
-    expected = ((rows - dc[:, None]) ** 2).reshape(2, 2500, 2).sum(axis=2)
-    assert np.allclose(block_energies(rows, 2, 2500, dc), expected, rtol=1e-12, atol=0.0)
+    b = local.block
+    n_blocks = 5000 // b
+    assert 5000 % b  # a ragged end
+    k = np.arange(b)
+    tone = np.exp(-2j * np.pi * local.centre_hz / FS * k)
+    expected = np.abs(((rows[:, : n_blocks * b] - dc[:, None]).reshape(2, n_blocks, b) * tone).sum(axis=2)) ** 2
+    assert np.allclose(block_tone_power(local, rows, dc), expected, rtol=1e-9, atol=1e-12 * expected.max())
+    # The offset matters (a forgotten fold would leave 3 V x the tone's sum in every block).
+    assert not np.allclose(block_tone_power(local, rows), expected, rtol=1e-3)
 
 
 def test_first_crossings_at_part_and_block_boundaries_match_a_brute_force_scan():

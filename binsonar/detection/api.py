@@ -264,10 +264,14 @@ def _prepare(
     if base != "threshold":
         if template is None:
             raise RecordingError(f"method {method!r} needs a template")
-        if base in ("matched", "local-matched", "ca-cfar", "os-cfar"):
+        if base in ("matched", "ca-cfar", "os-cfar"):
             from binsonar.detection.matched import plan_matched
 
-            plan = plan_matched(template, n_samples, sample_rate_hz, full=base != "local-matched")
+            plan = plan_matched(template, n_samples, sample_rate_hz)
+        elif base == "local-matched":
+            from binsonar.detection.local import plan_local
+
+            plan = plan_local(template, n_samples, sample_rate_hz)
     return PreparedDetector(
         method=method,
         base=base,

@@ -1,32 +1,56 @@
 """Local matched processing (seed section 4.2.4, method 9).
 
-1. Coarse peaks: the centres of the few (default 5) stretches of record, a quarter template
-   long, holding the most energy (block sums of x^2, then a moving sum of blocks; the seed's
-   "peak point of the echo signal", made robust: the largest single |x| is often noise at
-   2E/N0 = 20 dB, while the energy over the pulse's length gains much of the matched filter's
-   SNR). Their lags are those samples minus the index of the template's envelope maximum.
-2. The analytic correlation with the template is computed only for the lags within half a
-   template length of the best coarse lag (see 3), i.e. over a stretch of record about twice
-   the template's length (a short FFT of that stretch; no FFT of the record).
-3. The candidates are ranked by |z| at five lags around each (direct dot products); around
-   the best, the log-parabolic vertex of |z|^2 at its maximum gives the sub-sample lag. The
-   window's offset is calibrated out exactly: lags are counted from sample 0 of the record
-   (the window's start index is added back), and the template's own t0_s is subtracted as
-   for the full matched filter, so both give the same TOF whenever the echo is among the
-   candidates.
+The seed: "First, the peak point of the echo signal is detected. Then, a local matching
+process is executed between a known template signal and the partial echo signal which is
+around the detected peak point. The time duration of the partial echo signal is about twice
+of that of the template signal. By finding the peak of the output of the local matched
+filter and carefully calibrating the offset caused by defining the partial echo signal, an
+accurate time-of-flight estimate can be determined." Here:
 
-Cost per channel: one pass over the samples (block energies), a few dot products of the
-analytic template's length, and one FFT of ~2 template lengths.
+1. Coarse peaks (one pass over the record). The record is cut into blocks of B samples and
+   each block is correlated with a tone at the template's centre frequency f0,
+   ``z_b = sum_k x[b B + k] exp(-2 pi i f0 k / fs)`` (a batched matrix product with a
+   (B, 2) cos/sin table: one multiply-add per sample and column). The statistic of a window
+   of ``span`` consecutive blocks is ``sum |z_b|^2``: the energy in a band about fs / B wide
+   around f0 (B ~ fs / (4 beta), beta the template's RMS bandwidth, so that the band holds the
+   template's spectrum to ~1 dB at one RMS bandwidth from f0), not the energy of the whole
+   10 MHz of white noise a sum of x^2 collects. A window of noise alone then rarely looks like
+   an echo: at 2E/N0 = 20 dB an echo window exceeds the largest of ~20,000 noise windows by
+   ~3 standard deviations of its own statistic, against ~2 for the broadband energy (module
+   notes in ``plan_local``). The candidates are the ``candidates`` strongest windows, each at
+   least a template length from the others; the lag of a window is its centre minus the
+   template's envelope peak.
+2. Local matched filter. Around each candidate, the stretch of record twice the template's
+   length plus one template (``2 half + m`` samples) is correlated with the template by a
+   short FFT (one real FFT of the stretch, the template's analytic spectrum 2 conj(S) on the
+   band's bins, an inverse FFT at full rate): z at every lag within ``half = m // 2`` of the
+   coarse lag, exactly the full matched filter's band-limited z for those lags except for the
+   Hilbert tails of samples outside the stretch (~1e-5 of the peak). The candidate and lag
+   with the largest |z| win: the full filter's global maximum whenever its echo is among the
+   candidates.
+3. Offset calibrated out and sub-sample peak. Lags are counted from sample 0 of the record
+   (each stretch's start index is added back), and the template's own ``t0_s`` is subtracted
+   as for the full matched filter. The peak is refined exactly as the full filter refines its
+   own (``matched.refine``: z at the 2 R + 1 integer lags around it by direct dot products
+   with the analytic template, then the log-parabolic vertex), so the two give the same TOF,
+   to rounding, whenever they find the same echo.
+
+Cost per channel: one pass over the samples (the block correlations, ~2 flops per sample),
+then work on a few candidates only: ``candidates`` short FFTs of ~3 template lengths and
+(2 R + 1) dot products of the analytic template's length.
 
 A row's DC offset (``dc_v``, still in the samples) is folded in rather than removed from a
-copy of the record: the block energies are those of x - dc (subtracted block-chunk by
-block-chunk in a cache-sized buffer), and each correlation value z(lag), computed on x, has
-dc times the sum of the analytic taps that overlap the record at that lag subtracted, which
-is exactly the correlation of the constant dc (the FFT and direct correlations treat samples
-outside the record as 0).
+copy of the record: the block correlations of x - dc are those of x minus dc times the sum of
+the tone table (exact, one constant per row); the stretches are copies anyway, from which dc
+is subtracted; and each directly computed z(lag) has dc times the sum of the analytic taps
+that overlap the record at that lag subtracted, which is exactly the correlation of the
+constant dc (the direct correlations treat samples outside the record as 0).
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,52 +60,181 @@ from binsonar.detection.matched import (
     check_pfa,
     echo_values,
     lag_range,
-    lags_by_fft,
     lags_time_domain,
+    plan_matched,
     refine,
     white_noise_power,
 )
 from binsonar.detection.noise import noise_sigma
-from binsonar.recording import RecordingError
+from binsonar.recording import RecordingError, Template
 
-# Block energies are computed this many blocks at a time (per row: 1024 blocks of ~12 samples,
-# ~100 kB, stays in cache), offset-subtracted and squared in one buffer, summed by a matrix
-# product with ones (BLAS): no record-sized temporary.
-_ENERGY_CHUNK = 1024
-# Offsets up to this fraction of the noise standard deviation are left in the coarse block
-# energies (see ``detect_local_matched``); larger ones are subtracted (``block_energies``).
-_DC_IGNORED_IN_ENERGY = 0.1
+# Block length of the coarse stage: B = BLOCK_BANDWIDTH_FRACTION * fs / beta (beta the template's
+# RMS bandwidth about its centre frequency). A block's tone correlation has the response
+# sinc(B (f - f0) / fs) in amplitude: at one RMS bandwidth from f0 it is sinc(0.25), a power
+# loss of 0.9 dB, at two 3.9 dB, so a block keeps most of the template's energy while it
+# collects the noise of a band ~fs / B = 4 beta wide instead of all fs / 2.
+BLOCK_BANDWIDTH_FRACTION = 0.25
+# Integer lags each side of the local peak at which z is recomputed directly for the
+# sub-sample refinement (the same evaluation as the full matched filter's refinement).
+REFINE_HALF_WIDTH = 3
+# Band of the stretch's FFT: rfft bins below which all but this fraction of the template's
+# energy lies (as ``matched.BAND_ENERGY_TAIL``: z exact to ~1e-6 of its peak).
+_BAND_TAIL = 1e-12
 
 
-def block_energies(
-    rows: NDArray[np.float64], block: int, n_blocks: int, dc: NDArray[np.float64] | None = None
-) -> NDArray[np.float64]:
-    """Energy sum((x - dc)^2) of each of the first ``n_blocks`` blocks of ``block`` samples.
+@dataclass(frozen=True, eq=False)
+class LocalPlan:
+    """Everything the local matched filter precomputes for one template and record length.
+
+    Attributes
+    ----------
+    matched : MatchedPlan
+        The matched filter's plan without its record-size spectrum (``plan_matched(...,
+        full=False)``): analytic template for the refinement, constants for TOF and SNR.
+    block : int
+        Coarse-stage block length B (samples).
+    span : int
+        Blocks per coarse window.
+    tone : ndarray, shape (block, 2)
+        cos and -sin of 2 pi f0 k / fs, k = 0 .. B - 1 (z_b = x_block @ tone, real and
+        imaginary parts).
+    tone_sum : ndarray, shape (2,)
+        Column sums of ``tone``: the block correlation of a constant 1 V row.
+    centre_hz : float
+        Tone frequency f0: the centroid of the template's power spectrum (Hz).
+    reference : int
+        Index (template samples) of the template's envelope maximum: a window centred on sample
+        c has coarse lag c - reference.
+    half : int
+        Lags searched each side of a coarse lag (``template_length // 2``): a stretch of
+        2 half + m samples, about twice the template, as the seed describes.
+    segment_fft : int
+        FFT size of a stretch (>= 2 half + 2 m - 1: linear correlation at every searched lag).
+    segment_weights : ndarray, shape (k,), complex
+        2 conj(S) on the stretch FFT's first k bins (the template's band; DC weighted once).
+    """
+
+    matched: MatchedPlan = field(repr=False)
+    block: int
+    span: int
+    tone: NDArray[np.float64] = field(repr=False)
+    tone_sum: NDArray[np.float64] = field(repr=False)
+    centre_hz: float
+    reference: int
+    half: int
+    segment_fft: int
+    segment_weights: NDArray[np.complex128] = field(repr=False)
+
+    @property
+    def template_length(self) -> int:
+        """Template length m (samples)."""
+        return self.matched.template_length
+
+    @property
+    def segment_length(self) -> int:
+        """Samples in a stretch: 2 half + m (lags -half .. +half around the coarse lag)."""
+        return 2 * self.half + self.matched.template_length
+
+
+def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> LocalPlan:
+    """Precompute the local matched filter for a template and record length.
+
+    Why a tone-correlation coarse stage (numbers for the 5 us Gaussian pulse at 20 MS/s,
+    2E/N0 = 20 dB, i.e. sum s^2 = 100 sigma^2, B = 42, windows of 2 blocks): the window
+    statistic of noise alone is sigma^2 B times a Gamma(2) variable (mean 2, and
+    P(> x) = e^-x (1 + x)): among ~6,000 windows per 12.5 ms channel the largest is ~11.8
+    sigma^2 B. An echo window adds ~ (B / 2) sum s^2 ~ 36 sigma^2 B (one block's coherent gain
+    on ~90 % of the pulse's energy) with a signal-times-noise scatter of ~8.5 sigma^2 B: ~3
+    scatters above the largest noise window. The broadband energy sum x^2 over the same span
+    (chi-square with ~50 degrees of freedom, largest noise window ~95 sigma^2 against an echo
+    window of ~140 +/- 19 sigma^2) leaves ~2.3 scatters. Either way a few candidates
+    (default 5) make the chance that the echo is not among them negligible.
 
     Parameters
     ----------
-    rows : ndarray, shape (n_rows, n_samples), n_samples >= block * n_blocks
-    block, n_blocks : int
+    template : Template
+        At ``sample_rate_hz``.
+    n_samples : int
+        Record length (samples).
+    sample_rate_hz : float
+
+    Raises
+    ------
+    RecordingError
+        A template longer than the record.
+    """
+    import scipy.fft as sfft
+
+    matched = plan_matched(template, n_samples, sample_rate_hz, full=False)
+    s = np.asarray(template.samples, dtype=float)
+    m = s.size
+    fs = float(sample_rate_hz)
+    # Centre frequency and RMS bandwidth about it (the template's power spectrum, finely sampled).
+    n_small = sfft.next_fast_len(max(8 * m, 4096), real=True)
+    power = np.abs(sfft.rfft(s, n_small)) ** 2
+    freqs = np.arange(power.size) * fs / n_small
+    centre = float((freqs * power).sum() / power.sum())
+    beta = float(np.sqrt(((freqs - centre) ** 2 * power).sum() / power.sum()))
+    block = int(np.clip(round(BLOCK_BANDWIDTH_FRACTION * fs / max(beta, 1e-12 * fs)), 1, max(1, m // 4)))
+    # Windows of at least 2 blocks (an echo centred anywhere has a window whose middle is
+    # within B / 2 of its centre) and covering 4 RMS durations of the template's energy.
+    weight = s * s / float(np.sum(s * s))
+    index = np.arange(m)
+    mean_index = float((index * weight).sum())
+    duration = 4.0 * math.sqrt(float(((index - mean_index) ** 2 * weight).sum()))
+    span = int(max(2, math.ceil(duration / block)))
+    span = min(span, max(1, n_samples // block))
+    k = np.arange(block)
+    phase = 2.0 * np.pi * centre / fs * k
+    tone = np.stack([np.cos(phase), -np.sin(phase)], axis=1)
+    taps = matched.analytic_template_conj
+    reference = int(np.argmax(np.abs(taps))) - matched.analytic_offset
+    half = m // 2
+    segment_fft = sfft.next_fast_len(2 * half + 2 * m - 1, real=True)
+    spectrum = sfft.rfft(s, segment_fft)
+    spectrum_power = np.abs(spectrum) ** 2
+    tail = np.cumsum(spectrum_power[::-1])[::-1] / spectrum_power.sum()  # energy fraction at bins >= k
+    k_hi = int(np.argmax(tail < _BAND_TAIL)) if np.any(tail < _BAND_TAIL) else spectrum.size
+    k_hi = min(spectrum.size, k_hi + 2)
+    weights = 2.0 * np.conj(spectrum[:k_hi])
+    weights[0] *= 0.5
+    return LocalPlan(
+        matched=matched,
+        block=block,
+        span=span,
+        tone=np.ascontiguousarray(tone),
+        tone_sum=tone.sum(axis=0),
+        centre_hz=centre,
+        reference=reference,
+        half=half,
+        segment_fft=int(segment_fft),
+        segment_weights=weights,
+    )
+
+
+def block_tone_power(
+    plan: LocalPlan, rows: NDArray[np.float64], dc: NDArray[np.float64] | None = None
+) -> NDArray[np.float64]:
+    """|z_b|^2 of every whole block of each row (tone correlation at f0, module notes).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
     dc : ndarray, shape (n_rows,), optional
-        Offset of each row (default 0).
+        Offset still in each row: the result is that of ``rows - dc``.
 
     Returns
     -------
-    ndarray, shape (n_rows, n_blocks), V^2
+    ndarray, shape (n_rows, n_samples // block), V^2
     """
-    n_rows = rows.shape[0]
-    part = rows[:, : n_blocks * block].reshape(n_rows, n_blocks, block)
-    offset = np.zeros((n_rows, 1, 1)) if dc is None else np.asarray(dc, dtype=float).reshape(n_rows, 1, 1)
-    energy = np.empty((n_rows, n_blocks))
-    ones = np.ones(block)
-    buffer = np.empty((n_rows, min(_ENERGY_CHUNK, n_blocks), block))
-    for start in range(0, n_blocks, _ENERGY_CHUNK):  # chunks of blocks (cache-sized), not samples
-        stop = min(start + _ENERGY_CHUNK, n_blocks)
-        chunk = buffer[:, : stop - start]
-        np.subtract(part[:, start:stop], offset, out=chunk)
-        np.square(chunk, out=chunk)
-        np.matmul(chunk, ones, out=energy[:, start:stop])
-    return energy
+    n_rows, n = rows.shape
+    b = plan.block
+    n_blocks = n // b
+    parts = rows[:, : n_blocks * b].reshape(n_rows, n_blocks, b) @ plan.tone  # (n_rows, n_blocks, 2)
+    if dc is not None:
+        parts -= dc[:, np.newaxis, np.newaxis] * plan.tone_sum
+    np.square(parts, out=parts)
+    return parts[..., 0] + parts[..., 1]
 
 
 def dc_correlation(
@@ -102,14 +255,96 @@ def dc_correlation(
     taps = plan.analytic_template_conj
     partial = np.concatenate([[0.0], np.cumsum(taps)])
     first = lags - plan.analytic_offset  # record sample under tap 0
-    lo = np.clip(-first, 0, taps.size)
-    hi = np.clip(n_samples - first, 0, taps.size)
+    lo = np.minimum(np.maximum(-first, 0), taps.size)
+    hi = np.minimum(np.maximum(n_samples - first, 0), taps.size)
     return dc[:, np.newaxis] * np.where(hi > lo, partial[hi] - partial[lo], 0.0)
+
+
+def coarse_lags(
+    plan: LocalPlan,
+    rows: NDArray[np.float64],
+    candidates: int,
+    lag_bounds: tuple[int, int],
+    dc: NDArray[np.float64] | None = None,
+) -> NDArray[np.intp]:
+    """Lags of the ``candidates`` strongest coarse windows of each row, a template length apart.
+
+    Only windows whose lag lies in ``lag_bounds`` (inclusive) are considered; when a row has
+    fewer such windows, the remaining picks repeat its strongest.
+
+    Returns
+    -------
+    ndarray of int, shape (n_rows, candidates)
+    """
+    n_rows = rows.shape[0]
+    energy = block_tone_power(plan, rows, dc)
+    span = min(plan.span, energy.shape[1])
+    n_windows = energy.shape[1] - span + 1
+    # Moving sum of ``span`` blocks as shifted slices (a few adds over the block powers).
+    b = plan.block
+    centre = (span * b) // 2 - plan.reference  # lag of window w: w * b + centre
+    lo, hi = lag_bounds
+    first = min(max(-(-(lo - centre) // b), 0), n_windows - 1)  # windows [first, last) have lags in bounds
+    last = max(min((hi - centre) // b + 1, n_windows), first + 1)
+    window = energy[:, first:last] + energy[:, first + 1:last + 1] if span == 2 else energy[:, first:last].copy()
+    if span != 2:
+        for k in range(1, span):  # a few slices, not samples
+            window += energy[:, first + k:last + k]
+    exclusion = max(1, -(-plan.template_length // b))  # windows within a template length
+    rows_index = np.arange(n_rows)[:, np.newaxis]
+    offsets = np.arange(-exclusion, exclusion + 1)
+    picks = np.empty((n_rows, int(candidates)), dtype=np.intp)
+    for k in range(int(candidates)):  # a few candidates per row, not samples
+        best = np.argmax(window, axis=1)
+        picks[:, k] = best
+        if k + 1 < candidates:  # blank each pick's neighbourhood (one fancy assignment)
+            window[rows_index, np.minimum(np.maximum(best[:, np.newaxis] + offsets, 0), window.shape[1] - 1)] = -np.inf
+    return np.minimum(np.maximum((first + picks) * b + centre, lo), hi)
+
+
+def segment_correlation(
+    plan: LocalPlan,
+    rows: NDArray[np.float64],
+    row_index: NDArray[np.intp],
+    start_lag: NDArray[np.intp],
+    dc: NDArray[np.float64] | None = None,
+) -> NDArray[np.complex128]:
+    """Analytic correlation z at lags ``start_lag + 0 .. 2 half`` from short FFTs of stretches.
+
+    Parameters
+    ----------
+    row_index, start_lag : ndarray of int, shape (k,)
+    dc : ndarray, shape (n_rows,), optional
+        Offsets still in the rows (subtracted from the stretches).
+
+    Returns
+    -------
+    ndarray, shape (k, 2 half + 1), complex
+        Samples beyond the record count as 0.
+    """
+    import scipy.fft as sfft
+
+    n = rows.shape[1]
+    width = 2 * plan.half + 1
+    index = start_lag[:, np.newaxis] + np.arange(plan.segment_length)
+    if index.size and (index.min() < 0 or index.max() >= n):
+        inside = (index >= 0) & (index < n)
+        segment = np.where(inside, rows[row_index[:, np.newaxis], np.minimum(np.maximum(index, 0), n - 1)], 0.0)
+        if dc is not None:
+            segment -= np.where(inside, dc[row_index][:, np.newaxis], 0.0)
+    else:
+        segment = rows[row_index[:, np.newaxis], index]
+        if dc is not None:
+            segment -= dc[row_index][:, np.newaxis]
+    k_hi = plan.segment_weights.size
+    spectrum = sfft.rfft(segment, plan.segment_fft, axis=-1)[:, :k_hi]
+    spectrum *= plan.segment_weights
+    return sfft.ifft(spectrum, plan.segment_fft, axis=-1)[:, :width]
 
 
 def detect_local_matched(
     rows: NDArray[np.float64],
-    plan: MatchedPlan,
+    plan: LocalPlan,
     *,
     t0_s: float,
     pfa: float = 1e-3,
@@ -120,13 +355,13 @@ def detect_local_matched(
     noise_floor_v: float = 0.0,
     dc_v: NDArray[np.float64] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
-    """Local matched filter around the most energetic stretches of each row.
+    """Local matched filter around the strongest coarse windows of each row (module notes).
 
     Parameters
     ----------
     rows : ndarray, shape (n_rows, n_samples)
-    plan : MatchedPlan
-        Plain (white-noise) plan: only its analytic template and constants are used.
+    plan : LocalPlan
+        From ``plan_local`` for this template and record length.
     t0_s : float
     pfa : float
         Design false-alarm probability per record (same threshold as ``detect_matched``).
@@ -136,8 +371,8 @@ def detect_local_matched(
     noise_window_s : (start_s, stop_s), optional
         Noise-only window for the noise floor (default: robust estimate over the record).
     candidates : int
-        Number of coarse peaks (the most energetic windows, a template length apart) tried;
-        the one with the strongest correlation near it wins.
+        Number of coarse windows (the strongest, a template length apart) around which the
+        local matched filter is run; the largest |z| among them wins.
     noise_floor_v : float
         Least noise standard deviation (V), the ADC's quantisation noise: the noise estimate
         is never below it.
@@ -150,79 +385,41 @@ def detect_local_matched(
     list (n_rows) of list of (tof_s, amplitude, snr_db, score, tof_std_s)
     """
     pfa = check_pfa(pfa)
-    fs = plan.sample_rate_hz
+    if not isinstance(plan, LocalPlan):
+        raise TypeError("detect_local_matched needs a LocalPlan (plan_local)")
+    matched = plan.matched
+    fs = matched.sample_rate_hz
     n_rows, n = rows.shape
     if not (isinstance(candidates, (int, np.integer)) and 1 <= candidates <= 16):
         raise RecordingError(f"{where}: candidates must be an integer in [1, 16], got {candidates!r}")
-    m = plan.template_length
-    lag_lo, lag_hi = lag_range(plan, t0_s, search_window_s, where)
-    # Blocks of ~m/16 samples, windows of 4 blocks (~m/4, about 4 RMS durations of a Gaussian
-    # pulse truncated at 1e-6, i.e. most of its energy and little more noise).
-    block = max(1, m // 16)
-    n_blocks = n // block
+    lag_lo, lag_hi = lag_range(matched, t0_s, search_window_s, where)
     dc = None if dc_v is None else np.asarray(dc_v, dtype=float).reshape(n_rows)
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc)
-    if dc is None or np.all(np.abs(dc) <= _DC_IGNORED_IN_ENERGY * sigma):
-        # The energies of x, not x - dc: they differ by block * dc^2 (the same for every
-        # window: no effect on the ranking) and by -2 dc sum(x), whose standard deviation over
-        # a window of noise is 2 |dc| sigma sqrt(w), at most sqrt(2) * 0.1 = 14 % of the
-        # window energies' own noise scatter (sigma^2 sqrt(2 w)). That can only reorder
-        # windows of noise whose energies are within a fraction of that scatter of each
-        # other, not rank an echo window (its energy many scatters above the noise's) below
-        # them; the correlations that decide and refine the TOF fold dc in exactly.
-        part = rows[:, : n_blocks * block].reshape(n_rows, n_blocks, block)
-        energy = np.einsum("rbk,rbk->rb", part, part)
-    else:
-        energy = block_energies(rows, block, n_blocks, dc)
-    span = min(4, n_blocks)
-    # Moving sum of ``span`` blocks as ``span`` shifted slices (a few adds over the block
-    # energies; no padded copy, no running sum and its cancellation).
-    n_windows = n_blocks - span + 1
-    window_energy = energy[:, :n_windows].copy()
-    for k in range(1, span):  # at most 3 slices
-        window_energy += energy[:, k:k + n_windows]
-    taps = plan.analytic_template_conj
-    reference = int(np.argmax(np.abs(taps))) - plan.analytic_offset  # template envelope maximum
-    # Lag of each window (its centre minus the template's envelope maximum): only those where
-    # the full matched filter looks too (the template inside the record, in the search window).
-    window_lag = np.arange(window_energy.shape[1]) * block + (span * block) // 2 - reference
-    window_energy[:, (window_lag < lag_lo) | (window_lag > lag_hi)] = -np.inf
-    # The strongest few windows at least a template length apart: the echo need only be among
-    # them (noise alone can top the energy at 20 dB in a 250,000-sample record).
-    exclusion = max(1, m // block)
+    k = int(candidates)
+    coarse = coarse_lags(plan, rows, k, (lag_lo, lag_hi), dc)  # (n_rows, k)
+    # Each stretch covers lags coarse -/+ half, moved inside [lag_lo, lag_hi] when it can be.
+    width = 2 * plan.half + 1
+    start = np.maximum(np.minimum(coarse - plan.half, lag_hi - (width - 1)), lag_lo).reshape(-1)
+    row_of = np.repeat(np.arange(n_rows), k)
+    values = segment_correlation(plan, rows, row_of, start, dc)  # (n_rows * k, width)
+    power = values.real ** 2 + values.imag ** 2
+    lags = start[:, np.newaxis] + np.arange(width)
+    power[(lags < lag_lo) | (lags > lag_hi)] = -1.0  # the same lags as the full filter
+    best = np.argmax(power.reshape(n_rows, k * width), axis=1)
+    peak_lag = lags.reshape(n_rows, k * width)[np.arange(n_rows), best]
+    # Sub-sample refinement exactly as the full matched filter's (direct z around the peak).
+    refine_lags = peak_lag[:, np.newaxis] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
     r = np.arange(n_rows)
-    picks = np.zeros((n_rows, int(candidates)), dtype=np.intp)
-    for k in range(int(candidates)):  # a few candidates per row, not samples
-        best = np.argmax(window_energy, axis=1)
-        picks[:, k] = best
-        for row, b in enumerate(best):  # blank the neighbourhood of each pick (a slice per row)
-            window_energy[row, max(b - exclusion, 0): b + exclusion + 1] = -np.inf
-    coarse_lag = np.clip(window_lag[picks], lag_lo, lag_hi)  # (n_rows, candidates)
-    if candidates > 1:
-        # Rank the candidates by |z| at a few lags around each (spaced by a quarter of the
-        # coarse window, well inside the response's main lobe), then keep the best.
-        step = max(1, (span * block) // 4)
-        probe_lags = coarse_lag.reshape(-1, 1) + np.arange(-2, 3) * step
-        probe_rows = np.repeat(r, int(candidates))
-        probe_values = lags_time_domain(plan, rows, probe_rows, probe_lags, stride=step)
-        if dc is not None:
-            probe_values -= dc_correlation(plan, n, dc[probe_rows], probe_lags)
-        strength = np.max(np.abs(probe_values), axis=1).reshape(n_rows, int(candidates))
-        coarse_lag = coarse_lag[r, np.argmax(strength, axis=1)]
-    else:
-        coarse_lag = coarse_lag[:, 0]
-    half = m // 2
-    lags = coarse_lag[:, np.newaxis] + np.arange(-half, half + 1)
-    values = lags_by_fft(plan, rows, r, lags)
+    direct = lags_time_domain(matched, rows, r, refine_lags)
     if dc is not None:
-        values -= dc_correlation(plan, n, dc, lags)
-    values[(lags < lag_lo) | (lags > lag_hi)] = 0.0  # the same lags as the full filter
-    lag, power = refine(values, lags)
-    noise_mean = white_noise_power(plan, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
-    values_out = echo_values(plan, lag, power, noise_mean, plan.threshold_factor(pfa), t0_s)
+        direct -= dc_correlation(matched, n, dc, refine_lags)
+    direct[(refine_lags < lag_lo) | (refine_lags > lag_hi)] = 0.0
+    lag, peak = refine(direct, refine_lags)
+    noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
+    values_out = echo_values(matched, lag, peak, noise_mean, matched.threshold_factor(pfa), t0_s)
     out: list[list[tuple[float, float, float, float, float]]] = []
-    for k in range(n_rows):
-        echo = tuple(float(v[k]) for v in values_out)
+    for row in range(n_rows):
+        echo = tuple(float(v[row]) for v in values_out)
         out.append([echo] if echo[3] >= 1.0 else [])  # type: ignore[list-item]
     return out

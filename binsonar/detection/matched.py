@@ -107,6 +107,9 @@ class MatchedPlan:
     response_spacing_s: float
     correlation_time_s: float
     mainlobe_fwhm_s: float
+    analytic_parts: NDArray[np.float64] | None = field(default=None, repr=False)
+    """Real and imaginary parts of ``analytic_template_conj`` as columns, shape (m_a, 2)
+    (the matrix the direct correlations multiply by; None: made on use)."""
 
     @property
     def decimation(self) -> float:
@@ -286,6 +289,7 @@ def plan_matched(
         response_spacing_s=float(spacing_s),
         correlation_time_s=correlation_time_s,
         mainlobe_fwhm_s=float(fwhm_s),
+        analytic_parts=np.ascontiguousarray(np.stack([analytic_conj.real, analytic_conj.imag], axis=1)),
     )
 
 
@@ -366,10 +370,14 @@ def lags_time_domain(
     w = lags.shape[1]
     start = lags[:, 0] - plan.analytic_offset  # first record sample under the template at the first lag
     index = start[:, np.newaxis] + np.arange((w - 1) * stride + taps.size)
-    inside = (index >= 0) & (index < n)
-    segment = np.where(inside, rows[row_index[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
-    windows = np.ascontiguousarray(sliding_window_view(segment, taps.size, axis=-1)[:, ::stride])  # (k, w, m_a)
-    parts = windows @ np.stack([taps.real, taps.imag], axis=1)  # (k, w, 2), BLAS
+    if index.size and index.min() >= 0 and index.max() < n:  # all inside the record (the usual case)
+        segment = rows[row_index[:, np.newaxis], index]
+    else:
+        inside = (index >= 0) & (index < n)
+        segment = np.where(inside, rows[row_index[:, np.newaxis], np.minimum(np.maximum(index, 0), n - 1)], 0.0)
+    windows = sliding_window_view(segment, taps.size, axis=-1)[:, ::stride]  # (k, w, m_a), a view
+    columns = plan.analytic_parts if plan.analytic_parts is not None else np.stack([taps.real, taps.imag], axis=1)
+    parts = np.matmul(windows, columns)  # (k, w, 2)
     return parts[..., 0] + 1j * parts[..., 1]
 
 
