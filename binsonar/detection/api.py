@@ -5,7 +5,7 @@ from __future__ import annotations
 import inspect
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -125,6 +125,21 @@ def _preprocess(
     return signals.with_waveforms(waveforms, clipped)
 
 
+def _average_keeping_offsets(signals: Signals) -> Signals:
+    """The pings' average (eq. 4.33) with its DC offset carried, not removed, for the methods
+    that fold it (``FOLDS_DC``): mean_p(x_p - dc_p) = mean_p(x_p) - mean_p(dc_p) exactly, so the
+    average of the waveforms as recorded plus the mean offset is the average of the
+    offset-free pings, without a copy of each. One ping is its own average (no copy at all).
+    """
+    from binsonar.preprocess import average_pings
+
+    if signals.n_pings == 1:
+        return signals
+    dc = None if signals.dc_v is None else signals.dc_v.mean(axis=0, keepdims=True)
+    averaged = signals.with_waveforms(average_pings(signals.waveforms), signals.clipped.any(axis=0, keepdims=True))
+    return replace(averaged, dc_v=dc)
+
+
 @dataclass(frozen=True, eq=False)
 class PreparedDetector:
     """A detection method set up once for a template, sample rate and record length.
@@ -197,9 +212,12 @@ class PreparedDetector:
                 f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped "
                 f"channel(s))"
             )
-        if self.base not in FOLDS_DC or self.average or self.bandpass_hz is not None:
+        if self.base in FOLDS_DC and self.bandpass_hz is None:
+            if self.average:
+                signals = _average_keeping_offsets(signals)
+        else:
             signals = signals.without_dc()
-        signals = _preprocess(signals, self.average, self.bandpass_hz, self.bandpass_order)
+            signals = _preprocess(signals, self.average, self.bandpass_hz, self.bandpass_order)
         n_pings, n_channels, n = signals.waveforms.shape
         rows = signals.waveforms.reshape(n_pings * n_channels, n)
         raw = _run(self, rows, signals)
