@@ -196,8 +196,12 @@ def test_rows_behind_the_transducer_are_silent(medium):
 
 
 def test_many_rows_equal_the_sum_of_single_rows(medium):
-    # Chunking, kernel-size classes and the scatter-add are linear: 3000 random rows at once
-    # equal the sum of the same rows synthesised in three groups.
+    # Chunking, kernel-size classes, same-sample groups and the overlap-add are linear: 3000
+    # random rows at once equal the sum of the same rows synthesised in three parts. Rows that
+    # start on one sample have their float32 spectra summed before the inverse FFT (relative
+    # rounding 6e-8 per addition, so a group's kernel differs from the sum of its rows' by
+    # ~1e-7 of the group's peak): 1e-6 of the peak; a lost, doubled or misplaced row would be
+    # O(1e-3) or more (3000 rows of similar weight).
     sonar = SonarHead()
     chain = ReceiverChain(**QUIET)
     synth = PingSynthesiser.create(sonar, medium, chain)
@@ -214,7 +218,7 @@ def test_many_rows_equal_the_sum_of_single_rows(medium):
     )
     together = synth.echo_volts(rows)
     parts = sum(synth.echo_volts(rows[i::3]) for i in range(3))
-    assert np.max(np.abs(together - parts)) < 1e-9 * np.max(np.abs(together)) + 1e-15
+    assert np.max(np.abs(together - parts)) < 1e-6 * np.max(np.abs(together))
 
 
 def test_user_chirp_pulse_lands_at_its_delay(medium):
@@ -245,24 +249,27 @@ def test_user_chirp_pulse_lands_at_its_delay(medium):
     assert abs(20 * np.log10(ratio / 0.1)) < 0.1
 
 
-def test_rows_sharing_a_sample_are_merged_within_tolerance(medium):
-    # Close-spaced edge elements (same channel, same start sample, sin(theta) within 1e-3) share
-    # a kernel with |weight|-mean directivity and absorption; each keeps its exact delay and
-    # weight. Against exact one-row-at-a-time synthesis: the mean sin(theta) is within 5e-4 of
-    # each row's, a directivity error of 0.58 k a 5e-4 < 1e-2 at the band's -20 dB top, so 1 %.
+def test_rows_sharing_a_sample_keep_their_own_response(medium):
+    # Rows on one channel that start on the same sample (close-spaced edge elements, speckle)
+    # have their spectra summed before one inverse FFT, each with its own delay, weight,
+    # directivities and absorption: the result equals one-row-at-a-time synthesis to float32
+    # rounding (~1e-7 of the peak, see test_many_rows_equal_the_sum_of_single_rows). The rows
+    # differ widely in angle (D from 1 to 0.1 at 500 kHz) and length, so a shared factor would
+    # be off by tens of percent.
     sonar = SonarHead(record_length_s=2e-3)
     synth = PingSynthesiser.create(sonar, medium, ReceiverChain(**QUIET)).paths
     n = 120
     rows = rows_of(
         1.0e-3 + np.arange(n) * 2e-9,
         np.linspace(1.0, 0.5, n) / n,
-        angles_tx=0.15 + np.arange(n) * 8e-6,
-        angles_rx=0.12 + np.arange(n) * 8e-6,
-        lengths=1.48 + np.arange(n) * 1e-3,
+        angles_tx=np.linspace(0.0, 0.3, n),
+        angles_rx=np.linspace(0.25, 0.0, n),
+        lengths=1.48 + np.arange(n) * 0.1,
+        phases=np.linspace(0.0, 3.0, n),
     )
-    merged = synth.decimated_record(rows)
+    fs_dec = synth.grid.sample_rate_hz / synth.grid.decimation
+    assert np.unique(np.floor(rows["delay_s"] * fs_dec)).size <= 2  # they do share start samples
+    together = synth.decimated_record(rows)
     exact = sum(synth.decimated_record(rows[i : i + 1]) for i in range(n))
-    assert np.max(np.abs(merged - exact)) < 1e-2 * np.max(np.abs(exact))
-    # They were merged (else this test checks nothing): identical rows merge to float32
-    # rounding (1e-7), these differ by their shared-factor error (5e-4 here).
-    assert np.max(np.abs(merged - exact)) > 1e-5 * np.max(np.abs(exact))
+    assert np.max(np.abs(together - exact)) < 1e-6 * np.max(np.abs(exact))
+

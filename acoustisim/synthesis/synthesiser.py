@@ -64,16 +64,11 @@ SINE_STEPS = 8192
 DELAY_RESOLUTION_S = 5e-11
 """Phase-ramp table: fractional-delay step at most this (s); 8192 steps per sample at 20 MS/s / 7."""
 
+FINE_DELAY_STEPS = 64
+"""Phase-ramp tables: fine steps per coarse step (the fine table's rows)."""
+
 LENGTH_STEP_M = 0.01
 """Absorption table: path-length step (m)."""
-
-MERGE_SINE_STEPS = 8
-"""Rows on one sample share a kernel when their sin(theta) agree within 8 / SINE_STEPS (1e-3):
-the group's mean is then within 5e-4 of each row's, a directivity error below 6e-3 at 500 kHz."""
-
-MERGE_LENGTH_STEPS = 16
-"""... and their path lengths within 16 LENGTH_STEP_M (0.16 m: absorption error < 1e-3 at 500 kHz)."""
-
 
 @dataclass(frozen=True, eq=False)
 class RecordGrid:
@@ -135,9 +130,14 @@ class KernelPlan:
         Index of the pulse's reference instant in a kernel, before the fractional shift.
     max_spread : float
         Largest |sin theta_tx| + |sin theta_rx| the kernel holds without wrap-around.
-    phase_table : ndarray (delay_steps + 1, n_bins) complex64
-        fs_dec Q(f_k) exp(-j 2 pi k (centre + u / delay_steps) / Lk): the sampled pulse with its
-        reference instant at centre + u / delay_steps samples.
+    phase_coarse : ndarray (2, delay_steps / FINE_DELAY_STEPS + 1, n_bins) float32
+        Real and imaginary parts of fs_dec Q(f_k) exp(-j 2 pi k (centre + v FINE_DELAY_STEPS /
+        delay_steps) / Lk): the sampled pulse with its reference instant at the coarse
+        fractional delay v.
+    phase_fine : ndarray (2, FINE_DELAY_STEPS, n_bins) float32
+        Real and imaginary parts of exp(-j 2 pi k w / (delay_steps Lk)): the fine step w. A
+        delay of u / delay_steps samples is coarse[u // FINE_DELAY_STEPS] x fine[u %
+        FINE_DELAY_STEPS] (two small tables that stay in cache instead of one of 2 MB).
     directivity_table : ndarray (SINE_STEPS + 1, n_bins) float32
         2 J1(x)/x at x = k a s, s = i / SINE_STEPS.
     absorption_table : ndarray (n_lengths, n_bins) float32
@@ -147,7 +147,8 @@ class KernelPlan:
     length: int
     centre: int
     max_spread: float
-    phase_table: NDArray[np.complex64] = field(repr=False)
+    phase_coarse: NDArray[np.float32] = field(repr=False)
+    phase_fine: NDArray[np.float32] = field(repr=False)
     delay_steps: int
     directivity_table: NDArray[np.float32] = field(repr=False)
     absorption_table: NDArray[np.float32] = field(repr=False)
@@ -159,13 +160,12 @@ class KernelPlan:
     ) -> "KernelPlan":
         """Tabulate the factors of a kernel's spectrum on its bins ``bins_hz`` (Hz)."""
         delay_steps = 1 << int(math.ceil(math.log2(1.0 / (fs_dec * DELAY_RESOLUTION_S))))
-        # exp(-j 2 pi k shift / Lk) as running powers over k (one multiply per entry).
-        shift = centre + np.arange(delay_steps + 1) / delay_steps
-        phase = np.empty((delay_steps + 1, bins_hz.size), dtype=complex)
-        phase[:, :1] = 1.0
-        phase[:, 1:] = np.exp(-2j * np.pi * shift / length)[:, None]
-        np.cumprod(phase, axis=1, out=phase)
-        phase *= fs_dec * pulse_spectrum(pulse, bins_hz)
+        fine_steps = min(FINE_DELAY_STEPS, delay_steps)
+        k = np.arange(bins_hz.size)
+        coarse_shift = centre + np.arange(delay_steps // fine_steps + 1) * (fine_steps / delay_steps)
+        coarse = np.exp(-2j * np.pi * np.multiply.outer(coarse_shift, k) / length)
+        coarse *= fs_dec * pulse_spectrum(pulse, bins_hz)
+        fine = np.exp(-2j * np.pi * np.multiply.outer(np.arange(fine_steps) / delay_steps, k) / length)
         # 2 J1(x)/x on a fine x grid (64 per unit: linear interpolation error h^2/32 < 1e-5),
         # through the shared piston model (x = k a sin(theta) with f = x / (2 pi), a = c = 1).
         kappa = 2.0 * np.pi * bins_hz * radius_m / medium.sound_speed
@@ -176,7 +176,7 @@ class KernelPlan:
         lengths = np.arange(int(math.ceil(max_length_m / LENGTH_STEP_M)) + 1) * LENGTH_STEP_M
         absorption = 10.0 ** (-np.multiply.outer(lengths, medium.absorption_db_per_m(bins_hz)) / 20.0)
         return cls(
-            length, centre, max_spread, phase.astype(np.complex64), delay_steps, directivity.astype(np.float32),
+            length, centre, max_spread, _split(coarse), _split(fine), delay_steps, directivity.astype(np.float32),
             absorption.astype(np.float32),
         )
 
@@ -255,61 +255,46 @@ class PathSynthesiser:
         grid = make_record_grid(fs, int(sonar.n_samples), decimation, padding)
         return cls(pulse, medium, radius, c, grid, tuple(plans))
 
-    @staticmethod
-    def _kernels(
-        plan: KernelPlan,
-        i_tx: NDArray[np.intp],
-        i_rx: NDArray[np.intp],
-        i_len: NDArray[np.intp],
-        ramps: NDArray[np.complex64],
-    ) -> NDArray[np.float32]:
-        """(groups, Lk) kernels at fs / q from each group's table indices and summed ramps."""
-        from scipy.fft import irfft
-
-        n_groups, n_bins = ramps.shape
-        # Real factors in float32, applied to the complex ramps in place (numpy's complex64 x
-        # float32 loop: twice as fast as a broadcast over the float32 view's pairs).
-        real = np.take(plan.directivity_table, i_tx, axis=0)
-        real *= np.take(plan.directivity_table, i_rx, axis=0)
-        real *= np.take(plan.absorption_table, np.minimum(i_len, plan.absorption_table.shape[0] - 1), axis=0)
-        ramps *= real
-        full = np.zeros((n_groups, plan.length // 2 + 1), dtype=np.complex64)
-        full[:, :n_bins] = ramps
-        return irfft(full, n=plan.length, axis=1)
-
     def decimated_record(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.float64]:
         """The pressure at the three receivers (Pa), (3, M / q), sampled at fs / q.
 
-        Rows on the same channel whose echoes start on the same sample and whose directivity
-        and absorption indices agree within ``MERGE_SINE_STEPS`` / ``MERGE_LENGTH_STEPS`` (the
-        close-spaced elements of a diffracting edge, mostly) share one kernel: each keeps its
-        exact weight and fractional delay, the shared factors take the group's |weight|-mean
-        indices. A row alone in its group is synthesised exactly as it is.
-
+        Every row keeps its own spectrum (its exact weight, fractional delay, directivities and
+        absorption, to the tables' resolution). Rows of one kernel size that start on the same
+        sample of the same channel have their spectra summed before one inverse FFT (exact:
+        the transform is linear), built in blocks of ``CHUNK_ROWS`` groups by the compiled
+        loops of :mod:`acoustisim.synthesis.row_kernels` and one batched inverse FFT.
         Kernel samples before t = 0 or past the record's end are dropped; when whole arrivals
         fall past the end a warning says how many (the rest is kept).
         """
-        from scipy import sparse
+        from scipy.fft import irfft
+
+        from acoustisim.synthesis.row_kernels import (
+            ROWS_OK, fill_group_spectra, group_rows, overlap_add, row_parameters,
+        )
 
         m_dec = self.grid.n_fft_decimated
         keep = int(math.ceil(self.grid.n_samples / self.grid.decimation)) + 1
         fs_dec = self.grid.sample_rate_hz / self.grid.decimation
-        out = np.zeros(3 * m_dec)
-        # Contiguous copies of the columns used, read in one pass over the (wide) structured
-        # rows: the float columns as one (rows, 6) strided view, transposed into a copy.
-        from numpy.lib.recfunctions import structured_to_unstructured
-
-        floats = np.ascontiguousarray(
-            structured_to_unstructured(rows[list(ROW_COLUMNS[:-1])], dtype=np.float64, copy=False).T
-        )
-        columns = dict(zip(ROW_COLUMNS[:-1], floats))
-        columns["channel"] = np.ascontiguousarray(rows["channel"])
-        check_columns(columns)
+        record = np.zeros((3, m_dec))
+        columns = {name: rows[name] for name in ROW_COLUMNS}  # strided views, no copies
         if rows.size == 0:
-            return out.reshape(3, m_dec)
-        position = columns["delay_s"] * fs_dec
-        whole = np.floor(position)
-        late = whole - self.plans[-1].centre >= keep
+            return record
+        plans = self.plans
+        status, plan, first, i_tx, i_rx, i_len, i_frac, weight = row_parameters(
+            *(columns[name] for name in ROW_COLUMNS),
+            fs_dec,
+            SINE_STEPS,
+            LENGTH_STEP_M,
+            plans[0].delay_steps,
+            np.array([p.max_spread for p in plans]),
+            np.array([p.centre for p in plans], dtype=np.int64),
+            np.array([p.length for p in plans], dtype=np.int64),
+            keep,
+        )
+        if status != ROWS_OK:
+            check_columns(columns)  # raises InputError naming the column, row and value
+            raise InputError(f"paths: invalid row {status}")  # unreachable: check_columns names it
+        late = plan == -2
         if warn and np.any(late):
             lost = np.unique(rows["path_id"][late]).size
             warnings.warn(
@@ -318,74 +303,22 @@ class PathSynthesiser:
                 UserWarning,
                 stacklevel=3,
             )
-        angle_tx, angle_rx = columns["angle_tx_rad"], columns["angle_rx_rad"]
-        sin_tx, sin_rx = np.abs(np.sin(angle_tx)), np.abs(np.sin(angle_rx))
-        # A baffled piston radiates (and receives) only in front of its face: D = 0 beyond
-        # 90 deg off axis (the housing), as in propagation.directivity (cos(angle) >= 0, i.e.
-        # |angle| <= pi/2 in doubles, is the front).
-        front = (np.abs(angle_tx) <= 0.5 * np.pi) & (np.abs(angle_rx) <= 0.5 * np.pi)
-        phase = columns["phase_rad"]
-        gain = columns["geometric_gain"] * front
-        weight = np.empty(rows.size, dtype=np.complex64)
-        if np.any(phase != 0.0):
-            weight.real = gain * np.cos(phase)
-            weight.imag = gain * np.sin(phase)
-        else:
-            weight.real = gain
-            weight.imag = 0.0
-        i_tx = np.rint(sin_tx * SINE_STEPS).astype(np.int64)
-        i_rx = np.rint(sin_rx * SINE_STEPS).astype(np.int64)
-        i_len = np.rint(columns["path_length_m"] * (1.0 / LENGTH_STEP_M)).astype(np.int64)
-        frac = position - whole
-        sample = columns["channel"].astype(np.int64) * m_dec + whole.astype(np.int64)
-        limits = np.array([plan.max_spread for plan in self.plans])
-        which = np.minimum(np.searchsorted(limits, sin_tx + sin_rx, side="left"), len(self.plans) - 1)
-        for plan_number, plan in enumerate(self.plans):
-            selected = np.flatnonzero((which == plan_number) & ~late & (whole - plan.centre + plan.length > 0))
-            if selected.size == 0:
-                continue
-            # Group rows by (channel and start sample, coarse sin_tx, sin_rx, path length).
-            key = (
-                (sample[selected] * (SINE_STEPS // MERGE_SINE_STEPS + 1) + i_tx[selected] // MERGE_SINE_STEPS)
-                * (SINE_STEPS // MERGE_SINE_STEPS + 1)
-                + i_rx[selected] // MERGE_SINE_STEPS
-            ) * (int(i_len.max()) // MERGE_LENGTH_STEPS + 1) + i_len[selected] // MERGE_LENGTH_STEPS
-            order, key = _stable_order(key, selected)
-            starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-            bounds = np.r_[starts, order.size]
-            offsets = np.arange(plan.length)
-            group_chunk = max(1, CHUNK_ROWS)
-            for g0 in range(0, starts.size, group_chunk):
-                g1 = min(g0 + group_chunk, starts.size)
-                members = order[bounds[g0] : bounds[g1]]
-                local = bounds[g0:g1] - bounds[g0]
-                w = weight[members]
-                ramps = np.take(plan.phase_table, np.rint(frac[members] * plan.delay_steps).astype(np.intp), axis=0)
-                ramps *= w[:, None]
-                if members.size > g1 - g0:  # some groups hold several rows: sum them
-                    # Segmented sums as a sparse (groups x rows) product (one pass, in C).
-                    summing = sparse.csr_matrix(
-                        (np.ones(members.size, dtype=np.float32), np.arange(members.size), np.r_[local, members.size]),
-                        shape=(g1 - g0, members.size),
-                    )
-                    ramps = np.asarray(summing @ ramps, dtype=np.complex64)
-                    magnitude = np.abs(w).astype(np.float64) + 1e-300
-                    shares = np.column_stack([magnitude * v[members] for v in (i_tx, i_rx, i_len)] + [magnitude])
-                    sums = summing.astype(np.float64) @ shares
-                    g_tx, g_rx, g_len = (np.rint(sums[:, j] / sums[:, 3]).astype(np.intp) for j in range(3))
-                else:
-                    g_tx, g_rx, g_len = i_tx[members], i_rx[members], i_len[members]
-                kernels = self._kernels(plan, g_tx, g_rx, g_len, ramps)
-                first = members[local]
-                start = whole[first].astype(np.int64) - plan.centre
-                flat = (sample[first] - plan.centre)[:, None] + offsets
-                if np.all((start >= 0) & (start + plan.length <= keep)):
-                    out += np.bincount(flat.ravel(), weights=kernels.ravel(), minlength=3 * m_dec)
-                else:
-                    index = start[:, None] + offsets
-                    valid = (index >= 0) & (index < keep)
-                    out += np.bincount(flat[valid], weights=kernels[valid], minlength=3 * m_dec)
-        return out.reshape(3, m_dec)
+        longest = max(p.length for p in plans)
+        span = keep + plans[-1].centre + 2 * longest
+        for plan_number, kernel_plan in enumerate(plans):
+            members, bounds, group_first, group_channel = group_rows(
+                plan, first, columns["channel"], plan_number, -longest, span
+            )
+            for g0 in range(0, group_first.size, CHUNK_ROWS):
+                g1 = min(g0 + CHUNK_ROWS, group_first.size)
+                spectra = np.empty((g1 - g0, kernel_plan.length // 2 + 1), dtype=np.complex64)
+                fill_group_spectra(
+                    members, bounds, g0, i_tx, i_rx, i_len, i_frac, weight, kernel_plan.phase_coarse, kernel_plan.phase_fine,
+                    kernel_plan.directivity_table, kernel_plan.absorption_table, spectra,
+                )
+                kernels = irfft(spectra, n=kernel_plan.length, axis=1, overwrite_x=True)
+                overlap_add(kernels, group_first[g0:g1], group_channel[g0:g1], keep, record)
+        return record
 
     def spectrum(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.complex128]:
         """Full-rate rfft (3, M//2 + 1) of the pressure at the receivers (Pa per sample).
@@ -402,18 +335,9 @@ class PathSynthesiser:
         return full
 
 
-def _stable_order(key: NDArray[np.int64], items: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.int64]]:
-    """``items`` and ``key`` (both (n,), key >= 0) sorted by key, ties in their given order.
-
-    When key x n fits in int64, the position is appended to the key: the keys are then
-    distinct, and the (4x faster, SIMD) unstable sort gives exactly the stable order.
-    """
-    n = key.size
-    if n and (int(key.max()) + 1) * n < 2**63:
-        by_key = np.argsort(key * n + np.arange(n))
-    else:
-        by_key = np.argsort(key, kind="stable")
-    return items[by_key], key[by_key]
+def _split(table: NDArray[np.complex128]) -> NDArray[np.float32]:
+    """(2, ...) float32 real and imaginary parts of a complex table, each contiguous."""
+    return np.ascontiguousarray(np.stack([table.real, table.imag]), dtype=np.float32)
 
 
 ROW_COLUMNS: tuple[str, ...] = (
