@@ -19,6 +19,7 @@ name = "tiny"
 n_samples = 5
 seed = 11
 max_arrivals = 48
+samples_per_chunk = 2    # chunks [0, 1], [2, 3], [4]: a short last chunk too
 [sonar]
 x_m = [0.8, 1.2]
 y_m = [1.2, 1.8]
@@ -68,6 +69,8 @@ def test_xarray_opens_the_store_and_labels_line_up_with_waveforms(dataset: tuple
     assert list(ds.channel.values) == ["left", "centre", "right"]
     assert list(ds.arrival_field.values) == list(ARRIVAL_FIELDS)
     assert ds.complete.values.all()
+    # Every array indexed by sample is chunked alike, so chunk k of each holds the same samples.
+    assert {ds[name].encoding["chunks"][0] for name in ds.data_vars if ds[name].dims[0] == "sample"} == {2}
     field = {name: k for k, name in enumerate(SAMPLE_FIELDS)}
     for k in (1, 3):  # not in order, as a worker might see them
         sample = draw_sample(spec, k)
@@ -131,8 +134,8 @@ def test_verify_passes_then_catches_a_corrupted_chunk(dataset: tuple[object, Pat
     shutil.copytree(out, copy)
     report = verify(copy)
     assert report.ok and report.n_complete == 5 and not report.missing
-    # Flip bytes in the middle of sample 2's waveform chunk file.
-    chunk = copy / "waveforms" / "c" / "2" / "0" / "0" / "0"
+    # Flip bytes in the middle of the waveform chunk file of samples 2 and 3.
+    chunk = copy / "waveforms" / "c" / "1" / "0" / "0" / "0"
     data = bytearray(chunk.read_bytes())
     data[len(data) // 2] ^= 0xFF
     data[len(data) // 2 + 1] ^= 0x55
@@ -142,28 +145,69 @@ def test_verify_passes_then_catches_a_corrupted_chunk(dataset: tuple[object, Pat
     store.array("pose")[4] = np.zeros(6)
     report = verify(copy)
     assert not report.ok
-    assert [i for i, _ in report.corrupt] == [2, 4]
-    assert "checksum" in report.corrupt[1][1]
+    corrupt = [i for i, _ in report.corrupt]
+    # Either the chunk no longer decodes (both its samples unreadable) or it decodes to
+    # different codes in one or both samples: only samples of that chunk, and sample 4.
+    assert corrupt[-1] == 4 and corrupt[:-1] and set(corrupt[:-1]) <= {2, 3}
+    assert "checksum" in report.corrupt[-1][1]
 
 
-def test_resume_skips_complete_samples_and_redoes_unrecorded_ones(dataset: tuple[object, Path], tmp_path: Path) -> None:
-    """Clear the completion of two samples and scramble one of their chunks (as a kill after
-    the write but before the record would leave them): resuming redoes exactly those two."""
+def test_resume_skips_complete_chunks_and_redoes_unrecorded_ones(dataset: tuple[object, Path], tmp_path: Path) -> None:
+    """Clear the completion of samples 3 and 4 and scramble sample 3's waveforms (as a kill
+    after the data write but before the flags would leave them): resuming redoes exactly
+    their chunks, [2, 3] and [4], and the store then equals the uninterrupted one."""
     import shutil
 
     spec, out = dataset
     copy = tmp_path / "resume.zarr"
     shutil.copytree(out, copy)
     store = DatasetStore(copy, mode="r+")
-    store.array("complete")[[1, 3]] = 0
+    store.array("complete")[3:5] = 0
     store.array("waveforms")[3] = np.ones_like(store.array("waveforms")[3])
+    assert store.chunks_to_do() == [(2, 4), (4, 5)]
     report = generate(spec, copy, workers=0, progress=False)
-    assert (report.n_skipped, report.n_generated, report.n_complete) == (3, 2, 5)
+    assert (report.n_skipped, report.n_generated, report.n_complete) == (2, 3, 5)
     a, b = DatasetStore(out), DatasetStore(copy)
     for k in range(spec.n_samples):
         for name, value in a.read_sample(k).items():
             np.testing.assert_array_equal(b.read_sample(k)[name], value)
     np.testing.assert_array_equal(a.checksums(), b.checksums())
+
+
+def test_a_store_of_the_old_layout_is_refused_with_a_clear_message(dataset: tuple[object, Path],
+                                                                   tmp_path: Path) -> None:
+    import shutil
+
+    from acoustisim.datasets.store import DatasetStoreError
+
+    _, out = dataset
+    copy = tmp_path / "old.zarr"
+    shutil.copytree(out, copy)
+    DatasetStore(copy, mode="r+").update_card(layout_version=1)
+    with pytest.raises(DatasetStoreError, match=r"layout version 1, this acoustisim reads version 2"):
+        DatasetStore(copy)
+
+
+def test_a_chunk_is_written_whole_or_not_at_all(dataset: tuple[object, Path], tmp_path: Path) -> None:
+    """The writer refuses anything but exactly one chunk's samples (no partial chunk file)."""
+    import shutil
+
+    _, out = dataset
+    copy = tmp_path / "w.zarr"
+    shutil.copytree(out, copy)
+    store = DatasetStore(copy, mode="r+")
+    writer = store.writer()
+    from acoustisim.datasets.store import SampleArrays
+
+    def row(i: int) -> SampleArrays:
+        stored = store.read_sample(i)
+        return SampleArrays(index=i, **stored)
+
+    for bad in ([row(1), row(2)], [row(2)], [row(2), row(4)], []):
+        with pytest.raises(ValueError, match="not the whole chunk"):
+            writer.write_chunk(bad)
+    checksums = writer.write_chunk([row(4)])  # the short last chunk, rewritten identically
+    assert checksums.tolist() == [DatasetStore(out).checksums()[4]]
 
 
 def test_resume_refuses_a_different_spec(dataset: tuple[object, Path]) -> None:

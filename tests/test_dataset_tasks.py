@@ -1,4 +1,4 @@
-"""How generation splits samples into Dask tasks, and what a task reports."""
+"""How generation splits samples into chunks (one Dask task each), and what a task reports."""
 
 from __future__ import annotations
 
@@ -7,16 +7,17 @@ from pathlib import Path
 
 import pytest
 
-from acoustisim.datasets.generate import MAX_SAMPLES_PER_TASK, generate, make_samples, samples_per_task
+from acoustisim.datasets.generate import generate, make_chunk
 from acoustisim.datasets.labels import vocabularies
 from acoustisim.datasets.sampling import plan_samples
 from acoustisim.datasets.spec import loads_spec
-from acoustisim.datasets.store import DatasetStore
+from acoustisim.datasets.store import DatasetStore, StoreShape
 
 SPEC = """
 [dataset]
 name = "tiny-tasks"
 n_samples = 3
+samples_per_chunk = 2
 seed = 11
 max_arrivals = 16
 [sonar]
@@ -36,40 +37,52 @@ radius_m = [0.02, 0.05]
 """
 
 
-@pytest.mark.parametrize(("n_todo", "n_workers", "expected"), [
-    (1, 1, 1),  # a single sample: one task of one
-    (8, 2, 1),  # too few samples for 4 tasks per worker of more than one sample
-    (24, 1, 4),  # 6 tasks of 4
-    (24, 2, 3),  # 8 tasks of 3: 4 per worker
-    (10_000, 2, MAX_SAMPLES_PER_TASK),  # long runs: capped
-    (5, 0, 2),  # no worker count known: treated as one
+@pytest.mark.parametrize(("n", "chunk", "index", "expected"), [
+    (5, 2, 0, (0, 2)),
+    (5, 2, 3, (2, 4)),
+    (5, 2, 4, (4, 5)),  # the short last chunk
+    (4, 4, 2, (0, 4)),
+    (3, 8, 2, (0, 3)),  # a chunk larger than the store
 ])
-def test_samples_per_task(n_todo: int, n_workers: int, expected: int) -> None:
-    assert samples_per_task(n_todo, n_workers) == expected
+def test_chunk_of_a_sample(n: int, chunk: int, index: int, expected: tuple[int, int]) -> None:
+    shape = StoreShape(n, 1, 10, 1, 4, chunk)
+    assert shape.chunk_of(index) == expected
+    starts = list(shape.chunk_starts())
+    assert starts == list(range(0, n, chunk)) and expected[0] in starts
 
 
-def test_make_samples_writes_each_sample_and_reports_its_simulation_cpu(tmp_path: Path) -> None:
+def test_a_chunk_task_writes_its_samples_and_reports_their_costs(tmp_path: Path) -> None:
     spec = loads_spec(SPEC)
     out = tmp_path / "ref.zarr"
-    report = generate(spec, out, workers=0, progress=False)  # one sample per call, in order
-    assert report.n_generated == 3 and report.simulate_cpu_s > 0
+    report = generate(spec, out, workers=0, progress=False)
+    assert report.n_generated == 3 and 0 < report.simulate_cpu_s < report.task_cpu_s
+    assert report.worker_busy_s["in-process"]["n_samples"] == 3
     ref = DatasetStore(out)
 
-    # The same samples through the batched task, into a second store: same checksums, in order.
-    other = tmp_path / "batched.zarr"
-    generate(dataclasses.replace(spec, n_samples=3), other, workers=0, progress=False)
-    store = DatasetStore(other, mode="r+")
-    results = make_samples(spec, plan_samples(spec), store.writer(), vocabularies(spec))
-    assert [r.index for r in results] == [0, 1, 2]
-    assert [r.checksum for r in results] == ref.checksums().tolist()
-    assert all(0 < r.simulate_cpu_s for r in results)
+    # Chunk [0, 1] again, into a fresh store: same checksums, flagged complete, the rest untouched.
+    other = tmp_path / "again.zarr"
+    from acoustisim.datasets.generate import open_or_create
+
+    store = open_or_create(spec, other, vocabularies(spec))
+    result = make_chunk(spec, plan_samples(spec)[:2], store.writer(), vocabularies(spec))
+    assert result.start == 0 and list(result.checksums) == ref.checksums()[:2].tolist()
+    assert 0 < result.simulate_cpu_s <= result.task_cpu_s
+    assert store.complete_mask().tolist() == [True, True, False]
+    assert store.checksums()[:2].tolist() == ref.checksums()[:2].tolist()
+    assert store.chunks_to_do() == [(2, 3)]
 
 
-def test_make_samples_names_the_sample_that_failed(tmp_path: Path) -> None:
+def test_a_failing_sample_is_named_and_its_chunk_left_unwritten(tmp_path: Path) -> None:
     spec = loads_spec(SPEC)
-    generate(spec, tmp_path / "s.zarr", workers=0, progress=False)
-    store = DatasetStore(tmp_path / "s.zarr", mode="r+")
+    from acoustisim.datasets.generate import open_or_create
+
+    store = open_or_create(spec, tmp_path / "s.zarr", vocabularies(spec))
     samples = plan_samples(spec)
-    bad = dataclasses.replace(samples[1], index=spec.n_samples + 5)  # beyond the store: its write fails
-    with pytest.raises(RuntimeError, match=rf"^sample {spec.n_samples + 5}: "):
-        make_samples(spec, [samples[0], bad], store.writer(), vocabularies(spec))
+    # A class label outside the dataset's vocabulary: sample 1 fails when labelled, after
+    # sample 0 has been simulated.
+    bad = dataclasses.replace(samples[1], objects=tuple(dataclasses.replace(o, label="unknown")
+                                                        for o in samples[1].objects))
+    with pytest.raises(RuntimeError, match=r"^sample 1: "):
+        make_chunk(spec, [samples[0], bad], store.writer(), vocabularies(spec))
+    assert not store.complete_mask().any()
+    assert not (tmp_path / "s.zarr" / "waveforms" / "c").exists()

@@ -4,20 +4,21 @@ Order of work
 -------------
 1. Every sample is drawn (:func:`~acoustisim.datasets.sampling.plan_samples`) before anything
    runs: a spec whose placements cannot be satisfied fails here, naming the key.
-2. The store is created, or, if it exists, checked to come from the same spec; samples
-   already recorded complete are skipped (resume).
-3. One task per few missing samples (:func:`samples_per_task`): for each, build the scene,
-   simulate, write the sample's own chunks (each chunk file atomically); return the
-   checksums. Tasks run on a
+2. The store is created, or, if it exists, checked to come from the same spec; chunks whose
+   samples are all recorded complete are skipped (resume).
+3. One task per missing chunk of samples (``spec.samples_per_chunk``, see
+   :mod:`~acoustisim.datasets.store`): build and simulate each of its samples, then write the
+   chunk of every data array, then its checksums, then its completion flags (each chunk
+   file atomically). The workers write their own chunks: the driver only schedules tasks and
+   counts their results, so it is no serial bottleneck. Tasks run on a
    ``distributed.LocalCluster`` of ``workers`` single-threaded processes (default), on the
    scheduler at ``scheduler`` (its workers must see the store's path), or, with
    ``workers=0``, in this process without Dask.
-4. The driver alone writes ``complete`` and ``checksum``, in batches, only for tasks that have
-   returned. A run killed at any moment leaves no sample marked complete that is not fully
-   written; running the same command again does the rest.
+4. A run killed at any moment leaves no sample flagged complete that is not fully written;
+   running the same command again redoes the unfinished chunks only, identically.
 
-At most ``2 x workers`` tasks (each of at most :data:`MAX_SAMPLES_PER_TASK` samples) are in
-flight, so memory stays flat however many samples.
+At most ``2 x workers`` tasks (one chunk each) are in flight, so memory stays flat however
+many samples.
 """
 
 from __future__ import annotations
@@ -40,34 +41,41 @@ from acoustisim.datasets.spec import DatasetSpec, SpecError
 from acoustisim.datasets.store import (
     LAYOUT_VERSION,
     SAMPLE_FIELDS,
+    ChunkWriter,
     DatasetStore,
     DatasetStoreError,
-    SampleWriter,
     StoreShape,
     create_store,
 )
 from acoustisim.errors import InputError
 
-FLUSH_INTERVAL_S = 1.0
-"""Longest time completed samples wait before the driver records them."""
-FLUSH_BATCH = 256
-"""Most completed samples recorded in one write."""
-MAX_SAMPLES_PER_TASK = 4
-"""Samples one Dask task makes in turn. The driver (which hosts a LocalCluster's scheduler)
-spends ~10-20 ms of CPU per task whatever its size (measured with 0.25 s sleeping tasks on
-this machine), ~5-10 % of a default-spec sample; four samples per task divide that by four."""
-
-
 @dataclass(frozen=True)
-class SampleResult:
-    """What a task returns: the sample it wrote and that sample's checksum."""
+class ChunkResult:
+    """What a task returns: the chunk it wrote, its checksums and its costs.
 
-    index: int
-    checksum: int
+    Attributes
+    ----------
+    start : int
+        First sample of the chunk.
+    checksums : tuple of int
+        One per sample of the chunk, in order.
+    simulate_cpu_s : float
+        CPU time (s) the task's thread spent building and simulating the samples (the plain
+        simulator's cost: the reference of the overhead figures of ``benchmarks/bench_dataset.py``).
+    task_cpu_s : float
+        CPU time (s) of the whole task's thread: simulate, labels, checksums and writes.
+    elapsed_s : float
+        Wall time (s) of the task.
+    worker : int
+        Process id of the worker that ran it.
+    """
+
+    start: int
+    checksums: tuple[int, ...]
+    simulate_cpu_s: float
+    task_cpu_s: float
     elapsed_s: float
-    simulate_cpu_s: float = 0.0
-    """CPU time (s) of the thread that built and simulated the sample (the plain simulator's
-    cost: the reference of the overhead figures in ``benchmarks/bench_dataset.py``)."""
+    worker: int
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,14 @@ class GenerateReport:
     simulate_cpu_s : float
         Sum over the samples made by this run of the CPU time (s) their task's thread spent
         building and simulating them (the rest of the run's CPU is the dataset machinery).
+    task_cpu_s : float
+        Sum of the tasks' thread CPU time (s): simulate plus labels, checksums and writes.
+    driver_cpu_s : float
+        CPU time (s) of this process during the run phase (with a LocalCluster: the client,
+        the scheduler and the nannies, which all live here).
+    worker_busy_s : dict
+        Per worker (process id as a string; "in-process" without Dask): ``task_cpu_s`` and
+        ``elapsed_s`` summed over its tasks, and ``n_samples``.
     """
 
     path: str
@@ -110,6 +126,9 @@ class GenerateReport:
     workers: int
     scheduler: str
     simulate_cpu_s: float = 0.0
+    task_cpu_s: float = 0.0
+    driver_cpu_s: float = 0.0
+    worker_busy_s: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -194,39 +213,40 @@ def simulate_sample(spec: DatasetSpec, sample: SampleDescription) -> tuple[Any, 
         return scene, simulate(scene, **options), SNR_NOT_SET
 
 
-def make_sample(spec: DatasetSpec, sample: SampleDescription, writer: SampleWriter, vocab: Vocabularies) -> SampleResult:
-    """The task: simulate one sample, write its chunks, return its checksum."""
-    start, cpu_start = time.perf_counter(), time.thread_time()
-    scene, simulation, snr_reference = simulate_sample(spec, sample)
-    simulate_cpu = time.thread_time() - cpu_start  # the simulator is single-threaded (checked: = process time)
-    arrays = sample_arrays(spec, sample, scene, simulation, vocab, snr_reference)
-    checksum = writer.write(arrays)
-    return SampleResult(sample.index, checksum, time.perf_counter() - start, simulate_cpu)
+def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: ChunkWriter,
+               vocab: Vocabularies) -> ChunkResult:
+    """The task: simulate the samples of one chunk, write the chunk, return its checksums.
 
-
-def make_samples(spec: DatasetSpec, samples: list[SampleDescription], writer: SampleWriter,
-                 vocab: Vocabularies) -> list[SampleResult]:
-    """The Dask task: :func:`make_sample` for a few samples in turn (fewer tasks, less overhead).
+    Parameters
+    ----------
+    spec : DatasetSpec
+    samples : list of SampleDescription
+        Exactly the samples of one chunk of the store, in index order.
+    writer : ChunkWriter
+    vocab : Vocabularies
 
     Raises
     ------
     RuntimeError
-        Naming the sample that failed (the batch's earlier samples are written but, as the
-        task does not return, not recorded: a resume redoes them identically).
+        Naming the sample that failed (nothing of its chunk is then written).
     """
-    results = []
+    import os
+
+    start, cpu_start = time.perf_counter(), time.thread_time()
+    simulate_cpu = 0.0
+    rows = []
     for sample in samples:
         try:
-            results.append(make_sample(spec, sample, writer, vocab))
+            c0 = time.thread_time()
+            scene, simulation, snr_reference = simulate_sample(spec, sample)
+            simulate_cpu += time.thread_time() - c0  # the simulator is single-threaded (checked: = process time)
+            rows.append(sample_arrays(spec, sample, scene, simulation, vocab, snr_reference))
         except Exception as exc:
             raise RuntimeError(f"sample {sample.index}: {type(exc).__name__}: {exc}") from exc
-    return results
-
-
-def samples_per_task(n_todo: int, n_workers: int) -> int:
-    """Samples per Dask task: up to :data:`MAX_SAMPLES_PER_TASK`, while keeping at least about
-    four tasks per worker (load balance at the end of a short run)."""
-    return max(1, min(MAX_SAMPLES_PER_TASK, -(-n_todo // (4 * max(n_workers, 1)))))
+    del scene, simulation  # the chunk's arrays are all that is kept while writing
+    checksums = writer.write_chunk(rows)
+    return ChunkResult(samples[0].index, tuple(int(c) for c in checksums), simulate_cpu,
+                       time.thread_time() - cpu_start, time.perf_counter() - start, os.getpid())
 
 
 def store_shape(spec: DatasetSpec) -> StoreShape:
@@ -234,7 +254,8 @@ def store_shape(spec: DatasetSpec) -> StoreShape:
     from scenes.builders import default_sonar
 
     sonar = dataclasses.replace(default_sonar(), **dict(spec.sonar.overrides))
-    return StoreShape(spec.n_samples, spec.n_pings, sonar.n_samples, spec.max_objects, spec.max_arrivals)
+    return StoreShape(spec.n_samples, spec.n_pings, sonar.n_samples, spec.max_objects, spec.max_arrivals,
+                      spec.samples_per_chunk)
 
 
 def initial_card(spec: DatasetSpec, vocab: Vocabularies) -> dict[str, Any]:
@@ -304,57 +325,50 @@ def dataset_card_summary(store: DatasetStore, spec: DatasetSpec, bins: int = 10)
     return {"counts": counts, "snr_histogram": histogram}
 
 
-class _Recorder:
-    """Collects task results and records them in batches (checksums, then flags)."""
+class _Tally:
+    """Counts finished chunks (the workers have already recorded them in the store)."""
 
-    def __init__(self, store: DatasetStore, bar: Any) -> None:
-        self.store = store
+    def __init__(self, bar: Any) -> None:
         self.bar = bar
-        self.pending: list[SampleResult] = []
-        self.last = time.monotonic()
-        self.n_recorded = 0
+        self.n_samples = 0
         self.simulate_cpu_s = 0.0
+        self.task_cpu_s = 0.0
+        self.by_worker: dict[str, dict[str, float]] = {}
 
-    def add(self, result: SampleResult) -> None:
-        self.pending.append(result)
+    def add(self, result: ChunkResult, worker: str) -> None:
+        n = len(result.checksums)
+        self.n_samples += n
         self.simulate_cpu_s += result.simulate_cpu_s
-        self.bar.update(1)
-        if len(self.pending) >= FLUSH_BATCH or time.monotonic() - self.last >= FLUSH_INTERVAL_S:
-            self.flush()
-
-    def flush(self) -> None:
-        if self.pending:
-            indices = np.array([r.index for r in self.pending], dtype=np.int64)
-            checksums = np.array([r.checksum for r in self.pending], dtype=np.uint64)
-            self.store.record_completion(indices, checksums)
-            self.n_recorded += len(self.pending)
-            self.pending = []
-        self.last = time.monotonic()
+        self.task_cpu_s += result.task_cpu_s
+        busy = self.by_worker.setdefault(worker, {"task_cpu_s": 0.0, "elapsed_s": 0.0, "n_samples": 0})
+        busy["task_cpu_s"] += result.task_cpu_s
+        busy["elapsed_s"] += result.elapsed_s
+        busy["n_samples"] += n
+        self.bar.update(n)
 
 
-def _run_in_process(spec: DatasetSpec, samples: list[SampleDescription], writer: SampleWriter, vocab: Vocabularies,
-                    recorder: _Recorder) -> None:
-    for sample in samples:
-        recorder.add(make_sample(spec, sample, writer, vocab))
+def _run_in_process(spec: DatasetSpec, chunks: list[list[SampleDescription]], writer: ChunkWriter,
+                    vocab: Vocabularies, tally: _Tally) -> None:
+    for chunk in chunks:
+        tally.add(make_chunk(spec, chunk, writer, vocab), "in-process")
 
 
-def _run_on_client(client: Any, spec: DatasetSpec, samples: list[SampleDescription], writer: SampleWriter,
-                   vocab: Vocabularies, recorder: _Recorder, n_workers: int) -> None:
+def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[list[SampleDescription]], writer: ChunkWriter,
+                   vocab: Vocabularies, tally: _Tally, n_workers: int) -> None:
     from distributed import as_completed
 
     spec_f, writer_f, vocab_f = client.scatter([spec, writer, vocab], broadcast=True)
-    per_task = samples_per_task(len(samples), n_workers)
     window = 2 * max(n_workers, 1)  # one task running and one queued per worker
-    queue = iter([samples[k:k + per_task] for k in range(0, len(samples), per_task)])
+    queue = iter(chunks)
     futures = as_completed()
     index_of: dict[str, list[int]] = {}
 
     def submit_next() -> None:
-        batch = next(queue, None)
-        if batch is not None:
-            future = client.submit(make_samples, spec_f, batch, writer_f, vocab_f, pure=False,
-                                   key=f"dataset-samples-{batch[0].index}-{time.monotonic_ns()}")
-            index_of[future.key] = [sample.index for sample in batch]
+        chunk = next(queue, None)
+        if chunk is not None:
+            future = client.submit(make_chunk, spec_f, chunk, writer_f, vocab_f, pure=False,
+                                   key=f"dataset-chunk-{chunk[0].index}-{time.monotonic_ns()}")
+            index_of[future.key] = [sample.index for sample in chunk]
             futures.add(future)
 
     for _ in range(window):
@@ -362,15 +376,15 @@ def _run_on_client(client: Any, spec: DatasetSpec, samples: list[SampleDescripti
     try:
         for future in futures:
             try:
-                results = future.result()
+                result = future.result()
             except Exception as exc:
-                raise RuntimeError(f"task of samples {index_of.get(future.key)} failed: {type(exc).__name__}: {exc} "
-                                   "(samples completed so far are recorded; rerun to resume)") from exc
+                done = index_of.get(future.key) or []
+                raise RuntimeError(f"task of samples {done[0]}-{done[-1]} failed: {type(exc).__name__}: {exc} "
+                                   "(chunks completed so far are recorded; rerun to resume)") from exc
             index_of.pop(future.key, None)
             future.release()
-            for result in results:
-                recorder.add(result)
             submit_next()
+            tally.add(result, str(result.worker))
     finally:
         for future in list(futures.futures):
             future.cancel()
@@ -458,8 +472,8 @@ def generate(
     samples = plan_samples(spec)  # raises SpecError before any work
     vocab = vocabularies(spec)
     store = open_or_create(spec, out, vocab)
-    done = store.complete_mask()
-    todo = [s for s in samples if not done[s.index]]
+    chunks = [samples[a:b] for a, b in store.chunks_to_do()]
+    n_todo = sum(len(chunk) for chunk in chunks)
     writer = store.writer()
 
     own_cluster = None
@@ -467,7 +481,7 @@ def generate(
     mode = "in-process"
     n_workers = 0
     try:
-        if client is None and todo and (scheduler is not None or workers != 0):
+        if client is None and chunks and (scheduler is not None or workers != 0):
             from distributed import Client
 
             if scheduler is not None:
@@ -489,19 +503,19 @@ def generate(
             n_workers = len(client.scheduler_info()["workers"])
             client.run(warm_up_worker)
         startup = time.perf_counter() - t_start
-        bar = tqdm(total=spec.n_samples, initial=int(done.sum()), unit="sample", desc=spec.name,
+        bar = tqdm(total=spec.n_samples, initial=spec.n_samples - n_todo, unit="sample", desc=spec.name,
                    disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
-        recorder = _Recorder(store, bar)
-        t_run = time.perf_counter()
+        tally = _Tally(bar)
+        t_run, cpu_run = time.perf_counter(), time.process_time()
         try:
             if client is None:
-                _run_in_process(spec, todo, writer, vocab, recorder)
+                _run_in_process(spec, chunks, writer, vocab, tally)
             else:
-                _run_on_client(client, spec, todo, writer, vocab, recorder, n_workers)
+                _run_on_client(client, spec, chunks, writer, vocab, tally, n_workers)
         finally:
-            recorder.flush()
             bar.close()
         elapsed = time.perf_counter() - t_run
+        driver_cpu = time.process_time() - cpu_run
     finally:
         if own_client is not None:
             own_client.close()
@@ -511,22 +525,24 @@ def generate(
     summary = dataset_card_summary(store, spec)
     n_complete = summary["counts"]["n_complete"]
     store.update_card(status="complete" if n_complete == spec.n_samples else "incomplete", **summary,
-                      last_run={"workers": n_workers, "scheduler": mode, "n_generated": recorder.n_recorded,
+                      last_run={"workers": n_workers, "scheduler": mode, "n_generated": tally.n_samples,
                                 "elapsed_s": elapsed, "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
     return GenerateReport(
         path=str(out),
         n_samples=spec.n_samples,
-        n_skipped=len(samples) - len(todo),
-        n_generated=recorder.n_recorded,
+        n_skipped=len(samples) - n_todo,
+        n_generated=tally.n_samples,
         n_complete=n_complete,
         elapsed_s=elapsed,
         startup_s=startup,
-        samples_per_s=recorder.n_recorded / elapsed if elapsed > 0 else float("nan"),
+        samples_per_s=tally.n_samples / elapsed if elapsed > 0 else float("nan"),
         workers=n_workers,
         scheduler=mode,
-        simulate_cpu_s=recorder.simulate_cpu_s,
+        simulate_cpu_s=tally.simulate_cpu_s,
+        task_cpu_s=tally.task_cpu_s,
+        driver_cpu_s=driver_cpu,
+        worker_busy_s=tally.by_worker,
     )
 
 
-__all__ = ["GenerateReport", "SampleResult", "SpecError", "code_version", "generate", "make_sample", "make_samples",
-           "simulate_sample"]
+__all__ = ["ChunkResult", "GenerateReport", "SpecError", "code_version", "generate", "make_chunk", "simulate_sample"]

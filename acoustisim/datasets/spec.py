@@ -7,7 +7,7 @@ every problem raises :class:`SpecError` naming the key and the value. Ranges are
 
 Sections
 --------
-``[dataset]``  name, n_samples, seed, n_pings, max_arrivals
+``[dataset]``  name, n_samples, seed, n_pings, max_arrivals, samples_per_chunk
 ``[medium]``   water, temperature_c, salinity_ppt
 ``[tank]``     length_m, width_m, water_depth_m, wall_materials, floor_materials
 ``[sonar]``    the pose ranges x_m, y_m, z_m, yaw_deg, pitch_deg, roll_deg, and fixed
@@ -128,6 +128,11 @@ class PlacementSpec:
     max_tries: int = 200
 
 
+DEFAULT_SAMPLES_PER_CHUNK = 4
+"""``[dataset] samples_per_chunk`` when not given: a chunk file's fixed write cost is shared
+by 4 samples, and a 2-worker run of a few dozen samples still splits into several tasks per
+worker (load balance at the end of a run)."""
+
 OBJECT_KINDS: Mapping[str, tuple[tuple[str, bool], ...]] = {
     # kind: ((range key, required), ...)
     "sphere": (("radius_m", True),),
@@ -189,6 +194,8 @@ class DatasetSpec:
     solver: tuple[tuple[str, Any], ...]
     placement: PlacementSpec
     objects: tuple[ObjectSpec, ...]
+    samples_per_chunk: int = DEFAULT_SAMPLES_PER_CHUNK
+    """Samples per Zarr chunk, the unit of work and of resume (see :mod:`acoustisim.datasets.store`)."""
     source: str = dataclasses.field(default="", compare=False)
 
     @property
@@ -422,6 +429,7 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
     seed = d.integer("seed", minimum=0)
     n_pings = d.integer("n_pings", default=1, minimum=1)
     max_arrivals = d.integer("max_arrivals", default=1024, minimum=1)
+    samples_per_chunk = d.integer("samples_per_chunk", default=DEFAULT_SAMPLES_PER_CHUNK, minimum=1)
     d.done()
 
     m = sections["medium"]
@@ -498,6 +506,7 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
         solver=solver,
         placement=placement,
         objects=objects,
+        samples_per_chunk=samples_per_chunk,
         source=source,
     )
 
@@ -554,4 +563,5 @@ def spec_from_dict(data: Mapping[str, Any]) -> DatasetSpec:
             )
             for o in data["objects"]
         ),
+        samples_per_chunk=int(data.get("samples_per_chunk", DEFAULT_SAMPLES_PER_CHUNK)),
     )

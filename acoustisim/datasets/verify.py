@@ -12,7 +12,8 @@ import numpy as np
 from acoustisim.datasets.store import SAMPLE_ARRAYS, DatasetStore, sample_checksum
 
 VERIFY_BLOCK = 64
-"""Samples read per call (a failing block is re-read sample by sample to name the culprit)."""
+"""Samples read per call, rounded down to whole chunks (at least one); a failing block is
+re-read sample by sample to name the culprit."""
 
 
 @dataclass(frozen=True)
@@ -75,8 +76,10 @@ def verify(path: str | Path) -> VerifyReport:
     recorded = store.checksums()
     corrupt: list[tuple[int, str]] = []
     done = np.flatnonzero(complete)
-    for start in range(0, store.n_samples, VERIFY_BLOCK):
-        stop = min(start + VERIFY_BLOCK, store.n_samples)
+    chunk = store.shape.chunk_samples
+    block_size = chunk * max(1, VERIFY_BLOCK // chunk)  # whole chunks: each chunk file decoded once
+    for start in range(0, store.n_samples, block_size):
+        stop = min(start + block_size, store.n_samples)
         wanted = done[(done >= start) & (done < stop)]
         if wanted.size == 0:
             continue
