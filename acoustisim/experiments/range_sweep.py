@@ -9,7 +9,7 @@ from acoustisim.experiments.report import ExperimentReport
 
 NAME = "range-sweep"
 SUMMARY = "edge target, range 0.1-2.5 m at a fixed bearing, threshold vs matched filter (seed fig. 4-13)"
-DEFAULT_REPEATS = 2
+DEFAULT_REPEATS = 4
 DEFAULT_PINGS = 50
 
 
