@@ -13,6 +13,19 @@ def adc_step_v(full_scale_v: float, bits: int) -> float:
     return 2.0 * float(full_scale_v) / float(2**bits)
 
 
+def adc_code_range(bits: int) -> tuple[int, int]:
+    """Lowest and highest code of a ``bits``-bit bipolar ADC stored as int16.
+
+    Raises
+    ------
+    InputError
+        ``bits`` is not an integer in [2, 16].
+    """
+    if not (isinstance(bits, (int, np.integer)) and 2 <= bits <= 16):
+        raise InputError(f"sonar.adc_bits must be an integer in [2, 16] to store int16 codes, got {bits!r}")
+    return -(2 ** (int(bits) - 1)), 2 ** (int(bits) - 1) - 1
+
+
 def quantise(
     volts: NDArray[np.float64], bits: int, full_scale_v: float
 ) -> tuple[NDArray[np.int16], NDArray[np.bool_], float]:
@@ -35,10 +48,8 @@ def quantise(
     step : float
         Volts per code.
     """
-    if not (isinstance(bits, (int, np.integer)) and 2 <= bits <= 16):
-        raise InputError(f"sonar.adc_bits must be an integer in [2, 16] to store int16 codes, got {bits!r}")
+    lo, hi = adc_code_range(bits)
     step = adc_step_v(full_scale_v, int(bits))
-    lo, hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
     scaled = np.asarray(volts, dtype=float) * (1.0 / step)
     np.rint(scaled, out=scaled)
     clipped = (scaled.min(axis=-1) < lo) | (scaled.max(axis=-1) > hi)

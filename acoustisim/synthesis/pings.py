@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.medium import Medium
 from acoustisim.sonar import SonarHead
-from acoustisim.synthesis.adc import quantise
+from acoustisim.synthesis.adc import adc_code_range, adc_step_v
 from acoustisim.synthesis.chain import ReceiverChain
 from acoustisim.synthesis.noise import NoiseModel, thermal_noise_psd_v2_per_hz
 from acoustisim.synthesis.synthesiser import PathSynthesiser
@@ -220,17 +220,30 @@ class PingSynthesiser:
                 channel = int(np.flatnonzero(energy <= 0)[0])
                 raise InputError(f"snr_db: the named echo has no energy inside the record on channel {channel}")
             sigma = np.sqrt(energy / 10.0 ** (snr_db / 10.0))
-        clean = self.to_volts(deterministic) if sigma is not None else None
-        volts = np.empty((int(n_pings), 3, self.n_samples))
-        for ping, rng in enumerate(generators):
-            if sigma is not None:
-                volts[ping] = clean + sigma[:, None] * rng.standard_normal((3, self.n_samples))
-            else:
-                noise = self._noise.draw(rng)
-                noise += deterministic
-                volts[ping] = self.to_volts(noise)
-        codes, clipped, step = quantise(volts, int(self.sonar.adc_bits), self.chain.adc_full_scale_v)
-        return Pings(codes, codes * step, clipped, step, sigma, deterministic, self)
+        from scipy.fft import irfft
+
+        from acoustisim.synthesis.ping_loops import digitise
+
+        lowest, highest = adc_code_range(int(self.sonar.adc_bits))
+        step = adc_step_v(self.chain.adc_full_scale_v, int(self.sonar.adc_bits))
+        shape = (int(n_pings), 3, self.n_samples)
+        codes = np.empty(shape, dtype=np.int16)
+        volts = np.empty(shape)
+        clipped = np.empty(shape[:2], dtype=bool)
+        if sigma is not None:
+            clean = self.to_volts(deterministic)
+            for ping, rng in enumerate(generators):
+                noisy = clean + sigma[:, None] * rng.standard_normal((3, self.n_samples))
+                digitise(noisy, np.empty(0), step, lowest, highest, codes[ping], volts[ping], clipped[ping])
+        else:
+            # Per ping: noise bins (+ the deterministic part) in single precision, one inverse
+            # FFT, then TVG and the ADC in one compiled pass.
+            single = deterministic.astype(np.complex64)
+            gain = np.empty(0) if self._tvg is None else self._tvg
+            for ping, rng in enumerate(generators):
+                signal = irfft(self._noise.draw(rng, single), n=self.paths.grid.n_fft, axis=-1, overwrite_x=True)
+                digitise(signal, gain, step, lowest, highest, codes[ping], volts[ping], clipped[ping])
+        return Pings(codes, volts, clipped, step, sigma, deterministic, self)
 
 
 def _check_seed(seed: Any) -> int:
