@@ -149,7 +149,7 @@ def test_threshold_relative_to_the_noise_floor():
 @pytest.mark.slow
 def test_local_matched_on_thesis_length_records_at_20_db():
     # 12.5 ms records (250,000 samples): noise alone can hold the single most energetic stretch
-    # at 20 dB; with its 5 candidates the local filter must still agree with the full one on
+    # at 20 dB; with its 3 candidates the local filter must still agree with the full one on
     # every one of 180 channels (within 1 ns).
     rng = np.random.default_rng(6)
     n, k = 250_000, 180

@@ -112,6 +112,8 @@ class LocalPlan:
         FFT size of a stretch (>= 2 half + 2 m - 1: linear correlation at every searched lag).
     segment_weights : ndarray, shape (k,), complex
         2 conj(S) on the stretch FFT's first k bins (the template's band; DC weighted once).
+    tap_partial : ndarray, shape (m_a + 1,), complex
+        Running sums of the analytic taps, 0 first (``dc_correlation``).
     """
 
     matched: MatchedPlan = field(repr=False)
@@ -124,6 +126,7 @@ class LocalPlan:
     half: int
     segment_fft: int
     segment_weights: NDArray[np.complex128] = field(repr=False)
+    tap_partial: NDArray[np.complex128] = field(repr=False)
 
     @property
     def template_length(self) -> int:
@@ -148,7 +151,10 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     scatters above the largest noise window. The broadband energy sum x^2 over the same span
     (chi-square with ~50 degrees of freedom, largest noise window ~95 sigma^2 against an echo
     window of ~140 +/- 19 sigma^2) leaves ~2.3 scatters. Either way a few candidates
-    (default 5) make the chance that the echo is not among them negligible.
+    (default 3) make the chance that the echo is not among them negligible. Measured on 120
+    channels of 12.5 ms with one echo each, against the full matched filter's TOF (within
+    1 ns): 120/120 agree at 20 dB with 1, 2, 3 or 5 candidates; at 15 dB (where the full filter
+    itself finds only 66) 62 with 1 candidate, 65 with 2, 3 or 5.
 
     Parameters
     ----------
@@ -209,6 +215,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         half=half,
         segment_fft=int(segment_fft),
         segment_weights=weights,
+        tap_partial=np.concatenate([[0.0], np.cumsum(taps)]),
     )
 
 
@@ -238,7 +245,11 @@ def block_tone_power(
 
 
 def dc_correlation(
-    plan: MatchedPlan, n_samples: int, dc: NDArray[np.float64], lags: NDArray[np.intp]
+    plan: MatchedPlan,
+    n_samples: int,
+    dc: NDArray[np.float64],
+    lags: NDArray[np.intp],
+    partial: NDArray[np.complex128] | None = None,
 ) -> NDArray[np.complex128]:
     """Analytic correlation of constant rows (value ``dc``) with the template, at ``lags``,
     samples outside the record counting as 0 (as in ``lags_time_domain`` / ``lags_by_fft``).
@@ -247,13 +258,16 @@ def dc_correlation(
     ----------
     dc : ndarray, shape (k,)
     lags : ndarray of int, shape (k, w)
+    partial : ndarray, shape (m_a + 1,), complex, optional
+        Running sums of the analytic taps, 0 first (``LocalPlan.tap_partial``); made if absent.
 
     Returns
     -------
     ndarray, shape (k, w), complex
     """
     taps = plan.analytic_template_conj
-    partial = np.concatenate([[0.0], np.cumsum(taps)])
+    if partial is None:
+        partial = np.concatenate([[0.0], np.cumsum(taps)])
     first = lags - plan.analytic_offset  # record sample under tap 0
     lo = np.minimum(np.maximum(-first, 0), taps.size)
     hi = np.minimum(np.maximum(n_samples - first, 0), taps.size)
@@ -302,14 +316,17 @@ def coarse_lags(
     return np.minimum(np.maximum((first + picks) * b + centre, lo), hi)
 
 
-def segment_correlation(
+def segment_spectra(
     plan: LocalPlan,
     rows: NDArray[np.float64],
     row_index: NDArray[np.intp],
     start_lag: NDArray[np.intp],
     dc: NDArray[np.float64] | None = None,
 ) -> NDArray[np.complex128]:
-    """Analytic correlation z at lags ``start_lag + 0 .. 2 half`` from short FFTs of stretches.
+    """Band spectra of the local filter's output for stretches starting at ``start_lag``.
+
+    The inverse FFT of length ``plan.segment_fft`` of a row of the result is z at lags
+    ``start_lag + 0, 1, ...`` (exact for the first 2 half + 1).
 
     Parameters
     ----------
@@ -319,13 +336,12 @@ def segment_correlation(
 
     Returns
     -------
-    ndarray, shape (k, 2 half + 1), complex
+    ndarray, shape (k, n_bins), complex
         Samples beyond the record count as 0.
     """
     import scipy.fft as sfft
 
     n = rows.shape[1]
-    width = 2 * plan.half + 1
     index = start_lag[:, np.newaxis] + np.arange(plan.segment_length)
     if index.size and (index.min() < 0 or index.max() >= n):
         inside = (index >= 0) & (index < n)
@@ -336,10 +352,28 @@ def segment_correlation(
         segment = rows[row_index[:, np.newaxis], index]
         if dc is not None:
             segment -= dc[row_index][:, np.newaxis]
-    k_hi = plan.segment_weights.size
-    spectrum = sfft.rfft(segment, plan.segment_fft, axis=-1)[:, :k_hi]
+    spectrum = sfft.rfft(segment, plan.segment_fft, axis=-1)[:, : plan.segment_weights.size]
     spectrum *= plan.segment_weights
-    return sfft.ifft(spectrum, plan.segment_fft, axis=-1)[:, :width]
+    return spectrum
+
+
+def segment_correlation(
+    plan: LocalPlan,
+    rows: NDArray[np.float64],
+    row_index: NDArray[np.intp],
+    start_lag: NDArray[np.intp],
+    dc: NDArray[np.float64] | None = None,
+) -> NDArray[np.complex128]:
+    """Analytic correlation z at lags ``start_lag + 0 .. 2 half`` from short FFTs of stretches.
+
+    Returns
+    -------
+    ndarray, shape (k, 2 half + 1), complex
+    """
+    import scipy.fft as sfft
+
+    spectrum = segment_spectra(plan, rows, row_index, start_lag, dc)
+    return sfft.ifft(spectrum, plan.segment_fft, axis=-1)[:, : 2 * plan.half + 1]
 
 
 def detect_local_matched(
@@ -350,7 +384,7 @@ def detect_local_matched(
     pfa: float = 1e-3,
     search_window_s: tuple[float, float] | None = None,
     noise_window_s: tuple[float, float] | None = None,
-    candidates: int = 5,
+    candidates: int = 3,
     where: str = "record",
     noise_floor_v: float = 0.0,
     dc_v: NDArray[np.float64] | None = None,
@@ -407,13 +441,13 @@ def detect_local_matched(
     lags = start[:, np.newaxis] + np.arange(width)
     power[(lags < lag_lo) | (lags > lag_hi)] = -1.0  # the same lags as the full filter
     best = np.argmax(power.reshape(n_rows, k * width), axis=1)
-    peak_lag = lags.reshape(n_rows, k * width)[np.arange(n_rows), best]
+    r = np.arange(n_rows)
+    peak_lag = lags.reshape(n_rows, k * width)[r, best]
     # Sub-sample refinement exactly as the full matched filter's (direct z around the peak).
     refine_lags = peak_lag[:, np.newaxis] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
-    r = np.arange(n_rows)
     direct = lags_time_domain(matched, rows, r, refine_lags)
     if dc is not None:
-        direct -= dc_correlation(matched, n, dc, refine_lags)
+        direct -= dc_correlation(matched, n, dc, refine_lags, plan.tap_partial)
     direct[(refine_lags < lag_lo) | (refine_lags > lag_hi)] = 0.0
     lag, peak = refine(direct, refine_lags)
     noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter

@@ -363,7 +363,7 @@ def lags_time_domain(
     -------
     ndarray, shape (k, w), complex
     """
-    from numpy.lib.stride_tricks import sliding_window_view
+    from numpy.lib.stride_tricks import as_strided
 
     taps = plan.analytic_template_conj
     n = rows.shape[1]
@@ -375,7 +375,9 @@ def lags_time_domain(
     else:
         inside = (index >= 0) & (index < n)
         segment = np.where(inside, rows[row_index[:, np.newaxis], np.minimum(np.maximum(index, 0), n - 1)], 0.0)
-    windows = sliding_window_view(segment, taps.size, axis=-1)[:, ::stride]  # (k, w, m_a), a view
+    # (k, w, m_a) overlapping windows as a strided view of the segment (read only, no copy).
+    s0, s1 = segment.strides
+    windows = as_strided(segment, shape=(segment.shape[0], w, taps.size), strides=(s0, stride * s1, s1), writeable=False)
     columns = plan.analytic_parts if plan.analytic_parts is not None else np.stack([taps.real, taps.imag], axis=1)
     parts = np.matmul(windows, columns)  # (k, w, 2)
     return parts[..., 0] + 1j * parts[..., 1]
