@@ -2,28 +2,35 @@
 
 Usage
 -----
-    python benchmarks/bench_diffuse.py [--rays 200000] [--repeats 7] [--bounces 1] [--before FILE]
+    python benchmarks/bench_diffuse.py [--rays 200000] [--repeats 7] [--bounces 1] [--threads N]
+                                       [--before FILE]
 
+``--threads``: worker threads of the threaded stages (default: every core available).
 ``--before FILE``: an older ``acoustisim/propagation/diffuse.py`` (e.g. from ``git show
 REV:acoustisim/propagation/diffuse.py > /tmp/diffuse_before.py``) whose ``trace_diffuse`` is
-timed interleaved with the current one (same context, config and load), its rows compared.
+timed interleaved with the current one on one thread (same context, config and load).
 
 All measured in this run, on the thesis tank (``scenes.builtin.builtin_scene("thesis-tank")``)
-at its default sonar pose, with the same ray directions (the tracer's own draw for the seed):
+at its default sonar pose, with the tracer's own ray directions for the seed:
 
-* ``raw intersect``: one embreex INTERSECT call on those rays (float32 buffers prepared
+* ``raw intersect x1``: one embreex INTERSECT call on those rays (float32 buffers prepared
   beforehand), on an Embree scene built here from the ray caster's triangles: the baseline
-  the issue names;
-* ``raw same work``: the raw Embree calls the tracer makes (that INTERSECT, plus one OCCLUDED
-  call on the hit -> receiver segments of every hit facing a receiver);
+  the issue names; ``raw intersect xN``: the same rays in the tracer's chunks of
+  ``CHUNK_RAYS`` on N threads (embreex releases the GIL), the baseline of the threaded tracer;
+* ``raw same work``: the raw Embree calls the exact tracer makes (that INTERSECT, plus one
+  OCCLUDED call on the hit -> receiver legs it tests: facing the receiver, near an object,
+  not the leg back to the centre transducer), single call and threaded;
 * ``tracer``: :func:`acoustisim.propagation.diffuse.trace_diffuse` (sampling, intersect,
-  Lambert next-event estimation with occlusion to the three receivers, speckle);
-* ``diffuse_paths``: the tracer plus packing into ``PATH_DTYPE`` rows;
+  Lambert next-event estimation with exact occlusion to the three receivers, speckle),
+  on 1 and N threads, and with ``visibility="centre"`` (approximate, off by default);
+* ``diffuse_paths``: the tracer plus packing into ``PATH_DTYPE`` rows (N threads);
 * ``+ columns``: that plus :func:`~acoustisim.propagation.columns.complete_columns` (what
   :func:`~acoustisim.propagation.solve` adds to every mechanism's rows).
 
-Printed: the median seconds and rays per second of each, and the ratios of the tracer to the
-two baselines (goals: >= 5 million rays/s; within 2x of raw intersect).
+Printed: the median wall-clock and CPU (process, all threads) seconds and rays per second of
+each, and the ratios of the tracer to the raw baselines measured the same way (goals:
+>= 5 million rays/s; within 2x of raw intersect). The relative change of the diffuse energy
+per channel with ``visibility="centre"`` is printed too.
 """
 
 from __future__ import annotations
@@ -42,13 +49,19 @@ sys.path.insert(0, str(ROOT))
 from acoustisim.propagation.columns import complete_columns  # noqa: E402
 from acoustisim.propagation.config import SolverConfig  # noqa: E402
 from acoustisim.propagation.context import SolveContext  # noqa: E402
-from acoustisim.propagation.diffuse import diffuse_paths, sample_directions, trace_diffuse  # noqa: E402
-from acoustisim.propagation.raycast import RayCaster  # noqa: E402
+from acoustisim.propagation.diffuse import (  # noqa: E402
+    CHUNK_RAYS,
+    ObjectScreen,
+    diffuse_paths,
+    trace_diffuse,
+)
+from acoustisim.propagation.ray_threads import resolve_threads, run_in_order  # noqa: E402
+from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster  # noqa: E402
 from scenes.builtin import builtin_scene  # noqa: E402
 
 
 def median_time(function, repeats: int) -> tuple[float, float]:
-    """Median wall-clock and CPU (process) seconds of ``repeats`` calls."""
+    """Median wall-clock and CPU (process, every thread) seconds of ``repeats`` calls."""
     wall, cpu = [], []
     for _ in range(repeats):
         start, start_cpu = time.perf_counter(), time.process_time()
@@ -58,13 +71,20 @@ def median_time(function, repeats: int) -> tuple[float, float]:
     return statistics.median(wall), statistics.median(cpu)
 
 
+def chunked(n: int) -> list[slice]:
+    """The tracer's chunks of ``n`` rays."""
+    return [slice(a, min(a + CHUNK_RAYS, n)) for a in range(0, n, CHUNK_RAYS)]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rays", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--bounces", type=int, default=1)
+    parser.add_argument("--threads", type=int, default=None)
     parser.add_argument("--before", default=None, help="an older diffuse.py to compare with")
     args = parser.parse_args()
+    threads = resolve_threads(args.threads)
 
     from embreex import rtcore_scene
     from embreex.mesh_construction import TriangleMesh
@@ -75,44 +95,67 @@ def main() -> int:
     config = SolverConfig(diffuse_rays=args.rays, diffuse_bounces=args.bounces, seed=0)
     n = args.rays
 
-    # the tracer's rays: same generator, same first draw
-    directions, _ = sample_directions(n, context.boresight, context, np.random.default_rng(config.seed))
-    shift = 0.5 * (raycaster.vertices.min(axis=0) + raycaster.vertices.max(axis=0))
+    # the tracer's rays: its departure directions (every ray of a closed tank hits something;
+    # the few on the free surface, mu = 0, are not events: redraw none, time the events' rays
+    # plus as many more from the same directions to keep n rays)
+    events = trace_diffuse(context, SolverConfig(diffuse_rays=n, diffuse_bounces=1, seed=0), threads=threads)
+    directions = events.departure_dir
+    directions = np.concatenate([directions, directions[: n - directions.shape[0]]])
+    shift = raycaster.shift_m
     vertices32 = np.ascontiguousarray(raycaster.vertices - shift, dtype=np.float32)
     faces32 = np.ascontiguousarray(raycaster.faces, dtype=np.int32)
     embree = rtcore_scene.EmbreeScene()
     TriangleMesh(embree, vertices32, faces32)
     origins32 = np.ascontiguousarray(np.broadcast_to(context.transmitter_m - shift, (n, 3)), dtype=np.float32)
     directions32 = np.ascontiguousarray(directions, dtype=np.float32)
+    embree.run(origins32[:1], directions32[:1], query="INTERSECT")  # BVH built outside the timings
 
-    # the NEE segments the tracer tests (every first hit facing a receiver)
-    out = embree.run(origins32, directions32, query="INTERSECT", output=1)
-    hit = np.asarray(out["primID"]) >= 0
-    points = context.transmitter_m + directions[hit] * np.asarray(out["tfar"], dtype=float)[hit, None]
-    normals = raycaster.face_normals[np.asarray(out["primID"])[hit]]
+    # the legs the exact tracer tests: first hits facing a receiver, near an object, not the
+    # leg back to the centre transducer at the transmitter
+    points = events.points_m
+    normals = raycaster.face_normals[raycaster.first_hit_triangles32(origins32[: points.shape[0]],
+                                                                     directions32[: points.shape[0]])]
     to_rx = context.receivers_m[None, :, :] - points[:, None, :]
-    facing = np.einsum("ijk,ik->ij", to_rx, normals) > 0
-    hi, ri = np.nonzero(facing)
+    tested = np.einsum("ijk,ik->ij", to_rx, normals) > 0
+    tested &= ObjectScreen.create(scene, context.receivers_m).near(points)[:, None]
+    tested[:, np.all(context.receivers_m == context.transmitter_m, axis=1)] = False
+    hi, ri = np.nonzero(tested)
     seg = to_rx[hi, ri]
     length = np.linalg.norm(seg, axis=1)
-    seg_o32 = np.ascontiguousarray(points[hi] - shift, dtype=np.float32)
-    seg_d32 = np.ascontiguousarray(seg / length[:, None], dtype=np.float32)
-    seg_t32 = np.ascontiguousarray(length, dtype=np.float32)
+    unit = seg / length[:, None]
+    seg_o32 = np.ascontiguousarray(points[hi] + DEFAULT_EPS_M * unit - shift, dtype=np.float32)
+    seg_d32 = np.ascontiguousarray(unit, dtype=np.float32)
+    seg_t32 = np.ascontiguousarray(length - 2 * DEFAULT_EPS_M, dtype=np.float32)
+    ray_chunks, leg_chunks = chunked(n), chunked(seg_t32.size)
 
     def raw_intersect() -> None:
-        embree.run(origins32, directions32, query="INTERSECT", output=1)
+        embree.run(origins32, directions32, query="INTERSECT")
+
+    def raw_intersect_threaded() -> None:
+        run_in_order(lambda s: embree.run(origins32[s], directions32[s], query="INTERSECT"), ray_chunks, threads)
 
     def raw_same_work() -> None:
-        embree.run(origins32, directions32, query="INTERSECT", output=1)
+        embree.run(origins32, directions32, query="INTERSECT")
         embree.run(seg_o32, seg_d32, dists=seg_t32, query="OCCLUDED")
 
-    results = {
-        "raw intersect": median_time(raw_intersect, args.repeats),
-        "raw same work": median_time(raw_same_work, args.repeats),
-        "tracer": median_time(lambda: trace_diffuse(context, config), args.repeats),
-        "diffuse_paths": median_time(lambda: diffuse_paths(context, config), args.repeats),
-        "+ columns": median_time(lambda: complete_columns(diffuse_paths(context, config), context), args.repeats),
+    def raw_same_work_threaded() -> None:
+        raw_intersect_threaded()
+        run_in_order(lambda s: embree.run(seg_o32[s], seg_d32[s], dists=seg_t32[s], query="OCCLUDED"),
+                     leg_chunks, threads)
+
+    t = threads
+    stages = {
+        "raw intersect x1": raw_intersect,
+        f"raw intersect x{t}": raw_intersect_threaded,
+        "raw same work x1": raw_same_work,
+        f"raw same work x{t}": raw_same_work_threaded,
+        "tracer x1": lambda: trace_diffuse(context, config, threads=1),
+        f"tracer x{t}": lambda: trace_diffuse(context, config, threads=t),
+        f"tracer centre x{t}": lambda: trace_diffuse(context, config, threads=t, visibility="centre"),
+        f"diffuse_paths x{t}": lambda: diffuse_paths(context, config, threads=t),
+        f"+ columns x{t}": lambda: complete_columns(diffuse_paths(context, config, threads=t), context),
     }
+    results = {name: median_time(function, args.repeats) for name, function in stages.items()}
     before_note = None
     if args.before:
         import importlib.util
@@ -123,33 +166,37 @@ def main() -> int:
         spec.loader.exec_module(module)
         now_cpu, before_cpu = [], []
         for _ in range(args.repeats):  # interleaved: the same load for both
-            now_cpu.append(median_time(lambda: trace_diffuse(context, config), 1)[1])
+            now_cpu.append(median_time(lambda: trace_diffuse(context, config, threads=1), 1)[1])
             before_cpu.append(median_time(lambda: module.trace_diffuse(context, config), 1)[1])
-        same = diffuse_paths(context, config).tobytes() == module.diffuse_paths(context, config).tobytes()
         now, then = statistics.median(now_cpu), statistics.median(before_cpu)
         before_note = (
-            f"  tracer now {now * 1e3:.2f} ms CPU ({n / now / 1e6:.3f} M rays/s), {args.before} {then * 1e3:.2f} ms "
-            f"({n / then / 1e6:.3f} M rays/s): now / before median of per-repeat ratios "
-            f"{statistics.median([a / b for a, b in zip(now_cpu, before_cpu)]):.2f}, rows "
-            f"{'byte-identical' if same else 'different'}"
+            f"  one thread: tracer now {now * 1e3:.2f} ms CPU ({n / now / 1e6:.3f} M rays/s), {args.before} "
+            f"{then * 1e3:.2f} ms ({n / then / 1e6:.3f} M rays/s): now / before median of per-repeat ratios "
+            f"{statistics.median([a / b for a, b in zip(now_cpu, before_cpu)]):.2f}"
         )
-    events = trace_diffuse(context, config)
-    print(f"thesis tank: {raycaster.triangle_count} triangles, {n} rays, {args.bounces} bounce(s), "
-          f"{int(hit.sum())} first hits, {seg_t32.size} NEE segments, {events.event.size} rows; "
-          f"medians of {args.repeats}")
-    print("  (wall-clock medians; CPU-time medians in brackets: on a shared machine the CPU time is the")
-    print("   fairer comparison, every stage being single-threaded)")
+    exact = trace_diffuse(context, config, threads=t)
+    centre = trace_diffuse(context, config, threads=t, visibility="centre")
+
+    def energy(ev) -> np.ndarray:
+        return np.bincount(ev.channel, weights=ev.gain**2, minlength=3)
+
+    change = energy(centre) / energy(exact) - 1.0
+    print(f"thesis tank: {raycaster.triangle_count} triangles, {n} rays, {args.bounces} bounce(s), {t} thread(s), "
+          f"{seg_t32.size} legs tested (first bounce), {exact.event.size} rows; medians of {args.repeats}")
+    print("  wall-clock medians; CPU-time medians (process, all threads) in brackets")
     for name, (wall, cpu) in results.items():
-        print(f"  {name:14s} {wall * 1e3:9.2f} ms [{cpu * 1e3:8.2f}]   {n / wall / 1e6:7.3f} M rays/s "
+        print(f"  {name:20s} {wall * 1e3:9.2f} ms [{cpu * 1e3:8.2f}]   {n / wall / 1e6:7.3f} M rays/s "
               f"[{n / cpu / 1e6:7.3f}]")
-    queries = n + seg_t32.size
     for index, label in ((0, "wall"), (1, "CPU")):
-        tracer = results["tracer"][index]
-        print(f"  {label}: tracer Embree queries (rays + NEE segments) {queries / tracer / 1e6:.3f} M/s, raw "
-              f"{queries / results['raw same work'][index] / 1e6:.3f} M/s; tracer / raw intersect = "
-              f"{tracer / results['raw intersect'][index]:.2f}x (goal <= 2x), tracer / raw same work = "
-              f"{tracer / results['raw same work'][index]:.2f}x, diffuse_paths / tracer = "
-              f"{results['diffuse_paths'][index] / tracer:.2f}x")
+        r = {name: value[index] for name, value in results.items()}
+        print(f"  {label}: tracer x{t} {n / r[f'tracer x{t}'] / 1e6:.2f} M rays/s (goal >= 5); tracer x{t} / raw "
+              f"intersect x{t} = {r[f'tracer x{t}'] / r[f'raw intersect x{t}']:.2f}x (goal <= 2x), / raw same work "
+              f"x{t} = {r[f'tracer x{t}'] / r[f'raw same work x{t}']:.2f}x; tracer x1 / raw intersect x1 = "
+              f"{r['tracer x1'] / r['raw intersect x1']:.2f}x; centre visibility x{t} / raw intersect x{t} = "
+              f"{r[f'tracer centre x{t}'] / r[f'raw intersect x{t}']:.2f}x; diffuse_paths / tracer = "
+              f"{r[f'diffuse_paths x{t}'] / r[f'tracer x{t}']:.2f}x")
+    print("  diffuse energy change with visibility='centre' per channel (left, centre, right): "
+          + ", ".join(f"{100 * c:+.3f} %" for c in change))
     if before_note:
         print(before_note)
     return 0

@@ -1,0 +1,150 @@
+"""The diffuse tracer's engine: thread-count independence, approximate visibility, sampling
+density, and the low-level Embree queries it uses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from acoustisim.errors import InputError
+from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.diffuse import CHUNK_RAYS, diffuse_paths, sample_directions, trace_diffuse
+from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation.ray_threads import resolve_threads, run_in_order
+from acoustisim.propagation.raycast import RayCaster
+from scenes.builtin import builtin_scene
+
+
+@pytest.fixture(scope="module")
+def tank():
+    scene = builtin_scene("thesis-tank")
+    return SolveContext.build(scene, scene.sonar, RayCaster.from_scene(scene), first_path_id=3)
+
+
+def test_rows_do_not_depend_on_the_thread_count(tank):
+    # 2.5 chunks (a short last one) through two bounces: every chunk boundary, event offset and
+    # parent link is exercised; one, two and three threads give byte-identical rows
+    config = SolverConfig(diffuse_rays=CHUNK_RAYS * 5 // 2, diffuse_bounces=2, seed=11)
+    rows = [diffuse_paths(tank, config, threads=t).tobytes() for t in (1, 2, 3)]
+    assert rows[0] == rows[1] == rows[2]
+    events = [trace_diffuse(tank, config, threads=t) for t in (1, 3)]
+    for name in ("points_m", "parent", "event", "gain", "arrival_dir"):
+        assert getattr(events[0], name).tobytes() == getattr(events[1], name).tobytes()
+    # the rows are the events packed: chunk-local indices were offset correctly
+    packed = diffuse_paths(tank, config, threads=2)
+    e = events[0]
+    assert np.array_equal(packed["path_id"], 3 + e.event)
+    assert np.array_equal(packed["departure_dir"], e.departure_dir[e.event])
+    second = e.bounce[e.event] == 2
+    first_of_second = e.parent[e.event[second]]
+    assert np.all(e.bounce[first_of_second] == 1)
+    np.testing.assert_array_equal(packed["points_m"][second, 0], e.points_m[first_of_second])
+    # one scattering event's receivers stay adjacent (complete_columns shares their tx columns)
+    ids = packed["path_id"]
+    assert np.all(np.diff(ids) >= 0)
+
+
+def test_centre_visibility_changes_the_diffuse_energy_by_far_less_than_one_percent(tank):
+    # The approximation tests occlusion on the leg to the centre receiver only and shares it
+    # with the side receivers 65 mm away: a point hidden from one receiver but not the other
+    # lies in thin slivers at the shadow edges of the prism, posts and pipe. Measured on the
+    # thesis tank: +0.003 % (first bounce) and at most 0.013 % on the last of 1-3 bounces, for
+    # two seeds at 50k rays; the documented bound is 1 % per channel; 0.1 % here keeps an
+    # 8x margin over the measured change while a leg shared wrongly (e.g. every side receiver
+    # treated as blocked when the centre is) changes the energy by tens of percent.
+    for bounces in (1, 2):
+        config = SolverConfig(diffuse_rays=40_000, diffuse_bounces=bounces, seed=4)
+        exact = trace_diffuse(tank, config, threads=2)
+        centre = trace_diffuse(tank, config, threads=2, visibility="centre")
+        for k in range(1, bounces + 1):
+            def energy(ev):
+                last = ev.bounce[ev.event] == k
+                return np.bincount(ev.channel[last], weights=ev.gain[last] ** 2, minlength=3)
+
+            change = energy(centre) / energy(exact) - 1.0
+            assert np.all(np.abs(change) < 1e-3), (bounces, k, change)
+        # the approximation is not a no-op: side-receiver legs Embree finds blocked are kept
+        assert centre.event.size > exact.event.size
+        # the centre receiver's rows are exactly those of the exact tracer
+        assert np.array_equal(exact.gain[exact.channel == 1], centre.gain[centre.channel == 1])
+
+
+def test_lobe_sampling_density_is_exact():
+    # Int D^2 dOmega estimated with the sampler's own solid angles: any mismatch between the
+    # density the rays are drawn from and the pdf their weights assume (the guide table, the
+    # cell of a uniform ray, the mixture counts) biases it. The lobe-sampled rays carry
+    # D^2 / pdf nearly constant, so 200k rays give ~0.1 % (3 sigma); 1 % fails for a pdf off
+    # by one cell's share near the axis or a wrong mixture count.
+    scene = builtin_scene("free-plane")
+    context = SolveContext.build(scene, scene.sonar, RayCaster.from_scene(scene))
+    directions, solid_angle = sample_directions(200_001, context.boresight, context, np.random.default_rng(3))
+    theta = np.arccos(np.clip(directions @ context.boresight, -1, 1))
+    args = (context.centre_frequency_hz, context.piston_radius_m, context.sound_speed_m_s)
+    estimate = np.sum(piston_directivity(theta, *args) ** 2 * solid_angle)
+    # D^2 over the hemisphere: 64-point Gauss on 200 panels (a few dozen lobes: converged to 1e-12)
+    x, w = np.polynomial.legendre.leggauss(64)
+    half = 0.25 * np.pi / 200
+    t = (half * (2 * np.arange(200)[:, None] + 1 + x)).ravel()
+    expected = 2 * np.pi * np.sum(half * np.tile(w, 200) * piston_directivity(t, *args) ** 2 * np.sin(t))
+    assert estimate == pytest.approx(expected, rel=0.01)
+    # every direction is a unit vector
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0, atol=1e-12)
+
+
+def test_low_level_queries_agree_with_the_public_ones(tank):
+    raycaster = tank.raycaster
+    rng = np.random.default_rng(5)
+    origins = rng.uniform([0.5, 0.3, 0.1], [8.5, 2.7, 0.9], (2000, 3))
+    directions = rng.normal(size=(2000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    hits = raycaster.intersect(origins, directions)
+    shifted = np.ascontiguousarray(origins - raycaster.shift_m, dtype=np.float32)
+    triangle = raycaster.first_hit_triangles32(shifted, np.ascontiguousarray(directions, dtype=np.float32))
+    assert np.array_equal(triangle, hits.triangle)
+    # the plane offsets put every hit point on its triangle's plane (float32 Embree: 1e-5 m)
+    points = origins + hits.distance_m[:, None] * directions
+    hit = hits.triangle >= 0
+    normal = raycaster.face_normals[hits.triangle[hit]]
+    np.testing.assert_allclose(np.einsum("ij,ij->i", normal, points[hit]), raycaster.plane_offset[hits.triangle[hit]],
+                               atol=1e-5)
+    lengths = rng.uniform(0.1, 6.0, 2000)
+    blocked = raycaster.occluded_rays(origins, directions, lengths, eps=0.0)
+    low = raycaster.occluded_segments32(shifted, np.ascontiguousarray(directions, dtype=np.float32),
+                                        lengths.astype(np.float32))
+    assert 0.05 < blocked.mean() < 0.95  # both outcomes occur
+    # identical but for segments ending within float32 rounding of a surface
+    near_end = np.abs(hits.distance_m - lengths) < 1e-5
+    assert np.array_equal(low[~near_end], blocked[~near_end])
+
+
+def test_bad_threads_and_visibility_are_refused(tank):
+    config = SolverConfig(diffuse_rays=100)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="threads"):
+            diffuse_paths(tank, config, threads=bad)
+    with pytest.raises(InputError, match="visibility = 'nearest'"):
+        trace_diffuse(tank, config, visibility="nearest")
+    assert resolve_threads(None) >= 1
+
+
+def test_run_in_order_keeps_the_task_order_and_raises():
+    assert run_in_order(lambda k: k * k, range(20), 3) == [k * k for k in range(20)]
+
+    def fail(k):
+        if k == 7:
+            raise ValueError("task 7")
+        return k
+
+    with pytest.raises(ValueError, match="task 7"):
+        run_in_order(fail, range(10), 2)
+
+
+def test_complete_rows_are_finite_and_seeded(tank):
+    a = complete_columns(diffuse_paths(tank, SolverConfig(diffuse_rays=5000, seed=2), threads=2), tank)
+    b = complete_columns(diffuse_paths(tank, SolverConfig(diffuse_rays=5000, seed=2), threads=1), tank)
+    assert a.tobytes() == b.tobytes()
+    for column in ("delay_s", "amplitude", "geometric_gain", "phase_rad"):
+        assert np.all(np.isfinite(a[column]))
+    assert np.all((a["phase_rad"] >= -np.pi) & (a["phase_rad"] < np.pi))
