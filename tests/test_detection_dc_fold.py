@@ -186,3 +186,23 @@ def test_averaging_methods_fold_the_mean_offset(method, base, tof_tol):
         assert abs(a.snr_db - b.snr_db) < 0.1
     # One ping is its own average: exactly the base method.
     assert detect(pings[:1], method, **options).echoes == detect(pings[:1], base, **options).echoes
+
+
+@pytest.mark.parametrize("single", [True, False])
+def test_matched_folded_equals_matched_on_the_offset_free_copy(single):
+    from binsonar.detection.matched import detect_matched, plan_matched
+
+    x = _record()
+    kept = as_signals(x, FS, remove_dc=False)
+    plan = plan_matched(pulse_template(), N, FS)
+    folded = detect_matched(kept.waveforms[0], plan, t0_s=0.0, dc_v=kept.dc_v[0], single=single)
+    copied = detect_matched(kept.without_dc().waveforms[0], plan, t0_s=0.0, single=single)
+    assert [len(e) for e in folded] == [len(e) for e in copied] == [1, 1, 1]
+    # The FFT input is x - dc either way (subtracted in the cast copy or in a float64 copy);
+    # the direct correlations differ by rounding of z(x) - dc * sum(taps) against z(x - dc), as
+    # for the local filter above: same tolerances.
+    for a, b in zip(folded, copied):
+        assert abs(a[0][0] - b[0][0]) < 1e-15
+        assert np.allclose(a[0][1:], b[0][1:], rtol=1e-9, atol=0.0)
+    for c, echoes in enumerate(folded):
+        assert abs(echoes[0][0] - DELAYS[c]) < 0.1e-6

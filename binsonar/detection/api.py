@@ -39,7 +39,7 @@ _SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "wh
 # Base methods that take the waveforms as recorded plus each row's DC offset (``dc_v``) and
 # fold it into their arithmetic, with the result they would give on the offset-free copy:
 # no pass over the record to make that copy. The others get ``Signals.without_dc()``.
-FOLDS_DC = frozenset({"threshold", "local-matched"})
+FOLDS_DC = frozenset({"threshold", "local-matched", "matched"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -356,7 +356,7 @@ def detect(
     data : Recording or array_like
         Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples). Each
         ping-channel's median (its DC offset) is removed first (``inputs.remove_median``);
-        the methods in ``FOLDS_DC`` (threshold, local-matched) instead fold it into their
+        the methods in ``FOLDS_DC`` (threshold, matched, local-matched) instead fold it into their
         arithmetic, with the same result (to rounding) and no copy of the record.
     method : str
         One of ``METHODS``: "threshold", "energy", "matched", "whitened-matched",
@@ -430,7 +430,7 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     elif base in ("energy", "whitened-matched", "dwt"):
         call = lambda chunk, dc_v: function(chunk, template, sample_rate_hz=fs, t0_s=t0, where=where, **options)  # noqa: E731
     elif base == "matched":
-        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, **options)  # noqa: E731
+        call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, dc_v=dc_v, **options)  # noqa: E731
     elif base == "local-matched":
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, where=where, dc_v=dc_v, **options)  # noqa: E731
     else:

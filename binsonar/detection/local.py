@@ -58,6 +58,7 @@ from numpy.typing import NDArray
 from binsonar.detection.matched import (
     MatchedPlan,
     check_pfa,
+    dc_correlation,
     echo_values,
     lag_range,
     lags_time_domain,
@@ -242,36 +243,6 @@ def block_tone_power(
         parts -= dc[:, np.newaxis, np.newaxis] * plan.tone_sum
     np.square(parts, out=parts)
     return parts[..., 0] + parts[..., 1]
-
-
-def dc_correlation(
-    plan: MatchedPlan,
-    n_samples: int,
-    dc: NDArray[np.float64],
-    lags: NDArray[np.intp],
-    partial: NDArray[np.complex128] | None = None,
-) -> NDArray[np.complex128]:
-    """Analytic correlation of constant rows (value ``dc``) with the template, at ``lags``,
-    samples outside the record counting as 0 (as in ``lags_time_domain`` / ``lags_by_fft``).
-
-    Parameters
-    ----------
-    dc : ndarray, shape (k,)
-    lags : ndarray of int, shape (k, w)
-    partial : ndarray, shape (m_a + 1,), complex, optional
-        Running sums of the analytic taps, 0 first (``LocalPlan.tap_partial``); made if absent.
-
-    Returns
-    -------
-    ndarray, shape (k, w), complex
-    """
-    taps = plan.analytic_template_conj
-    if partial is None:
-        partial = np.concatenate([[0.0], np.cumsum(taps)])
-    first = lags - plan.analytic_offset  # record sample under tap 0
-    lo = np.minimum(np.maximum(-first, 0), taps.size)
-    hi = np.minimum(np.maximum(n_samples - first, 0), taps.size)
-    return dc[:, np.newaxis] * np.where(hi > lo, partial[hi] - partial[lo], 0.0)
 
 
 def coarse_lags(
