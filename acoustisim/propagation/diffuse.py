@@ -54,6 +54,7 @@ from acoustisim.errors import InputError
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation import diffuse_kernels as kernels
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, PATH_DTYPE, empty_paths_array
 from acoustisim.propagation.ray_threads import resolve_threads, run_in_order
 from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
@@ -78,20 +79,9 @@ _COS_CELLS = 1 << 13
 _GUIDE_BINS = 1 << 16
 """Equiprobable bins of the lobe density's guide table (see :class:`_LobeTable`)."""
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
-_PRIME_X = np.uint64(0x8DA6B343)  # spatial-hash multipliers (Teschner et al. 2003), odd
-_PRIME_Y = np.uint64(0xD8163841)
-_PRIME_Z = np.uint64(0xCB1AB31F)
-
-
-def _splitmix64(x: NDArray[np.uint64]) -> NDArray[np.uint64]:
-    """SplitMix64 finaliser, element-wise (wrapping uint64 arithmetic)."""
-    z = x + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _MIX1
-    z = (z ^ (z >> np.uint64(27))) * _MIX2
-    return z ^ (z >> np.uint64(31))
+def _seed_hash(seed: int) -> np.uint64:
+    """The seed's contribution to every speckle hash (SplitMix64 of the seed)."""
+    return np.uint64(kernels.splitmix64(np.uint64(seed)))
 
 
 def speckle_polar(points_m: NDArray[np.float64], seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -104,29 +94,11 @@ def speckle_polar(points_m: NDArray[np.float64], seed: int) -> tuple[NDArray[np.
     phase : ndarray, shape (n,)
         arg X in [-pi, pi) (rad), uniform.
     """
-    points = np.asarray(points_m, dtype=float)
-    return _speckle_components(points[:, 0], points[:, 1], points[:, 2], seed)
-
-
-def _speckle_components(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64],
-                        seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`speckle_polar` of points given as coordinate arrays (n,) x 3 (m)."""
-    key = None
-    for column, prime in ((x, _PRIME_X), (y, _PRIME_Y), (z, _PRIME_Z)):
-        cell = np.floor(column / SPECKLE_CELL_M).astype(np.int64).view(np.uint64)
-        cell *= prime
-        key = cell if key is None else np.bitwise_xor(key, cell, out=key)
-    h = _splitmix64(key ^ _splitmix64(np.array([seed], dtype=np.uint64)))
-    # two independent 32-bit uniforms from the high and low halves of the 64-bit hash
-    u1 = (h >> np.uint64(32)).astype(np.float64)
-    u1 *= -(2.0**-32)
-    u2 = (h & np.uint64(0xFFFFFFFF)).astype(np.float64)
-    u2 *= 2.0 * np.pi * 2.0**-32
-    u2 -= np.pi
-    # |X|^2 ~ Exp(1) (-log(1 - u1), u1 < 1), phase uniform
-    magnitude = np.log1p(u1, out=u1)
-    np.negative(magnitude, out=magnitude)
-    return np.sqrt(magnitude, out=magnitude), u2
+    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    magnitude, phase = np.empty(points.shape[0]), np.empty(points.shape[0])
+    x, y, z = (np.ascontiguousarray(points[:, k]) for k in range(3))
+    kernels.speckle_into(x, y, z, SPECKLE_CELL_M, _seed_hash(seed), magnitude, phase)
+    return magnitude, phase
 
 
 def speckle(points_m: NDArray[np.float64], seed: int) -> NDArray[np.complex128]:
@@ -384,53 +356,27 @@ class ObjectScreen:
             return np.ones(n, dtype=bool)
         if self.lo.shape[0] == 0:
             return np.zeros(n, dtype=bool)
-        # float32 columns: the rounding (1e-6 m over a 10 m leg) is far inside the margin
-        start = [np.asarray(column, dtype=np.float32) for column in (x, y, z)]
-        span = [np.float32(self.centre[k]) - start[k] for k in range(3)]
-        for column in span:  # a (near-)zero span, a leg in a slab's plane: no inf or 0 x inf
-            column[np.abs(column) < 1e-30] = np.float32(1e-30)
-        inverse = [np.float32(1.0) / column for column in span]
-        offset = [-start[k] * inverse[k] for k in range(3)]
-        near = _segments_cross_box(inverse, offset, self.lo[0], self.hi[0])
-        if self.lo.shape[0] == 1:
-            return near
-        candidates = np.flatnonzero(near)
-        inverse = [column[candidates] for column in inverse]
-        offset = [column[candidates] for column in offset]
-        crossing = np.zeros(candidates.size, dtype=bool)
-        for lo, hi in zip(self.lo[1:], self.hi[1:]):  # a handful of objects
-            crossing |= _segments_cross_box(inverse, offset, lo, hi)
-        near[candidates] = crossing
+        near = np.empty(n, dtype=bool)
+        columns = (np.ascontiguousarray(c, dtype=float) for c in (x, y, z))
+        kernels.near_points(*columns, self.centre, self.lo, self.hi, near)
         return near
+
+    def kernel_arguments(self) -> tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """(mode, centre, lo, hi) for :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`:
+        mode 0 when no leg can be blocked, 1 to screen with the boxes, 2 when every leg may be."""
+        if self.lo is None:
+            return 2, self.centre, np.zeros((1, 3)), np.zeros((1, 3))
+        if self.lo.shape[0] == 0:
+            return 0, self.centre, np.zeros((1, 3)), np.zeros((1, 3))
+        return 1, self.centre, self.lo, self.hi
 
 
 SCREEN_MARGIN_M = 1e-4
-"""Growth of the object boxes in :class:`ObjectScreen` (m): 100 times the float32 rounding
-of a 10 m leg."""
+"""Growth of the object boxes in :class:`ObjectScreen` (m): a hundred times the float32
+rounding of a 10 m leg in Embree."""
 
 SCREEN_MAX_BOXES = 16
 """Objects screened box by box; more are screened by their union box only."""
-
-
-def _segments_cross_box(
-    inverse: list[NDArray[np.float32]], offset: list[NDArray[np.float32]], lo: NDArray[np.float64],
-    hi: NDArray[np.float64],
-) -> NDArray[np.bool_]:
-    """Slab test: whether segments start + t span, t in [0, 1], meet the box [lo, hi].
-
-    Per coordinate k, ``inverse[k]`` = 1 / span (n,) and ``offset[k]`` = -start / span: the
-    segment is in slab k for t between lo inverse + offset and hi inverse + offset.
-    """
-    enter = np.zeros(inverse[0].size, dtype=np.float32)
-    leave = np.ones(inverse[0].size, dtype=np.float32)
-    for k in range(3):  # the three coordinates
-        t1 = np.float32(lo[k]) * inverse[k]
-        t1 += offset[k]
-        t2 = np.float32(hi[k]) * inverse[k]
-        t2 += offset[k]
-        np.maximum(enter, np.minimum(t1, t2), out=enter)
-        np.minimum(leave, np.maximum(t1, t2), out=leave)
-    return enter <= leave
 
 
 @dataclass(frozen=True)
@@ -499,8 +445,8 @@ class _Tracer:
     ----------
     raycaster : RayCaster
     lobe : _LobeTable
-    mu : ndarray, shape (n_triangles + 1,)
-        Lambert mu of each triangle's surface, then 0 (for index -1, a miss).
+    mu : ndarray, shape (n_triangles,)
+        Lambert mu of each triangle's surface.
     plane_offset : ndarray, shape (n_triangles,)
         Each triangle's plane offset (m), see :attr:`RayCaster.plane_offset`.
     normal : ndarray, shape (3, n_triangles)
@@ -510,17 +456,18 @@ class _Tracer:
     frame : tuple of ndarray, shape (3,)
         (e1, e2, boresight): the transmitter's orthonormal frame.
     receivers : ndarray, shape (n_rx, 3)
-    screen : ObjectScreen
-    at_transmitter : ndarray of bool, shape (n_rx,)
-        Receivers at the transmitter: a first hit's leg back to them is its own ray, clear.
-    reference : int or None
-        The receiver whose occlusion is shared by all (``"centre"`` visibility), None (exact).
-    seed, bounces, n_rays : int
+    screen : tuple
+        :meth:`ObjectScreen.kernel_arguments`.
+    tested : ndarray of bool, shape (2, n_rx)
+        Receivers whose legs are tested for occlusion from first hits (row 0: not a receiver
+        at the transmitter, whose leg is the ray itself) and from later ones (row 1); with
+        ``"centre"`` visibility only the reference receiver's.
+    shared : bool
+        ``"centre"`` visibility: the reference receiver's leg decides for all.
+    seed_hash : numpy.uint64
+    bounces, n_rays : int
     totals : tuple of int
         Rays drawn uniformly and from the lobe, over all chunks (see :class:`_LobeTable`).
-    pair_point, pair_receiver : ndarray of int64, shape (CHUNK_RAYS n_rx,)
-        Point and receiver of each index into a point-major (points, receivers) array
-        (``divmod`` by table: numpy's integer division is the slowest pass of the tracer).
     """
 
     raycaster: RayCaster
@@ -532,15 +479,13 @@ class _Tracer:
     transmitter: NDArray[np.float64]
     frame: tuple[NDArray[np.float64], ...]
     receivers: NDArray[np.float64]
-    screen: ObjectScreen
-    at_transmitter: NDArray[np.bool_]
-    reference: int | None
-    seed: int
+    screen: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+    tested: NDArray[np.bool_]
+    shared: bool
+    seed_hash: np.uint64
     bounces: int
     n_rays: int
     totals: tuple[int, int]
-    pair_point: NDArray[np.int64]
-    pair_receiver: NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -565,15 +510,6 @@ def _join(parts: list[NDArray[Any]], axis: int = 0) -> NDArray[Any]:
     return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=axis)
 
 
-def _columns(components: NDArray[np.float64], index: NDArray[np.int64]) -> NDArray[np.float64]:
-    """``components[:, index]`` of a (3, n) array, one 1-D gather per row (numpy's 2-D fancy
-    indexing along the last axis is several times slower)."""
-    out = np.empty((3, index.size))
-    for k in range(3):  # the three coordinates
-        out[k] = components[k][index]
-    return out
-
-
 def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | None, n: int) -> NDArray[np.float32]:
     """A C-contiguous float32 (n, 3) array of components (3, n) (or (3, 1), broadcast) minus ``shift``."""
     out = np.empty((n, 3), dtype=np.float32)
@@ -585,99 +521,18 @@ def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | 
     return out
 
 
-def _receptions(tracer: _Tracer, bounce: int, points: NDArray[np.float64], normal: NDArray[np.float64]) -> tuple[
-        NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Next-event estimation from scattering points (3, h) with normals (3, h) to every receiver.
-
-    Returns
-    -------
-    hit, channel : ndarray of int64, shape (k,)
-        The (point, receiver) pairs whose receiver is in front of the face and whose leg is
-        clear, point-major (the receivers of one point adjacent).
-    r2 : ndarray, shape (k,)
-        Leg lengths (m).
-    cos_r2 : ndarray, shape (k,)
-        r2 sin(g_s) (m).
-    arrival : ndarray, shape (3, k)
-        Unit leg directions (point -> receiver).
-    """
-    rx = tracer.receivers
-    n_rx, h = rx.shape[0], points.shape[1]
-    to_rx = np.empty((3, n_rx, h))  # component, receiver, point
-    r2 = np.empty((n_rx, h))
-    cos_r2 = np.empty((n_rx, h))
-    scratch = np.empty(h)
-    for j in range(n_rx):  # the receivers (three)
-        for k in range(3):  # the three coordinates
-            np.subtract(rx[j, k], points[k], out=to_rx[k, j])
-        np.multiply(to_rx[0, j], to_rx[0, j], out=r2[j])
-        np.multiply(to_rx[0, j], normal[0], out=cos_r2[j])
-        for k in (1, 2):
-            np.multiply(to_rx[k, j], to_rx[k, j], out=scratch)
-            r2[j] += scratch
-            np.multiply(to_rx[k, j], normal[k], out=scratch)
-            cos_r2[j] += scratch
-    np.sqrt(r2, out=r2)
-    # (point, receiver) pairs in front of the scattering face, point-major (h, n_rx)
-    clear = np.empty((h, n_rx), dtype=bool)
-    for j in range(n_rx):  # the receivers (three)
-        np.greater(cos_r2[j], 0.0, out=clear[:, j])
-    tested = [j for j in range(n_rx) if not (bounce == 0 and tracer.at_transmitter[j])]
-    if tracer.reference is not None:  # one receiver's leg decides for all
-        tested = [tracer.reference] if tracer.reference in tested else []
-    # legs that may cross an object (boundaries cannot block them: see ObjectScreen)
-    near = tracer.screen.near_components(points[0], points[1], points[2]) if tested else None
-    eps = DEFAULT_EPS_M
-    legs = []  # per tested receiver: the points whose leg Embree tests
-    for j in tested:
-        candidate = clear[:, j] & near
-        candidate &= r2[j] > 2.0 * eps  # shorter legs are never blocked
-        legs.append(np.flatnonzero(candidate))
-    n_legs = sum(leg.size for leg in legs)
-    if n_legs:
-        shift = tracer.raycaster.shift_m
-        start32 = np.empty((n_legs, 3), dtype=np.float32)
-        unit32 = np.empty((n_legs, 3), dtype=np.float32)
-        length32 = np.empty(n_legs, dtype=np.float32)
-        bounds = np.cumsum([0] + [leg.size for leg in legs])
-        for j, leg, a, b in zip(tested, legs, bounds[:-1], bounds[1:]):
-            length = r2[j][leg]
-            np.subtract(length, 2.0 * eps, out=length32[a:b], casting="unsafe")
-            for k in range(3):  # the three coordinates
-                unit = to_rx[k, j][leg]
-                unit /= length
-                unit32[a:b, k] = unit
-                unit *= eps
-                unit += points[k][leg]
-                np.subtract(unit, shift[k], out=start32[a:b, k], casting="unsafe")
-        blocked = tracer.raycaster.occluded_segments32(start32, unit32, length32)
-        if tracer.reference is not None:
-            clear[legs[0][blocked[bounds[0]:bounds[1]]]] = False  # hidden from every receiver
-        else:
-            for j, leg, a, b in zip(tested, legs, bounds[:-1], bounds[1:]):
-                clear[leg[blocked[a:b]], j] = False
-    selected = np.flatnonzero(clear)  # point-major: pair p is point p // n_rx, receiver p % n_rx
-    hit = tracer.pair_point[selected]
-    channel = tracer.pair_receiver[selected]
-    source = channel * h
-    source += hit  # into the (n_rx, h) arrays
-    r2_sel = r2.reshape(-1)[source]
-    arrival = np.empty((3, selected.size))
-    for k in range(3):  # the three coordinates
-        np.divide(to_rx[k].reshape(-1)[source], r2_sel, out=arrival[k])
-    return hit, channel, r2_sel, cos_r2.reshape(-1)[source], arrival
-
-
 def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     """Trace chunk ``chunk`` (rays ``chunk CHUNK_RAYS`` onwards) through every bounce."""
     n = min(CHUNK_RAYS, tracer.n_rays - chunk * CHUNK_RAYS)
-    rng = np.random.default_rng([tracer.seed, chunk])
+    rng = np.random.default_rng([tracer.seed_hash, chunk])
     raycaster = tracer.raycaster
     shift = raycaster.shift_m
+    rx = tracer.receivers
+    n_rx = rx.shape[0]
     directions, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng)
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
-    travelled: NDArray[np.float64] | float = 0.0
+    travelled = np.zeros(1)
     parent = np.full(n, -1, dtype=np.int64)
     ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
     rc: dict[str, list[NDArray[Any]]] = {k: [] for k in ("event", "channel", "length", "gain", "phase", "arrival")}
@@ -685,64 +540,48 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
         triangle = raycaster.first_hit_triangles32(_float32_rows(origins, shift, m), _float32_rows(directions, None, m))
-        # hits on scattering surfaces (mu > 0; the table's last entry, 0, is a miss's, index -1)
-        keep = tracer.mu[triangle] > 0.0
-        normal = cos_in = None
-        for _ in range(2):  # then those hit from the front (a closed mesh's: all of them)
-            n_hits = int(np.count_nonzero(keep))
-            if n_hits < keep.size:
-                if n_hits == 0:
-                    break
-                live = np.flatnonzero(keep)
-                triangle, weight, parent = triangle[live], weight[live], parent[live]
-                directions, departure = _columns(directions, live), _columns(departure, live)
-                if origins.shape[1] > 1:
-                    origins = _columns(origins, live)
-                if bounce:
-                    travelled = travelled[live]
-                if normal is not None:
-                    normal, cos_in = _columns(normal, live), cos_in[live]
-            if normal is None:
-                normal = _columns(tracer.normal, triangle)
-                cos_in = directions[0] * normal[0]
-                cos_in += directions[1] * normal[1]
-                cos_in += directions[2] * normal[2]
-                keep = cos_in < 0.0
+        points, normal, hit_directions, hit_departure = (np.empty((3, m)) for _ in range(4))
+        hit_weight, amplitude, hit_travelled, mu, phase = (np.empty(m) for _ in range(5))
+        hit_parent, surface = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+        n_hits = kernels.scatter_hits(
+            triangle, directions, origins, weight, travelled, parent, departure, tracer.mu, tracer.normal,
+            tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash, points, normal, hit_directions,
+            hit_departure, hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
+        )
         if n_hits == 0:
             break
-        mu = tracer.mu[triangle]
-        # the hit on the triangle's plane, in float64 (Embree only chose the triangle)
-        distance = tracer.plane_offset[triangle]
-        for k in range(3):  # the three coordinates
-            distance -= normal[k] * origins[k]
-        distance /= cos_in
-        points = np.empty((3, n_hits))
-        for k in range(3):  # the three coordinates
-            np.multiply(directions[k], distance, out=points[k])
-            points[k] += origins[k]
-        travelled = travelled + distance
+        points, normal, departure = points[:, :n_hits], normal[:, :n_hits], hit_departure[:, :n_hits]
         ev["points"].append(points)
-        ev["surface"].append(tracer.surface[triangle])
-        ev["parent"].append(parent)
+        ev["surface"].append(surface[:n_hits])
+        ev["parent"].append(hit_parent[:n_hits])
         ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
         ev["departure"].append(departure)
 
-        # next-event estimation: |X| sqrt(mu sin(g_s) dOmega) / r2 = |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3)
-        magnitude, phase = _speckle_components(points[0], points[1], points[2], tracer.seed)
-        magnitude *= np.sqrt(weight * mu)
-        hit, channel, r2, cos_r2, arrival = _receptions(tracer, bounce, points, normal)
-        gain = r2 * r2
-        gain *= r2
-        np.divide(cos_r2, gain, out=gain)
-        np.sqrt(gain, out=gain)
-        gain *= magnitude[hit]
-        r2 += travelled[hit]
-        rc["event"].append(next_event + hit)
-        rc["channel"].append(channel)
-        rc["length"].append(r2)
-        rc["gain"].append(gain)
-        rc["phase"].append(phase[hit])
-        rc["arrival"].append(arrival)
+        # next-event estimation to every receiver; Embree tests the legs that may be blocked
+        pairs = n_hits * n_rx
+        state = np.empty(pairs, dtype=np.int8)
+        r2, cos_r2 = np.empty(pairs), np.empty(pairs)
+        leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
+        leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
+        mode, centre, lo, hi = tracer.screen
+        n_legs = kernels.next_event_pairs(
+            points, normal, n_hits, rx, tracer.tested[min(bounce, 1)], mode, centre, lo, hi, shift, DEFAULT_EPS_M,
+            state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
+        )
+        blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
+        event, channel = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
+        length, gain, reception_phase = np.empty(pairs), np.empty(pairs), np.empty(pairs)
+        arrival = np.empty((3, pairs))
+        k = kernels.receptions(
+            n_hits, n_rx, state, r2, cos_r2, leg_pair, blocked, tracer.shared, points, rx, amplitude,
+            hit_travelled, phase, next_event, event, channel, length, gain, reception_phase, arrival,
+        )
+        rc["event"].append(event[:k])
+        rc["channel"].append(channel[:k])
+        rc["length"].append(length[:k])
+        rc["gain"].append(gain[:k])
+        rc["phase"].append(reception_phase[:k])
+        rc["arrival"].append(arrival[:, :k])
         parent = next_event + np.arange(n_hits)
         next_event += n_hits
         if bounce + 1 >= tracer.bounces:
@@ -760,7 +599,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         t2 *= along_2
         directions += t2
         directions += normal * along_n
-        weight = weight * math.pi * mu
+        weight = hit_weight[:n_hits] * math.pi * mu[:n_hits]
+        travelled = hit_travelled[:n_hits]
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
     if not ev["points"]:
         i0, f0, v0 = np.zeros(0, np.int64), np.zeros(0), np.zeros((3, 0))
@@ -796,30 +636,31 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
     tx = np.asarray(context.transmitter_m, dtype=float)
     rx = np.asarray(context.receivers_m, dtype=float)
     boresight = np.asarray(context.boresight, dtype=float)
-    reference = None
-    if visibility == "centre":
+    n_rx = rx.shape[0]
+    tested = np.ones((2, n_rx), dtype=bool)
+    tested[0] = ~np.all(rx == tx, axis=1)  # a first hit's leg back to the transmitter is its ray
+    if visibility == "centre":  # only the receiver nearest the centroid is tested, for all
         reference = int(np.argmin(np.linalg.norm(rx - rx.mean(axis=0), axis=1)))
+        tested[:, np.arange(n_rx) != reference] = False
     sizes = [CHUNK_RAYS] * (n_rays // CHUNK_RAYS) + ([n_rays % CHUNK_RAYS] if n_rays % CHUNK_RAYS else [])
     n_uniform = sum(_LobeTable.uniform_count(size) for size in sizes)
     tracer = _Tracer(
         raycaster=raycaster,
         lobe=_LobeTable.create(context),
-        mu=np.append(mu_of_surface[raycaster.surface_index], 0.0),
+        mu=mu_of_surface[raycaster.surface_index],
         plane_offset=raycaster.plane_offset,
         normal=np.ascontiguousarray(raycaster.face_normals.T),
         surface=raycaster.surface_index,
         transmitter=tx,
         frame=(*_basis(boresight), boresight),
-        receivers=rx,
-        screen=ObjectScreen.create(scene, rx),
-        at_transmitter=np.all(rx == tx, axis=1),
-        reference=reference,
-        seed=int(config.seed),
+        receivers=np.ascontiguousarray(rx),
+        screen=ObjectScreen.create(scene, rx).kernel_arguments(),
+        tested=tested,
+        shared=visibility == "centre",
+        seed_hash=_seed_hash(int(config.seed)),
         bounces=int(config.diffuse_bounces),
         n_rays=n_rays,
         totals=(n_uniform, n_rays - n_uniform),
-        pair_point=np.repeat(np.arange(CHUNK_RAYS), rx.shape[0]),
-        pair_receiver=np.tile(np.arange(rx.shape[0]), CHUNK_RAYS),
     )
     n_chunks = -(-n_rays // CHUNK_RAYS)
     return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers)

@@ -1,0 +1,328 @@
+"""Compiled per-hit loops of the diffuse tracer (numba, cached on disk, GIL released).
+
+The diffuse tracer (:mod:`acoustisim.propagation.diffuse`) draws its random numbers with numpy
+and asks Embree for the hit triangles and the occlusion of the legs to the receivers; the
+arithmetic per hit and per (hit, receiver) pair, which numpy can only express as dozens of
+passes over temporary arrays, is compiled here:
+
+1. :func:`speckle_into`: the speckle factor frozen to each world position (a hash of the
+   position's 1 mm cube and the seed);
+2. :func:`scatter_hits`: the rays that hit a scattering surface from its front, compacted,
+   with the hit point solved on the triangle's plane in float64, the distance travelled and
+   the speckle amplitude |X| sqrt(mu dOmega);
+3. :func:`next_event_pairs`: for every hit and receiver, the leg's length and r2 sin(g_s),
+   whether the receiver is in front of the face, and the legs that need an Embree occlusion
+   query (near an object's box, see :class:`~acoustisim.propagation.diffuse.ObjectScreen`),
+   written as Embree's float32 buffers;
+4. :func:`receptions`: the clear pairs, point-major, with their path length, gain, phase and
+   arrival direction.
+
+Every loop runs in order over its inputs, so the output is deterministic; ``nogil=True`` lets
+the tracer's threads run them in parallel. ``cache=True`` stores the compiled code in
+``__pycache__`` beside this file (or numba's per-user cache directory): the first call in a
+fresh checkout compiles for a few seconds, later processes load the cache.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+MIX2 = np.uint64(0x94D049BB133111EB)
+PRIME_X = np.uint64(0x8DA6B343)  # spatial-hash multipliers (Teschner et al. 2003), odd
+PRIME_Y = np.uint64(0xD8163841)
+PRIME_Z = np.uint64(0xCB1AB31F)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+_S32 = np.uint64(32)
+_LOW32 = np.uint64(0xFFFFFFFF)
+_TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True, nogil=True)
+def splitmix64(x: np.uint64) -> np.uint64:
+    """SplitMix64 finaliser of one uint64 (wrapping arithmetic)."""
+    z = x + GOLDEN
+    z = (z ^ (z >> _S30)) * MIX1
+    z = (z ^ (z >> _S27)) * MIX2
+    return z ^ (z >> _S31)
+
+
+@njit(cache=True, nogil=True)
+def _speckle(x: float, y: float, z: float, cell: float, seed_hash: np.uint64) -> tuple[float, float]:
+    """|X| and arg X of the speckle factor of the point (x, y, z) (m)."""
+    kx = np.uint64(np.int64(math.floor(x / cell)))
+    ky = np.uint64(np.int64(math.floor(y / cell)))
+    kz = np.uint64(np.int64(math.floor(z / cell)))
+    h = splitmix64(((kx * PRIME_X) ^ (ky * PRIME_Y) ^ (kz * PRIME_Z)) ^ seed_hash)
+    # two independent 32-bit uniforms from the high and low halves of the 64-bit hash
+    u1 = np.float64(h >> _S32) * 2.0**-32
+    u2 = np.float64(h & _LOW32) * 2.0**-32
+    # |X|^2 ~ Exp(1) (-log(1 - u1), u1 < 1), phase uniform in [-pi, pi)
+    return math.sqrt(-math.log1p(-u1)), _TWO_PI * u2 - math.pi
+
+
+@njit(cache=True, nogil=True)
+def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], cell: float,
+                 seed_hash: np.uint64, magnitude: NDArray[np.float64], phase: NDArray[np.float64]) -> None:
+    """Speckle magnitude and phase (n,) of the points (n,) x 3 (m), written into the outputs.
+
+    ``seed_hash`` is ``splitmix64(seed)``; ``cell`` the side of the cubes sharing a factor (m).
+    """
+    for i in range(x.size):
+        m, a = _speckle(x[i], y[i], z[i], cell, seed_hash)
+        magnitude[i] = m
+        phase[i] = a
+
+
+@njit(cache=True, nogil=True)
+def scatter_hits(
+    triangle: NDArray[np.int32], directions: NDArray[np.float64], origins: NDArray[np.float64],
+    weight: NDArray[np.float64], travelled: NDArray[np.float64], parent: NDArray[np.int64],
+    departure: NDArray[np.float64], tri_mu: NDArray[np.float64], tri_normal: NDArray[np.float64],
+    tri_offset: NDArray[np.float64], tri_surface: NDArray[np.int64], cell: float, seed_hash: np.uint64,
+    points: NDArray[np.float64], normal: NDArray[np.float64], out_directions: NDArray[np.float64],
+    out_departure: NDArray[np.float64], out_weight: NDArray[np.float64], amplitude: NDArray[np.float64],
+    out_travelled: NDArray[np.float64], out_parent: NDArray[np.int64], surface: NDArray[np.int64],
+    mu: NDArray[np.float64], phase: NDArray[np.float64],
+) -> int:
+    """Compact the rays that scatter and solve their hits.
+
+    Parameters
+    ----------
+    triangle : ndarray of int32, shape (m,)
+        Embree's hit triangle of each ray (-1: none).
+    directions, departure : ndarray, shape (3, m)
+        Unit ray directions; the direction each ray left the transmitter.
+    origins : ndarray, shape (3, m) or (3, 1)
+        Ray origins (m); one column is shared by every ray.
+    weight, travelled : ndarray, shape (m,)
+        Solid angle (x albedo products) and path length so far (m) of each ray.
+    parent : ndarray of int64, shape (m,)
+    tri_mu, tri_offset : ndarray, shape (n_triangles,)
+        Lambert mu of each triangle's surface and its plane offset n . v0 (m).
+    tri_normal : ndarray, shape (3, n_triangles)
+    tri_surface : ndarray of int64, shape (n_triangles,)
+    cell, seed_hash
+        As in :func:`speckle_into`.
+    points ... phase : outputs, first axis (or second for the (3, m) ones) of length >= m
+        The kept rays' hit points, normals, directions, departures, weights,
+        |X| sqrt(mu weight), path lengths to the hit, parents, surfaces, mu and speckle phase.
+
+    Returns
+    -------
+    int
+        The number h of kept rays (a surface with mu > 0 hit from its front), written first
+        in the outputs, in ray order.
+    """
+    shared = origins.shape[1] == 1
+    h = 0
+    for i in range(triangle.size):
+        t = triangle[i]
+        if t < 0:
+            continue
+        m = tri_mu[t]
+        if not m > 0.0:
+            continue
+        nx, ny, nz = tri_normal[0, t], tri_normal[1, t], tri_normal[2, t]
+        dx, dy, dz = directions[0, i], directions[1, i], directions[2, i]
+        cos_in = dx * nx + dy * ny + dz * nz
+        if not cos_in < 0.0:
+            continue
+        j = 0 if shared else i
+        ox, oy, oz = origins[0, j], origins[1, j], origins[2, j]
+        # the hit on the triangle's plane, in float64 (Embree only chose the triangle)
+        distance = (tri_offset[t] - (nx * ox + ny * oy + nz * oz)) / cos_in
+        px, py, pz = ox + distance * dx, oy + distance * dy, oz + distance * dz
+        points[0, h], points[1, h], points[2, h] = px, py, pz
+        normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
+        out_directions[0, h], out_directions[1, h], out_directions[2, h] = dx, dy, dz
+        out_departure[0, h], out_departure[1, h], out_departure[2, h] = (
+            departure[0, i], departure[1, i], departure[2, i])
+        w = weight[i]
+        out_weight[h] = w
+        magnitude, angle = _speckle(px, py, pz, cell, seed_hash)
+        phase[h] = angle
+        amplitude[h] = magnitude * math.sqrt(w * m)
+        out_travelled[h] = (travelled[0] if travelled.size == 1 else travelled[i]) + distance
+        out_parent[h] = parent[i]
+        surface[h] = tri_surface[t]
+        mu[h] = m
+        h += 1
+    return h
+
+
+@njit(cache=True, nogil=True)
+def _near(px: float, py: float, pz: float, centre: NDArray[np.float64], lo: NDArray[np.float64],
+          hi: NDArray[np.float64]) -> bool:
+    """Whether the segment from p to ``centre`` meets the union box lo[0], hi[0] and then one
+    of the boxes lo[1:], hi[1:] (or the union alone when it is the only box): the screen of
+    :class:`~acoustisim.propagation.diffuse.ObjectScreen` in float64."""
+    sx, sy, sz = centre[0] - px, centre[1] - py, centre[2] - pz
+    for b in range(lo.shape[0]):
+        enter, leave = 0.0, 1.0
+        for k in range(3):
+            s = sx if k == 0 else (sy if k == 1 else sz)
+            p = px if k == 0 else (py if k == 1 else pz)
+            if abs(s) < 1e-30:  # parallel to the slab: inside it or not
+                if p < lo[b, k] or p > hi[b, k]:
+                    enter, leave = 1.0, 0.0
+                continue
+            t1 = (lo[b, k] - p) / s
+            t2 = (hi[b, k] - p) / s
+            if t1 > t2:
+                t1, t2 = t2, t1
+            enter = max(enter, t1)
+            leave = min(leave, t2)
+        crossing = enter <= leave
+        if b == 0:
+            if not crossing:
+                return False
+            if lo.shape[0] == 1:
+                return True
+        elif crossing:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], centre: NDArray[np.float64],
+                lo: NDArray[np.float64], hi: NDArray[np.float64], out: NDArray[np.bool_]) -> None:
+    """:func:`_near` of the points (n,) x 3, written into ``out`` (n,)."""
+    for i in range(x.size):
+        out[i] = _near(x[i], y[i], z[i], centre, lo, hi)
+
+
+@njit(cache=True, nogil=True)
+def next_event_pairs(
+    points: NDArray[np.float64], normal: NDArray[np.float64], h: int, receivers: NDArray[np.float64],
+    tested: NDArray[np.bool_], screen: int, centre: NDArray[np.float64], lo: NDArray[np.float64],
+    hi: NDArray[np.float64], shift: NDArray[np.float64], eps: float, state: NDArray[np.int8],
+    r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
+    leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
+) -> int:
+    """Geometry of every (hit, receiver) pair and the legs Embree must test.
+
+    Parameters
+    ----------
+    points, normal : ndarray, shape (3, >= h)
+        Scattering points (m) and unit normals; the first ``h`` are used.
+    receivers : ndarray, shape (n_rx, 3)
+    tested : ndarray of bool, shape (n_rx,)
+        Receivers whose legs are tested for occlusion.
+    screen : int
+        0: no leg can be blocked (no objects); 1: screen the legs with the boxes ``lo``, ``hi``
+        (k, 3) seen from ``centre`` (3,); 2: every leg may be blocked.
+    shift : ndarray, shape (3,)
+        Subtracted from the leg starts (Embree's frame).
+    eps : float
+        Each leg is shrunk by ``eps`` (m) at both ends; shorter than 2 eps: never blocked.
+    state, r2, cos_r2 : outputs, shape (>= h n_rx,), point-major
+        Per pair: 0 (receiver behind the face), 1 (clear), 2 (leg queued); the leg length
+        (m); r2 sin(g_s) (m).
+    leg_start, leg_unit : outputs of float32, shape (>= h n_rx, 3)
+    leg_length : output of float32, shape (>= h n_rx,)
+    leg_pair : output of int64, shape (>= h n_rx,)
+        The queued legs (Embree buffers) and their pair index.
+
+    Returns
+    -------
+    int
+        The number of queued legs.
+    """
+    n_rx = receivers.shape[0]
+    any_tested = False
+    for j in range(n_rx):
+        any_tested = any_tested or tested[j]
+    n_legs = 0
+    for i in range(h):
+        px, py, pz = points[0, i], points[1, i], points[2, i]
+        nx, ny, nz = normal[0, i], normal[1, i], normal[2, i]
+        near = False
+        if any_tested and screen != 0:
+            near = screen == 2 or _near(px, py, pz, centre, lo, hi)
+        for j in range(n_rx):
+            pair = i * n_rx + j
+            dx, dy, dz = receivers[j, 0] - px, receivers[j, 1] - py, receivers[j, 2] - pz
+            length = math.sqrt(dx * dx + dy * dy + dz * dz)
+            c = dx * nx + dy * ny + dz * nz
+            r2[pair] = length
+            cos_r2[pair] = c
+            if not c > 0.0:
+                state[pair] = 0
+                continue
+            if near and tested[j] and length > 2.0 * eps:
+                state[pair] = 2
+                inverse = 1.0 / length
+                ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
+                leg_start[n_legs, 0] = px + eps * ux - shift[0]
+                leg_start[n_legs, 1] = py + eps * uy - shift[1]
+                leg_start[n_legs, 2] = pz + eps * uz - shift[2]
+                leg_unit[n_legs, 0], leg_unit[n_legs, 1], leg_unit[n_legs, 2] = ux, uy, uz
+                leg_length[n_legs] = length - 2.0 * eps
+                leg_pair[n_legs] = pair
+                n_legs += 1
+            else:
+                state[pair] = 1
+    return n_legs
+
+
+@njit(cache=True, nogil=True)
+def receptions(
+    h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
+    leg_pair: NDArray[np.int64], blocked: NDArray[np.bool_], shared: bool, points: NDArray[np.float64],
+    receivers: NDArray[np.float64], amplitude: NDArray[np.float64], travelled: NDArray[np.float64],
+    phase: NDArray[np.float64], first_event: int, event: NDArray[np.int64], channel: NDArray[np.int64],
+    length: NDArray[np.float64], gain: NDArray[np.float64], out_phase: NDArray[np.float64],
+    arrival: NDArray[np.float64],
+) -> int:
+    """The clear (hit, receiver) pairs, point-major, as receptions.
+
+    A queued leg Embree found ``blocked`` clears its pair, or with ``shared`` (one receiver's
+    leg decides for all) every pair of its point. Each remaining pair with its receiver in
+    front of the face gives event ``first_event + hit``, its channel, the path length
+    (travelled + r2, m), the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3), the speckle
+    phase and the unit arrival direction (3, k), written into the outputs (length >= the
+    number of pairs).
+
+    Returns
+    -------
+    int
+        The number k of receptions written.
+    """
+    for l in range(blocked.size):
+        if blocked[l]:
+            pair = leg_pair[l]
+            if shared:
+                point = pair // n_rx
+                for j in range(n_rx):
+                    state[point * n_rx + j] = 0
+            else:
+                state[pair] = 0
+    k = 0
+    for i in range(h):
+        for j in range(n_rx):
+            pair = i * n_rx + j
+            if state[pair] == 0:
+                continue
+            r = r2[pair]
+            event[k] = first_event + i
+            channel[k] = j
+            length[k] = travelled[i] + r
+            gain[k] = amplitude[i] * math.sqrt(cos_r2[pair] / (r * r * r))
+            out_phase[k] = phase[i]
+            inverse = 1.0 / r
+            arrival[0, k] = (receivers[j, 0] - points[0, i]) * inverse
+            arrival[1, k] = (receivers[j, 1] - points[1, i]) * inverse
+            arrival[2, k] = (receivers[j, 2] - points[2, i]) * inverse
+            k += 1
+    return k
+
+
+__all__ = ["near_points", "next_event_pairs", "receptions", "scatter_hits", "speckle_into", "splitmix64"]
