@@ -22,18 +22,25 @@ untimed):
     electrical noise with lines, ADC);
   - extra ping: the marginal cost of one more ping in a multi-ping render (the paths'
     deterministic part is computed once per render);
-  - planning: ``PingSynthesiser.create`` (once per sonar, medium and chain).
-Printed: the medians, the ratio ping / floor (goal <= 3) and the peak traced memory (Python
-allocations, ``tracemalloc``) of one ping at the record length and at twice it (memory per ping
-must scale with the record length).
+  - planning: ``PingSynthesiser.create`` (once per sonar, medium and chain);
+  - the compiled loops (numba, ``acoustisim/synthesis/row_kernels.py`` and ``ping_loops.py``):
+    first renders in a fresh process with an empty cache (compilation, once per checkout) and
+    with the cache filled (what each new process, e.g. a Dask worker, pays once); the timed
+    renders above come after an untimed warm-up render.
+Printed: the medians, the ratio ping / floor (goal <= 3) and the peak traced memory (Python and
+numba allocations, ``tracemalloc``) of one ping at the record length and at twice it (memory per
+ping must scale with the record length).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
 import warnings
@@ -80,6 +87,37 @@ def peak_memory(function) -> int:
     return peak
 
 
+FIRST_RENDER = """
+import sys, time
+sys.path.insert(0, {root!r})
+from acoustisim.medium import Medium
+from acoustisim.propagation.paths import empty_paths_array
+from acoustisim.sonar import SonarHead
+from acoustisim.synthesis import PingSynthesiser, ReceiverChain, TimeVaryingGain
+synth = PingSynthesiser.create(SonarHead(record_length_s=1e-3), Medium(), ReceiverChain(tvg=TimeVaryingGain()))
+rows = empty_paths_array(3)
+rows["channel"] = [0, 1, 2]
+rows["delay_s"] = 2e-4
+rows["geometric_gain"] = 1.0
+start, start_wall = time.process_time(), time.perf_counter()
+synth.render(rows, seed=1)
+synth.render(rows, seed=1, snr_db=10.0, snr_rows=tuple(rows[c : c + 1] for c in range(3)))
+print(time.process_time() - start, time.perf_counter() - start_wall)
+"""
+
+
+def first_render_cost(cache_dir: str) -> tuple[float, float]:
+    """CPU and wall seconds of the first renders (both noise paths) in a fresh process whose
+    numba cache is ``cache_dir``."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    result = subprocess.run(
+        [sys.executable, "-c", FIRST_RENDER.format(root=str(ROOT))], env=env, capture_output=True, text=True,
+        check=True,
+    )
+    cpu, wall = (float(v) for v in result.stdout.split()[-2:])
+    return cpu, wall
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=9)
@@ -104,6 +142,7 @@ def main() -> int:
 
     planning = median_time(lambda: PingSynthesiser.create(sonar, scene.medium, chain), max(3, args.repeats // 3))
     synth = PingSynthesiser.create(sonar, scene.medium, chain)
+    synth.render(paths.rows, seed=0)  # untimed warm-up: loads (or compiles) the numba loops
     counter = iter(range(10**9))
     before = None
     if args.before:
@@ -129,6 +168,10 @@ def main() -> int:
     long_synth = PingSynthesiser.create(long_sonar, scene.medium, chain)
     memory_long = peak_memory(lambda: long_synth.render(paths.rows, seed=1))
 
+    with tempfile.TemporaryDirectory() as cache_dir:
+        cold = first_render_cost(cache_dir)
+        cached = first_render_cost(cache_dir)
+
     print(f"scene {scene.name}: {len(paths)} path rows ({paths.arrivals().size} arrivals), solve {solve_s:.2f} s")
     print(f"record: 3 x {n} samples at {sonar.sample_rate_hz / 1e6:g} MS/s ({sonar.record_length_s * 1e3:g} ms)")
     print("CPU-time medians [wall-clock medians]")
@@ -152,6 +195,10 @@ def main() -> int:
         )
     print(f"each extra ping (of 10)              {extra_s * 1e3:8.1f} ms   ratio {extra_s / floor_s:5.2f} x floor")
     print(f"planning (create, once)       median {planning * 1e3:8.1f} ms")
+    print(
+        f"compiled loops, first renders in a new process: {cold[0]:.2f} s CPU [{cold[1]:.2f}] with an empty"
+        f" numba cache (once per checkout), {cached[0]:.2f} s CPU [{cached[1]:.2f}] with it filled"
+    )
     print(
         f"peak memory per ping: {memory / 2**20:.1f} MiB at {n} samples, {memory_long / 2**20:.1f} MiB at {2 * n}"
         f" (ratio {memory_long / memory:.2f}; {memory / (3 * n):.0f} bytes per channel-sample)"

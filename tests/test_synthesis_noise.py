@@ -135,3 +135,44 @@ def test_main_bang_and_crosstalk_at_time_zero():
     assert 0.75 * chain.main_bang_peak_v < early[1] < chain.main_bang_peak_v
     assert early[0] / early[1] == pytest.approx(10 ** (chain.crosstalk_db / 20), rel=1e-6)
     assert np.all(late < 1e-6 * early[1])  # rung down long before the first echo
+
+
+def test_noise_variance_equals_the_integrated_model():
+    # The per-ping noise bins are drawn in single precision (float32 normal deviates, scaled
+    # and inverse-FFT'd in float32): the ADC-input variance must still be the model's one-sided
+    # PSD integrated over 0..fs/2, electrical plus thermal, times |gain H(f)|^2, plus the
+    # quantisation noise step^2/12 -- computed here independently of the rfft grid by the
+    # trapezoid rule on a fine grid.
+    from acoustisim.synthesis.adc import adc_step_v
+    from acoustisim.synthesis.noise import electrical_noise_psd_v2_per_hz, thermal_noise_psd_v2_per_hz
+
+    sonar = short_sonar()
+    medium = Medium()
+    chain = ReceiverChain(
+        main_bang_peak_v=0.0,
+        interference_lines=(),
+        electrical_noise_level_sigma_db=0.0,
+        electrical_noise_v_per_rthz=2e-9,  # thermal and electrical of comparable size
+        attenuation_db=(0.0, 0.0, 0.0),
+        adc_full_scale_v=0.05,  # a fine step: the quantisation noise is a small correction
+    )
+    synth = PingSynthesiser.create(sonar, medium, chain)
+    pings = synth.render(one_echo()[:0], seed=11, n_pings=6)
+    f = np.linspace(0.0, FS / 2, 400001)
+    psd = electrical_noise_psd_v2_per_hz(f, chain) + thermal_noise_psd_v2_per_hz(
+        f, chain, sonar.piston_radius_m, medium.sound_speed
+    )
+    thermal_share = np.trapezoid(thermal_noise_psd_v2_per_hz(f, chain, sonar.piston_radius_m, medium.sound_speed)
+                                 * np.abs(chain.bandpass_response(f)) ** 2, f) / np.trapezoid(
+        psd * np.abs(chain.bandpass_response(f)) ** 2, f)
+    assert 0.2 < thermal_share < 0.8  # both parts are tested
+    step = adc_step_v(chain.adc_full_scale_v, sonar.adc_bits)
+    for c in range(3):
+        model = np.trapezoid(psd * np.abs(chain.bandpass_response(f)) ** 2, f) * chain.net_gain[c] ** 2
+        model += step**2 / 12.0
+        assert model > 100 * step**2  # well above the quantisation step
+        measured = np.var(pings.volts[:, c])
+        # 6 pings x 50000 samples of noise band-limited to ~2 MHz (fs 20 MHz): >= 6e4
+        # independent samples, a variance estimate good to sqrt(2 / 6e4) = 0.6 %; 3 % is
+        # 5 sigma. A wrong bin scaling (a factor 2 in power, a missed thermal part) is >= 20 %.
+        assert measured == pytest.approx(model, rel=0.03)

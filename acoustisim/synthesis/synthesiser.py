@@ -11,18 +11,19 @@ absorption (dB/m) over the path length L. Edge elements sharing a ``path_id`` ar
 any row, so the band-limited Biot-Tolstoy-Medwin response (the half-integrated pulse) comes
 out of the sum by itself.
 
-Method (fast for 10^4 and more rows, no loop per row or sample): the signals are band-limited
-well below the digitiser's Nyquist frequency, so they are built on a grid decimated by ``q``.
-For a chunk of rows, a (rows, bins) matrix of short-kernel spectra on an ``Lk``-point grid
-(only the bins inside the pulse's band) is assembled from per-bin lookup tables planned once
-(directivity against sin(theta), absorption against path length, pulse spectrum times the
-fractional-delay phase ramp against the fraction of a sample), inverse FFT'd to (rows, Lk)
-kernels holding each echo sampled at its fractional delay, and scatter-added (``np.bincount``
-on flat indices) into the decimated record. One FFT of that record, zero-padded in frequency
-by ``q``, gives the full-rate spectrum that the receiver chain then shapes. Rows on one
-channel that start on the same sample with nearly the same shape (the close-spaced elements
-of a diffracting edge) share one kernel, each keeping its exact weight and delay (see
-``decimated_record``). Memory: O(chunk x Lk) plus O(record) plus the tables (a few MB).
+Method (fast for 10^4 and more rows, no Python loop per row or sample): the signals are
+band-limited well below the digitiser's Nyquist frequency, so they are built on a grid
+decimated by ``q``. Each row's short-kernel spectrum on an ``Lk``-point grid (only the bins
+inside the pulse's band) is the product of per-bin lookup tables planned once (directivity
+against sin(theta), absorption against path length, pulse spectrum times the fractional-delay
+phase ramp against the fraction of a sample). Rows on one channel that start on the same
+decimated sample form a group whose spectra are summed (exactly: each row keeps its own
+weight, delay, directivities and absorption); one batched inverse FFT per block of groups
+gives (groups, Lk) kernels holding the echoes sampled at their fractional delays, which are
+overlap-added into the decimated record. The loops over rows are compiled
+(:mod:`acoustisim.synthesis.row_kernels`, numba). One FFT of that record, zero-padded in
+frequency by ``q``, gives the full-rate spectrum that the receiver chain then shapes.
+Memory: O(CHUNK_ROWS x Lk) plus O(rows) plus O(record) plus the tables (a few MB).
 
 Table resolutions (nearest entry): sin(theta) in steps of 1/8192 (directivity error below
 7e-4 absolute at the centre frequency, 0.02 dB where D = 0.3), path length in 1 cm steps
@@ -56,7 +57,7 @@ NYQUIST_BAND_DB = -40.0
 be at least twice that frequency."""
 
 CHUNK_ROWS = 8192
-"""Rows per vectorised block (bounds the (rows, Lk) working arrays to a few MB)."""
+"""Groups per block (bounds the (groups, Lk) working arrays to a few MB)."""
 
 SINE_STEPS = 8192
 """Directivity table: entries per unit of sin(theta)."""
