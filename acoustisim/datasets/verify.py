@@ -69,7 +69,8 @@ def verify(path: str | Path) -> VerifyReport:
     """Verify completeness and per-sample checksums of a dataset store.
 
     Reads every complete sample back (blocks of :data:`VERIFY_BLOCK` samples) and compares the
-    BLAKE2b-64 of its stored bytes with the checksum recorded when it was written.
+    checksum of its stored bytes (:func:`~acoustisim.datasets.store.sample_checksum`) with
+    the one recorded when it was written.
     """
     store = DatasetStore(path, mode="r")
     complete = store.complete_mask()
