@@ -70,3 +70,50 @@ def test_time_varying_gain():
     tvg = TimeVaryingGain(start_s=1e-4, slope_db_per_decade=20.0, max_gain_db=30.0)
     gain_db = 20 * np.log10(tvg.gain([5e-5, 1e-4, 1e-3, 1e-1]))
     assert gain_db == pytest.approx([0.0, 0.0, 20.0, 30.0])
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_compiled_adc_pass_equals_quantise(dtype):
+    # render() digitises each ping in one compiled pass (TVG, rounding, clipping, volts); it
+    # must give exactly quantise()'s codes, flags and volts (the same IEEE operations in the
+    # same order), here with samples beyond +/-FS on some channels and a record longer than
+    # the kept samples (the FFT's padding).
+    from acoustisim.synthesis.adc import adc_code_range
+    from acoustisim.synthesis.ping_loops import digitise
+
+    rng = np.random.default_rng(4)
+    n = 5000
+    signal = (rng.standard_normal((3, n + 77)) * [[0.2], [0.5], [0.05]]).astype(dtype)
+    gain = np.linspace(1.0, 3.0, n)
+    step = adc_step_v(1.0, 12)
+    lowest, highest = adc_code_range(12)
+    codes = np.empty((3, n), dtype=np.int16)
+    volts = np.empty((3, n))
+    clipped = np.empty(3, dtype=bool)
+    digitise(signal, gain, step, lowest, highest, codes, volts, clipped)
+    expected_codes, expected_clipped, _ = quantise(signal[:, :n].astype(np.float64) * gain, 12, 1.0)
+    assert np.array_equal(codes, expected_codes)
+    assert clipped.tolist() == expected_clipped.tolist() == [True, True, False]
+    assert np.array_equal(volts, expected_codes * step)
+    digitise(signal, np.empty(0), step, lowest, highest, codes, volts, clipped)  # no TVG
+    assert np.array_equal(codes, quantise(signal[:, :n].astype(np.float64), 12, 1.0)[0])
+
+
+def test_render_flags_clipping_per_ping_and_channel():
+    # A ~30 V echo (1e5 Pa x -190 dB re 1 V/uPa) on the centre channel only, ADC range +/-10 mV,
+    # no noise and no main bang: only that channel clips, in every ping.
+    from acoustisim.propagation.paths import PathKind, empty_paths_array
+
+    chain = ReceiverChain(
+        main_bang_peak_v=0.0, thermal_noise=False, electrical_noise_v_per_rthz=0.0, interference_lines=(),
+        adc_full_scale_v=0.01,
+    )
+    synth = PingSynthesiser.create(SonarHead(record_length_s=1e-3), Medium(), chain)
+    rows = empty_paths_array(1)
+    rows["channel"] = 1
+    rows["kind"] = PathKind.SPECULAR
+    rows["delay_s"] = 5e-4
+    rows["geometric_gain"] = 1.0
+    pings = synth.render(rows, seed=0, n_pings=2)
+    assert pings.clipped.tolist() == [[False, True, False]] * 2
+    assert pings.codes[:, 1].max() == 2047 and pings.codes[:, 1].min() == -2048
