@@ -15,11 +15,13 @@ accurate time-of-flight estimate can be determined." Here:
    around f0 (B ~ fs / (4 beta), beta the template's RMS bandwidth, so that the band holds the
    template's spectrum to ~1 dB at one RMS bandwidth from f0), not the energy of the whole
    10 MHz of white noise a sum of x^2 collects. A window of noise alone then rarely looks like
-   an echo: at 2E/N0 = 20 dB an echo window exceeds the largest of ~20,000 noise windows by
-   ~3 standard deviations of its own statistic, against ~2 for the broadband energy (module
-   notes in ``plan_local``). The candidates are the ``candidates`` strongest windows, each at
-   least a template length from the others; the lag of a window is its centre minus the
-   template's envelope peak.
+   an echo: at 2E/N0 = 20 dB an echo window exceeds the largest of the ~6,000 noise windows
+   of a 12.5 ms channel by ~3 standard deviations of its own statistic, against ~2.3 for the
+   broadband energy (notes in ``plan_local``). The candidates are the ``candidates`` strongest
+   windows, each at least a template length from the others; the lag of a window is its centre
+   minus the template's envelope peak. This is the seed's "peak point of the echo signal":
+   the strongest echo, as the full matched filter (``detect_matched``, the seed's
+   global-maximum detection) reports, so that the two can be compared echo for echo.
 2. Local matched filter. Around each candidate, the stretch of record twice the template's
    length plus one template (``2 half + m`` samples) is correlated with the template by a
    short FFT (one real FFT of the stretch, the template's analytic spectrum 2 conj(S) on the
