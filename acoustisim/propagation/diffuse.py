@@ -225,8 +225,9 @@ class _LobeTable:
         return max(1, int(round(UNIFORM_FRACTION * n))) if n else 0
 
     def draw(self, n: int, totals: tuple[int, int], frame: tuple[NDArray[np.float64], ...],
-             rng: np.random.Generator) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Directions of ``n`` rays as components (3, n), and their solid angles (n,) (sr).
+             rng: np.random.Generator) -> tuple[NDArray[np.float64], NDArray[np.float32], NDArray[np.float64]]:
+        """Directions of ``n`` rays as components (3, n) and as float32 rows (n, 3) (Embree's
+        buffer), and their solid angles (n,) (sr).
 
         ``frame`` = (e1, e2, boresight): the transmitter's orthonormal frame (see :func:`_basis`).
 
@@ -235,40 +236,16 @@ class _LobeTable:
         Two random numbers per ray: the cell and the position in it come from one (its
         integer and fractional parts in units of a guide bin), the azimuth from the other.
         """
-        width = 2.0 / _COS_CELLS
         n_uniform = self.uniform_count(n)
         u = rng.random((2, n))
-        cos_t = np.empty(n)
-        np.multiply(u[0, :n_uniform], -2.0, out=cos_t[:n_uniform])
-        cos_t[:n_uniform] += 1.0
-        cell_of = np.empty(n, dtype=np.int64)
-        within = u[0, n_uniform:] * float(_GUIDE_BINS)  # exact: a power of two
-        guide_bin = within.astype(np.int64)  # < _GUIDE_BINS as u < 1
-        within -= guide_bin
-        cell = self.guide[guide_bin]
-        cell_of[n_uniform:] = cell
-        within *= -width
-        np.add(self.edges[cell], within, out=cos_t[n_uniform:])
-        sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
-        a, b = _unit_circle(u[1])
-        a *= sin_t
-        b *= sin_t
-        e1, e2, boresight = frame
-        # component by component (contiguous 1-D passes; no BLAS matmul, whose threads
-        # contend on a busy machine, and no (n, 3) broadcasts over a length-3 inner axis)
-        directions = np.empty((3, n))
-        for k in range(3):  # the three coordinates
-            column = directions[k]
-            np.multiply(a, e1[k], out=column)
-            column += b * e2[k]
-            column += cos_t * boresight[k]
-        uniform_cells = ((1.0 - cos_t[:n_uniform]) * (_COS_CELLS / 2.0)).astype(np.int64)
-        np.minimum(uniform_cells, _COS_CELLS - 1, out=cell_of[:n_uniform])
+        cos_phi, sin_phi = _unit_circle(u[1])
+        directions, directions32, solid_angle = np.empty((3, n)), np.empty((n, 3), dtype=np.float32), np.empty(n)
         n_u, n_l = totals
-        density = self.lobe_pdf[cell_of]
-        density *= n_l
-        density += n_u / (4.0 * np.pi)
-        return directions, np.reciprocal(density, out=density)
+        e1, e2, axis = frame
+        kernels.transmit_directions(u[0], cos_phi, sin_phi, n_uniform, self.guide, self.edges, self.lobe_pdf,
+                                    n_u / (4.0 * np.pi), float(n_l), e1, e2, axis, directions, directions32,
+                                    solid_angle)
+        return directions, directions32, solid_angle
 
 
 def sample_directions(
@@ -295,7 +272,8 @@ def sample_directions(
     """
     n_uniform = _LobeTable.uniform_count(n)
     axis = np.asarray(boresight, dtype=float)
-    directions, solid_angle = _LobeTable.create(context).draw(n, (n_uniform, n - n_uniform), (*_basis(axis), axis), rng)
+    directions, _, solid_angle = _LobeTable.create(context).draw(n, (n_uniform, n - n_uniform), (*_basis(axis), axis),
+                                                                 rng)
     return np.ascontiguousarray(directions.T), solid_angle
 
 
@@ -488,22 +466,40 @@ class _Tracer:
     totals: tuple[int, int]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
+class _Pending:
+    """One bounce of one chunk: its (hit, receiver) pairs, occlusion applied, before they are
+    written as receptions at their final place (see
+    :func:`~acoustisim.propagation.diffuse_kernels.write_receptions`)."""
+
+    n_hits: int
+    state: NDArray[np.int8]
+    r2: NDArray[np.float64]
+    cos_r2: NDArray[np.float64]
+    points: NDArray[np.float64]
+    amplitude: NDArray[np.float64]
+    travelled: NDArray[np.float64]
+    phase: NDArray[np.float64]
+    first_event: int
+    count: int
+
+
+@dataclass(frozen=True, eq=False)
 class _ChunkEvents:
-    """:class:`DiffuseEvents` of one chunk of rays, with chunk-local event indices and vectors as
-    components: ``points``, ``departure`` (3, m), ``arrival`` (3, k)."""
+    """The scattering events of one chunk of rays (chunk-local indices, vectors as components
+    (3, m)) and its pending receptions, bounce by bounce."""
 
     points: NDArray[np.float64]
     surface: NDArray[np.int64]
     parent: NDArray[np.int64]
     bounce: NDArray[np.int64]
     departure: NDArray[np.float64]
-    event: NDArray[np.int64]
-    channel: NDArray[np.int64]
-    length: NDArray[np.float64]
-    gain: NDArray[np.float64]
-    phase: NDArray[np.float64]
-    arrival: NDArray[np.float64]
+    pending: tuple[_Pending, ...]
+
+    @property
+    def receptions(self) -> int:
+        """Number of receptions of the chunk."""
+        return sum(p.count for p in self.pending)
 
 
 def _join(parts: list[NDArray[Any]], axis: int = 0) -> NDArray[Any]:
@@ -529,17 +525,19 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     shift = raycaster.shift_m
     rx = tracer.receivers
     n_rx = rx.shape[0]
-    directions, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng)
+    directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng)
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
     parent = np.full(n, -1, dtype=np.int64)
     ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
-    rc: dict[str, list[NDArray[Any]]] = {k: [] for k in ("event", "channel", "length", "gain", "phase", "arrival")}
+    pending: list[_Pending] = []
     next_event = 0
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
-        triangle = raycaster.first_hit_triangles32(_float32_rows(origins, shift, m), _float32_rows(directions, None, m))
+        if bounce:
+            directions32 = _float32_rows(directions, None, m)
+        triangle = raycaster.first_hit_triangles32(_float32_rows(origins, shift, m), directions32)
         points, normal, hit_directions, hit_departure = (np.empty((3, m)) for _ in range(4))
         hit_weight, amplitude, hit_travelled, mu, phase = (np.empty(m) for _ in range(5))
         hit_parent, surface = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
@@ -569,19 +567,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
             state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
         )
         blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
-        event, channel = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
-        length, gain, reception_phase = np.empty(pairs), np.empty(pairs), np.empty(pairs)
-        arrival = np.empty((3, pairs))
-        k = kernels.receptions(
-            n_hits, n_rx, state, r2, cos_r2, leg_pair, blocked, tracer.shared, points, rx, amplitude,
-            hit_travelled, phase, next_event, event, channel, length, gain, reception_phase, arrival,
-        )
-        rc["event"].append(event[:k])
-        rc["channel"].append(channel[:k])
-        rc["length"].append(length[:k])
-        rc["gain"].append(gain[:k])
-        rc["phase"].append(reception_phase[:k])
-        rc["arrival"].append(arrival[:, :k])
+        count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
+        pending.append(_Pending(n_hits, state, r2, cos_r2, points, amplitude, hit_travelled, phase, next_event, count))
         parent = next_event + np.arange(n_hits)
         next_event += n_hits
         if bounce + 1 >= tracer.bounces:
@@ -603,13 +590,11 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         travelled = hit_travelled[:n_hits]
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
     if not ev["points"]:
-        i0, f0, v0 = np.zeros(0, np.int64), np.zeros(0), np.zeros((3, 0))
-        return _ChunkEvents(v0, i0, i0, i0, v0, i0, i0, f0, f0, f0, v0)
+        i0, v0 = np.zeros(0, np.int64), np.zeros((3, 0))
+        return _ChunkEvents(v0, i0, i0, i0, v0, ())
     return _ChunkEvents(
         points=_join(ev["points"], axis=1), surface=_join(ev["surface"]), parent=_join(ev["parent"]),
-        bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), event=_join(rc["event"]),
-        channel=_join(rc["channel"]), length=_join(rc["length"]), gain=_join(rc["gain"]), phase=_join(rc["phase"]),
-        arrival=_join(rc["arrival"], axis=1),
+        bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), pending=tuple(pending),
     )
 
 
@@ -694,55 +679,56 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         ``visibility`` is invalid.
     """
     chunks = _trace_chunks(context, config, threads, visibility)
-    i0, f0, v0 = np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3))
-    if not chunks:
-        return DiffuseEvents(v0, i0, i0, i0, v0, i0, i0, f0, f0, f0, v0)
-    offsets = np.cumsum([0] + [c.surface.size for c in chunks[:-1]])
+    workers = resolve_threads(threads)
+    n_events = [c.surface.size for c in chunks]
+    n_receptions = [c.receptions for c in chunks]
+    event_start = np.cumsum([0] + n_events)
+    reception_start = np.cumsum([0] + n_receptions)
+    m, n = int(event_start[-1]), int(reception_start[-1])
+    points, departure = np.empty((m, 3)), np.empty((m, 3))
+    surface, parent, bounce = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+    event, channel = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    length, gain, phase, arrival = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
+    rx = np.ascontiguousarray(context.receivers_m, dtype=float)
 
-    def vectors(name: str) -> Callable[[], NDArray[Any]]:  # (3, m) per chunk -> (m, 3)
-        return lambda: np.concatenate([getattr(c, name) for c in chunks], axis=1).T
+    def place(index: int) -> None:
+        """Write chunk ``index``'s events and receptions at their final place."""
+        chunk, first, a, b = chunks[index], int(event_start[index]), event_start[index], event_start[index + 1]
+        for k in range(3):  # the three coordinates
+            points[a:b, k] = chunk.points[k]
+            departure[a:b, k] = chunk.departure[k]
+        surface[a:b] = chunk.surface
+        np.add(chunk.parent, np.where(chunk.parent >= 0, first, 0), out=parent[a:b])
+        bounce[a:b] = chunk.bounce
+        start = int(reception_start[index])
+        for p in chunk.pending:  # the bounces
+            start = kernels.write_receptions(
+                p.n_hits, rx.shape[0], p.state, p.r2, p.cos_r2, p.points, rx, p.amplitude, p.travelled, p.phase,
+                first + p.first_event, start, event, channel, length, gain, phase, arrival,
+            )
 
-    def scalars(name: str) -> Callable[[], NDArray[Any]]:
-        return lambda: np.concatenate([getattr(c, name) for c in chunks])
-
-    def indices(name: str, null: bool) -> Callable[[], NDArray[Any]]:  # chunk-local -> global
-        def join() -> NDArray[Any]:
-            out = np.concatenate([getattr(c, name) for c in chunks])
-            start = 0
-            for c, offset in zip(chunks, offsets):
-                part = out[start:start + getattr(c, name).size]
-                part += offset if not null else np.where(part >= 0, offset, 0)
-                start += part.size
-            return out
-        return join
-
-    # one task per field: the copies run outside the GIL, on the threads
-    joins = {
-        "points_m": vectors("points"), "surface": scalars("surface"), "parent": indices("parent", True),
-        "bounce": scalars("bounce"), "departure_dir": vectors("departure"), "event": indices("event", False),
-        "channel": scalars("channel"), "path_length_m": scalars("length"), "gain": scalars("gain"),
-        "phase_rad": scalars("phase"), "arrival_dir": vectors("arrival"),
-    }
-    fields = run_in_order(lambda join: join(), list(joins.values()), resolve_threads(threads))
-    return DiffuseEvents(**dict(zip(joins, fields)))
+    run_in_order(place, range(len(chunks)), workers)
+    return DiffuseEvents(points, surface, parent, bounce, departure, event, channel, length, gain, phase, arrival)
 
 
-def _pack_rows(rows: NDArray[Any], chunk: _ChunkEvents, first_path_id: int) -> None:
-    """Write one chunk's receptions into its slice ``rows`` of the PATH_DTYPE table."""
-    e = chunk.event
+_PACK_ROWS = 1 << 15
+"""Rows packed per task by :func:`diffuse_paths`."""
+
+
+def _pack_rows(rows: NDArray[Any], events: DiffuseEvents, a: int, b: int, first_path_id: int) -> None:
+    """Write receptions ``a:b`` of ``events`` into ``rows[a:b]`` (PATH_DTYPE)."""
+    rows = rows[a:b]
+    e = events.event[a:b]
     rows["path_id"] = first_path_id + e
-    rows["channel"] = chunk.channel
+    rows["channel"] = events.channel[a:b]
     rows["kind"] = int(PathKind.DIFFUSE)
-    order = chunk.bounce[e]
+    order = events.bounce[e]
     rows["order"] = order
-    rows["path_length_m"] = chunk.length
-    rows["geometric_gain"] = chunk.gain
-    rows["phase_rad"] = chunk.phase
-    departure = rows["departure_dir"]
-    arrival = rows["arrival_dir"]
-    for k in range(3):  # the three coordinates
-        departure[:, k] = chunk.departure[k][e]
-        arrival[:, k] = chunk.arrival[k]
+    rows["path_length_m"] = events.path_length_m[a:b]
+    rows["geometric_gain"] = events.gain[a:b]
+    rows["phase_rad"] = events.phase_rad[a:b]
+    rows["departure_dir"] = events.departure_dir[e]
+    rows["arrival_dir"] = events.arrival_dir[a:b]
     # interaction chains: walk each event's parents back to the first hit
     surfaces = rows["object_ids"]
     points = rows["points_m"]
@@ -755,10 +741,9 @@ def _pack_rows(rows: NDArray[Any], chunk: _ChunkEvents, first_path_id: int) -> N
         store = alive & (level < MAX_INTERACTIONS)
         idx = np.flatnonzero(store)
         event, slot = current[idx], level[idx]
-        surfaces[idx, slot] = chunk.surface[event]
-        for k in range(3):  # the three coordinates
-            points[idx, slot, k] = chunk.points[k][event]
-        current = np.where(alive, chunk.parent[np.maximum(current, 0)], -1)
+        surfaces[idx, slot] = events.surface[event]
+        points[idx, slot] = events.points_m[event]
+        current = np.where(alive, events.parent[np.maximum(current, 0)], -1)
         level = level - 1
 
 
@@ -789,16 +774,12 @@ def diffuse_paths(context: SolveContext, config: SolverConfig, *, threads: int |
     """
     if int(config.diffuse_rays) <= 0:
         return empty_paths_array(0)
-    chunks = _trace_chunks(context, config, threads, visibility)
-    sizes = [c.event.size for c in chunks]
-    rows = np.zeros(sum(sizes), dtype=PATH_DTYPE)
-    row_start = np.cumsum([0] + sizes)
-    event_start = np.cumsum([0] + [c.surface.size for c in chunks])
+    events = trace_diffuse(context, config, threads=threads, visibility=visibility)
+    n = events.event.size
+    rows = np.zeros(n, dtype=PATH_DTYPE)
     first = int(context.first_path_id)
-    run_in_order(
-        lambda k: _pack_rows(rows[row_start[k]:row_start[k + 1]], chunks[k], first + int(event_start[k])),
-        range(len(chunks)), resolve_threads(threads),
-    )
+    run_in_order(lambda a: _pack_rows(rows, events, a, min(a + _PACK_ROWS, n), first), range(0, n, _PACK_ROWS),
+                 resolve_threads(threads))
     return rows
 
 

@@ -14,8 +14,9 @@ passes over temporary arrays, is compiled here:
    whether the receiver is in front of the face, and the legs that need an Embree occlusion
    query (near an object's box, see :class:`~acoustisim.propagation.diffuse.ObjectScreen`),
    written as Embree's float32 buffers;
-4. :func:`receptions`: the clear pairs, point-major, with their path length, gain, phase and
-   arrival direction.
+4. :func:`clear_blocked` and :func:`write_receptions`: the pairs left in view, point-major,
+   with their path length, gain, phase and arrival direction, written straight into the
+   tracer's output at their final place (the chunks are counted first).
 
 Every loop runs in order over its inputs, so the output is deterministic; ``nogil=True`` lets
 the tracer's threads run them in parallel. ``cache=True`` stores the compiled code in
@@ -79,6 +80,56 @@ def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.f
         m, a = _speckle(x[i], y[i], z[i], cell, seed_hash)
         magnitude[i] = m
         phase[i] = a
+
+
+@njit(cache=True, nogil=True)
+def transmit_directions(
+    u: NDArray[np.float64], cos_phi: NDArray[np.float64], sin_phi: NDArray[np.float64], n_uniform: int,
+    guide: NDArray[np.int64], edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float,
+    lobe_count: float, e1: NDArray[np.float64], e2: NDArray[np.float64], axis: NDArray[np.float64],
+    directions: NDArray[np.float64], directions32: NDArray[np.float32], solid_angle: NDArray[np.float64],
+) -> None:
+    """Directions of the transmitted rays from their random numbers, and their solid angles.
+
+    Parameters
+    ----------
+    u : ndarray, shape (n,)
+        Uniform numbers in [0, 1): cos(theta) = 1 - 2u for the first ``n_uniform`` rays; for
+        the others the integer part of u len(guide) picks a guide bin, hence a cell of
+        ``edges`` (cos(theta), descending), and the fractional part the place in the cell.
+    cos_phi, sin_phi : ndarray, shape (n,)
+        The unit azimuth vector of each ray.
+    guide, edges, lobe_pdf
+        As in :class:`~acoustisim.propagation.diffuse._LobeTable`.
+    uniform_density, lobe_count : float
+        N_u / (4 pi) and N_l: the ray's solid angle is 1 / (N_u / 4 pi + N_l p_lobe).
+    e1, e2, axis : ndarray, shape (3,)
+        The transmitter's orthonormal frame.
+    directions : output, shape (3, n)
+    directions32 : output of float32, shape (n, 3)
+        The same, as Embree's buffer.
+    solid_angle : output, shape (n,)
+    """
+    n_cells = lobe_pdf.size
+    bins = guide.size
+    width = (edges[0] - edges[n_cells]) / n_cells
+    for i in range(u.size):
+        if i < n_uniform:
+            cos_t = 1.0 - 2.0 * u[i]
+            cell = min(int((1.0 - cos_t) * (n_cells / 2.0)), n_cells - 1)
+        else:
+            x = u[i] * bins  # exact for a power of two
+            b = int(x)
+            cell = guide[b]
+            cos_t = edges[cell] - (x - b) * width
+        sin_t = math.sqrt(max(1.0 - cos_t * cos_t, 0.0))
+        a = sin_t * cos_phi[i]
+        c = sin_t * sin_phi[i]
+        for k in range(3):
+            d = a * e1[k] + c * e2[k] + cos_t * axis[k]
+            directions[k, i] = d
+            directions32[i, k] = d
+        solid_angle[i] = 1.0 / (uniform_density + lobe_count * lobe_pdf[cell])
 
 
 @njit(cache=True, nogil=True)
@@ -274,27 +325,17 @@ def next_event_pairs(
 
 
 @njit(cache=True, nogil=True)
-def receptions(
-    h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
-    leg_pair: NDArray[np.int64], blocked: NDArray[np.bool_], shared: bool, points: NDArray[np.float64],
-    receivers: NDArray[np.float64], amplitude: NDArray[np.float64], travelled: NDArray[np.float64],
-    phase: NDArray[np.float64], first_event: int, event: NDArray[np.int64], channel: NDArray[np.int64],
-    length: NDArray[np.float64], gain: NDArray[np.float64], out_phase: NDArray[np.float64],
-    arrival: NDArray[np.float64],
-) -> int:
-    """The clear (hit, receiver) pairs, point-major, as receptions.
+def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked: NDArray[np.bool_], shared: bool,
+                  n_rx: int, h: int) -> int:
+    """Apply Embree's occlusion answers to the pair states; count the receptions.
 
-    A queued leg Embree found ``blocked`` clears its pair, or with ``shared`` (one receiver's
-    leg decides for all) every pair of its point. Each remaining pair with its receiver in
-    front of the face gives event ``first_event + hit``, its channel, the path length
-    (travelled + r2, m), the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3), the speckle
-    phase and the unit arrival direction (3, k), written into the outputs (length >= the
-    number of pairs).
+    A queued leg found ``blocked`` clears its pair (state 0), or with ``shared`` (one
+    receiver's leg decides for all) every pair of its point.
 
     Returns
     -------
     int
-        The number k of receptions written.
+        The pairs of the first ``h`` points left with their receiver in view (state > 0).
     """
     for l in range(blocked.size):
         if blocked[l]:
@@ -305,7 +346,33 @@ def receptions(
                     state[point * n_rx + j] = 0
             else:
                 state[pair] = 0
-    k = 0
+    count = 0
+    for pair in range(h * n_rx):
+        if state[pair] != 0:
+            count += 1
+    return count
+
+
+@njit(cache=True, nogil=True)
+def write_receptions(
+    h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
+    points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
+    travelled: NDArray[np.float64], phase: NDArray[np.float64], first_event: int, start: int,
+    event: NDArray[np.int64], channel: NDArray[np.int64], length: NDArray[np.float64], gain: NDArray[np.float64],
+    out_phase: NDArray[np.float64], arrival: NDArray[np.float64],
+) -> int:
+    """The pairs in view (state > 0), point-major, as receptions written from index ``start``.
+
+    Each gives event ``first_event + point``, its channel, the path length (travelled + r2, m),
+    the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega)),
+    the speckle phase and the unit arrival direction (row of ``arrival``, shape (N, 3)).
+
+    Returns
+    -------
+    int
+        The index after the last reception written.
+    """
+    k = start
     for i in range(h):
         for j in range(n_rx):
             pair = i * n_rx + j
@@ -318,11 +385,14 @@ def receptions(
             gain[k] = amplitude[i] * math.sqrt(cos_r2[pair] / (r * r * r))
             out_phase[k] = phase[i]
             inverse = 1.0 / r
-            arrival[0, k] = (receivers[j, 0] - points[0, i]) * inverse
-            arrival[1, k] = (receivers[j, 1] - points[1, i]) * inverse
-            arrival[2, k] = (receivers[j, 2] - points[2, i]) * inverse
+            arrival[k, 0] = (receivers[j, 0] - points[0, i]) * inverse
+            arrival[k, 1] = (receivers[j, 1] - points[1, i]) * inverse
+            arrival[k, 2] = (receivers[j, 2] - points[2, i]) * inverse
             k += 1
     return k
 
 
-__all__ = ["near_points", "next_event_pairs", "receptions", "scatter_hits", "speckle_into", "splitmix64"]
+__all__ = [
+    "clear_blocked", "near_points", "next_event_pairs", "scatter_hits", "speckle_into", "splitmix64",
+    "transmit_directions", "write_receptions",
+]
