@@ -3,6 +3,11 @@
 Usage
 -----
     python benchmarks/bench_synthesis.py [--repeats 9] [--scene thesis-tank] [--before FILE]
+                                         [--save-rows FILE.npy | --rows FILE.npy]
+
+``--save-rows`` stores the traced path rows (``numpy.save``); ``--rows`` times synthesis on such a
+stored set instead of the solver's current rows (the scene still gives the sonar and medium), so
+that synthesis figures can be compared while the propagation engine's row counts change.
 
 ``--before FILE``: an older ``acoustisim/synthesis/synthesiser.py`` (e.g. from ``git show
 REV:acoustisim/synthesis/synthesiser.py > /tmp/synthesiser_before.py``), whose
@@ -123,14 +128,23 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=9)
     parser.add_argument("--scene", default="thesis-tank")
     parser.add_argument("--before", default=None, help="an older synthesiser.py to compare with")
+    parser.add_argument("--save-rows", default=None, help="save the solver's path rows to this .npy file")
+    parser.add_argument("--rows", default=None, help="time these stored path rows (.npy) instead of solving")
     args = parser.parse_args()
     warnings.simplefilter("ignore", UserWarning)  # arrivals past the record's end
 
     scene = builtin_scene(args.scene)
     sonar = scene.sonar
     start = time.perf_counter()
-    paths = solve(scene, sonar)
-    solve_s = time.perf_counter() - start
+    if args.rows:
+        rows = np.load(args.rows)
+        origin = f"{rows.size} path rows from {args.rows}"
+    else:
+        paths = solve(scene, sonar)
+        rows = rows
+        origin = f"{len(paths)} path rows ({paths.arrivals().size} arrivals), solve {time.perf_counter() - start:.2f} s"
+        if args.save_rows:
+            np.save(args.save_rows, rows)
     chain = ReceiverChain(tvg=TimeVaryingGain())  # every mechanism on
     n = sonar.n_samples
 
@@ -142,7 +156,7 @@ def main() -> int:
 
     planning = median_time(lambda: PingSynthesiser.create(sonar, scene.medium, chain), max(3, args.repeats // 3))
     synth = PingSynthesiser.create(sonar, scene.medium, chain)
-    synth.render(paths.rows, seed=0)  # untimed warm-up: loads (or compiles) the numba loops
+    synth.render(rows, seed=0)  # untimed warm-up: loads (or compiles) the numba loops
     counter = iter(range(10**9))
     before = None
     if args.before:
@@ -152,27 +166,27 @@ def main() -> int:
     samples: dict[str, list[tuple[float, float]]] = {k: [] for k in ("floor", "ping", "paths", "ten", "before")}
     for _ in range(args.repeats):
         samples["floor"].append(cpu_and_wall(floor))
-        samples["ping"].append(cpu_and_wall(lambda: synth.render(paths.rows, seed=next(counter))))
-        samples["paths"].append(cpu_and_wall(lambda: synth.paths.decimated_record(paths.rows)))
+        samples["ping"].append(cpu_and_wall(lambda: synth.render(rows, seed=next(counter))))
+        samples["paths"].append(cpu_and_wall(lambda: synth.paths.decimated_record(rows)))
         if before is not None:
-            samples["before"].append(cpu_and_wall(lambda: before.decimated_record(paths.rows)))
-        samples["ten"].append(cpu_and_wall(lambda: synth.render(paths.rows, seed=next(counter), n_pings=10)))
+            samples["before"].append(cpu_and_wall(lambda: before.decimated_record(rows)))
+        samples["ten"].append(cpu_and_wall(lambda: synth.render(rows, seed=next(counter), n_pings=10)))
     cpu = {k: statistics.median(c for c, _ in v) for k, v in samples.items() if v}
     wall = {k: statistics.median(w for _, w in v) for k, v in samples.items() if v}
     floor_s, ping_s, ten_s, paths_s = cpu["floor"], cpu["ping"], cpu["ten"], cpu["paths"]
     extra_s = (ten_s - ping_s) / 9.0
     ratios = sorted(p / f for (p, _), (f, _) in zip(samples["ping"], samples["floor"]))
 
-    memory = peak_memory(lambda: synth.render(paths.rows, seed=1))
+    memory = peak_memory(lambda: synth.render(rows, seed=1))
     long_sonar = dataclasses.replace(sonar, record_length_s=2 * sonar.record_length_s)
     long_synth = PingSynthesiser.create(long_sonar, scene.medium, chain)
-    memory_long = peak_memory(lambda: long_synth.render(paths.rows, seed=1))
+    memory_long = peak_memory(lambda: long_synth.render(rows, seed=1))
 
     with tempfile.TemporaryDirectory() as cache_dir:
         cold = first_render_cost(cache_dir)
         cached = first_render_cost(cache_dir)
 
-    print(f"scene {scene.name}: {len(paths)} path rows ({paths.arrivals().size} arrivals), solve {solve_s:.2f} s")
+    print(f"scene {scene.name}: {origin}")
     print(f"record: 3 x {n} samples at {sonar.sample_rate_hz / 1e6:g} MS/s ({sonar.record_length_s * 1e3:g} ms)")
     print("CPU-time medians [wall-clock medians]")
     print(f"floor (noise + one rfft)      median {floor_s * 1e3:8.1f} ms [{wall['floor'] * 1e3:8.1f}]")
@@ -182,11 +196,11 @@ def main() -> int:
     )
     print(f"  ratio per repeat (same load): min {ratios[0]:.2f}, median {statistics.median(ratios):.2f}, max {ratios[-1]:.2f}")
     print(
-        f"  of which the paths (kernels + scatter)  {paths_s * 1e3:8.1f} ms [{wall['paths'] * 1e3:8.1f}]"
-        f" ({paths_s / len(paths) * 1e7:.1f} ms per 10^4 rows)"
+        f"  of which the paths (kernels + overlap-add){paths_s * 1e3:8.1f} ms [{wall['paths'] * 1e3:8.1f}]"
+        f" ({paths_s / max(rows.size, 1) * 1e7:.1f} ms per 10^4 rows)"
     )
     if before is not None:
-        same = np.array_equal(before.decimated_record(paths.rows), synth.paths.decimated_record(paths.rows))
+        same = np.array_equal(before.decimated_record(rows), synth.paths.decimated_record(rows))
         pairs = [a / b for (a, _), (b, _) in zip(samples["paths"], samples["before"])]
         print(
             f"  the paths with {args.before}: {cpu['before'] * 1e3:8.1f} ms [{wall['before'] * 1e3:8.1f}];"

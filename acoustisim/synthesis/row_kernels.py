@@ -8,7 +8,7 @@ numpy can only express through several temporary (rows x bins) arrays are compil
    (directivity of each transducer, absorption, fractional delay) and complex weight, in one
    pass over the (strided) path columns that also validates them;
 2. :func:`group_rows`: rows of one plan that start on the same sample of the same channel form
-   a group (on the thesis tank 60,922 rows make 11,553 groups);
+   a group (60,922 thesis-tank rows made 11,553 groups);
 3. :func:`fill_group_spectra`: each group's kernel spectrum on the plan's bins, the exact sum
    of its rows' spectra ``w P[u, k] D[i_tx, k] D[i_rx, k] A[i_len, k]`` (the inverse FFT is
    linear, so summing before it changes nothing but float32 rounding); one batched
@@ -18,8 +18,10 @@ numpy can only express through several temporary (rows x bins) arrays are compil
 
 The loops run sequentially in row order, so the output is deterministic (byte-identical for
 the same rows). ``cache=True`` stores the compiled code in ``__pycache__`` beside this file (or,
-when that is read-only, in numba's per-user cache directory): the first call in a fresh
-checkout compiles for a few seconds, later processes load the cache in a fraction of a second.
+when that is read-only, in numba's per-user cache directory; ``NUMBA_CACHE_DIR`` overrides):
+the first render in a fresh checkout compiles these and :mod:`ping_loops` (5-10 s of CPU on
+the team's loaded 2-core machine), later processes load the cache in about 0.4 s
+(``benchmarks/bench_synthesis.py`` prints both).
 """
 
 from __future__ import annotations
