@@ -18,8 +18,8 @@ at its default sonar pose, with the tracer's own ray directions for the seed:
   the issue names; ``raw intersect xN``: the same rays in the tracer's chunks of
   ``CHUNK_RAYS`` on N threads (embreex releases the GIL), the baseline of the threaded tracer;
 * ``raw same work``: the raw Embree calls the exact tracer makes (that INTERSECT, plus one
-  OCCLUDED call on the hit -> receiver legs it tests: facing the receiver, near an object,
-  not the leg back to the centre transducer), single call and threaded;
+  OCCLUDED call on the hit -> receiver legs it tests: facing the receiver, crossing an
+  object's box, not the leg back to the centre transducer), single call and threaded;
 * ``tracer``: :func:`acoustisim.propagation.diffuse.trace_diffuse` (sampling, intersect,
   Lambert next-event estimation with exact occlusion to the three receivers, speckle),
   on 1 and N threads, and with ``visibility="centre"`` (approximate, off by default);
@@ -117,7 +117,8 @@ def main() -> int:
                                                                      directions32[: points.shape[0]])]
     to_rx = context.receivers_m[None, :, :] - points[:, None, :]
     tested = np.einsum("ijk,ik->ij", to_rx, normals) > 0
-    tested &= ObjectScreen.create(scene, context.receivers_m).near(points)[:, None]
+    screen = ObjectScreen.create(scene, context.receivers_m)
+    tested &= np.stack([screen.near(points, j) for j in range(context.receivers_m.shape[0])], axis=1)
     tested[:, np.all(context.receivers_m == context.transmitter_m, axis=1)] = False
     hi, ri = np.nonzero(tested)
     seg = to_rx[hi, ri]

@@ -280,79 +280,75 @@ def sample_directions(
 
 @dataclass(frozen=True, eq=False)
 class ObjectScreen:
-    """Which scattering points' legs to the receivers may be blocked: a conservative screen.
+    """Which legs scattering point -> receiver may be blocked: a conservative screen.
 
     The tank's boundaries enclose a convex box (or there are none, in free field), so a
     straight leg between two points in the water, a scattering point on a boundary or an
     object and a receiver, never crosses a boundary: only objects can block it. A leg that
     misses every object's axis-aligned box (grown by :data:`SCREEN_MARGIN_M`) is clear, and
-    Embree need not test it. The legs from one point to the receivers lie in the hull of the
-    point and the receivers' box, so one segment from the point to that box's centre is tested
-    against the object boxes grown by its half-size (Minkowski sum): a miss is a miss for
-    every receiver. Exact: only legs Embree would report clear are skipped.
+    Embree need not test it: each leg is slab-tested against the union box, then the boxes of
+    the objects one by one. Exact: only legs Embree would report clear are skipped.
 
     Attributes
     ----------
-    centre : ndarray, shape (3,)
-        Centre of the receivers' box (m).
+    receivers : ndarray, shape (n_rx, 3)
+        The legs' ends (m).
     lo, hi : ndarray, shape (k, 3)
         Grown object boxes (m); row 0 the union of all, then each object's (when there are at
         most :data:`SCREEN_MAX_BOXES`). ``None`` when the screen cannot be used (a receiver
         outside the tank's water): every leg is then tested.
     """
 
-    centre: NDArray[np.float64]
+    receivers: NDArray[np.float64]
     lo: NDArray[np.float64] | None
     hi: NDArray[np.float64] | None
 
     @classmethod
     def create(cls, scene: Any, receivers_m: NDArray[np.float64]) -> "ObjectScreen":
         """The screen of ``scene``'s objects for the receivers ``receivers_m`` (n_rx, 3)."""
-        low, high = receivers_m.min(axis=0), receivers_m.max(axis=0)
-        centre, half = 0.5 * (low + high), 0.5 * (high - low)
-        if scene.tank is not None and not np.all(scene.tank.contains(receivers_m)):
-            return cls(centre, None, None)
+        receivers = np.ascontiguousarray(receivers_m, dtype=float)
+        if scene.tank is not None and not np.all(scene.tank.contains(receivers)):
+            return cls(receivers, None, None)
         if not scene.objects:
             empty = np.zeros((0, 3))
-            return cls(centre, empty, empty)
+            return cls(receivers, empty, empty)
         bounds = np.array([obj.bounds_m for obj in scene.objects])  # (k, 2, 3)
-        grow = half + SCREEN_MARGIN_M
-        lo, hi = bounds[:, 0] - grow, bounds[:, 1] + grow
+        lo, hi = bounds[:, 0] - SCREEN_MARGIN_M, bounds[:, 1] + SCREEN_MARGIN_M
         union_lo, union_hi = lo.min(axis=0, keepdims=True), hi.max(axis=0, keepdims=True)
         if len(scene.objects) > SCREEN_MAX_BOXES:
-            return cls(centre, union_lo, union_hi)
-        return cls(centre, np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi]))
+            return cls(receivers, union_lo, union_hi)
+        return cls(receivers, np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi]))
 
-    def near(self, points_m: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """Whether the legs from each point (n, 3) to the receivers may cross an object (n,)."""
-        return self.near_components(points_m[:, 0], points_m[:, 1], points_m[:, 2])
-
-    def near_components(self, x: NDArray[np.float64], y: NDArray[np.float64],
-                        z: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """:meth:`near` for points given as coordinate arrays (n,) x 3 (m)."""
-        n = x.shape[0]
+    def near(self, points_m: NDArray[np.float64], receiver: int | None = None) -> NDArray[np.bool_]:
+        """Whether the leg from each point (n, 3) to ``receiver`` (an index; None: to any
+        receiver) may cross an object (n,)."""
+        points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+        n = points.shape[0]
         if self.lo is None:
             return np.ones(n, dtype=bool)
+        near = np.zeros(n, dtype=bool)
         if self.lo.shape[0] == 0:
-            return np.zeros(n, dtype=bool)
-        near = np.empty(n, dtype=bool)
-        columns = (np.ascontiguousarray(c, dtype=float) for c in (x, y, z))
-        kernels.near_points(*columns, self.centre, self.lo, self.hi, near)
+            return near
+        x, y, z = (np.ascontiguousarray(points[:, k]) for k in range(3))
+        leg = np.empty(n, dtype=bool)
+        for end in self.receivers if receiver is None else self.receivers[receiver:receiver + 1]:
+            kernels.near_points(x, y, z, end, self.lo, self.hi, leg)
+            near |= leg
         return near
 
-    def kernel_arguments(self) -> tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """(mode, centre, lo, hi) for :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`:
+    def kernel_arguments(self) -> tuple[int, NDArray[np.float64], NDArray[np.float64]]:
+        """(mode, lo, hi) for :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`:
         mode 0 when no leg can be blocked, 1 to screen with the boxes, 2 when every leg may be."""
         if self.lo is None:
-            return 2, self.centre, np.zeros((1, 3)), np.zeros((1, 3))
+            return 2, np.zeros((1, 3)), np.zeros((1, 3))
         if self.lo.shape[0] == 0:
-            return 0, self.centre, np.zeros((1, 3)), np.zeros((1, 3))
-        return 1, self.centre, self.lo, self.hi
+            return 0, np.zeros((1, 3)), np.zeros((1, 3))
+        return 1, self.lo, self.hi
 
 
 SCREEN_MARGIN_M = 1e-4
 """Growth of the object boxes in :class:`ObjectScreen` (m): a hundred times the float32
-rounding of a 10 m leg in Embree."""
+rounding of a 10 m leg in Embree (the screen itself works in float64)."""
 
 SCREEN_MAX_BOXES = 16
 """Objects screened box by box; more are screened by their union box only."""
@@ -460,7 +456,7 @@ class _Tracer:
     transmitter: NDArray[np.float64]
     frame: tuple[NDArray[np.float64], ...]
     receivers: NDArray[np.float64]
-    screen: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+    screen: tuple[int, NDArray[np.float64], NDArray[np.float64]]
     tested: NDArray[np.bool_]
     shared: bool
     seed_hash: np.uint64
@@ -564,9 +560,9 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         r2, cos_r2 = np.empty(pairs), np.empty(pairs)
         leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
-        mode, centre, lo, hi = tracer.screen
+        mode, lo, hi = tracer.screen
         n_legs = kernels.next_event_pairs(
-            points, normal, n_hits, rx, tracer.tested[min(bounce, 1)], mode, centre, lo, hi, shift, DEFAULT_EPS_M,
+            points, normal, n_hits, rx, tracer.tested[min(bounce, 1)], mode, lo, hi, shift, DEFAULT_EPS_M,
             state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
         )
         blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])

@@ -210,12 +210,12 @@ def scatter_hits(
 
 
 @njit(cache=True, nogil=True)
-def _near(px: float, py: float, pz: float, centre: NDArray[np.float64], lo: NDArray[np.float64],
+def _near(px: float, py: float, pz: float, qx: float, qy: float, qz: float, lo: NDArray[np.float64],
           hi: NDArray[np.float64]) -> bool:
-    """Whether the segment from p to ``centre`` meets the union box lo[0], hi[0] and then one
-    of the boxes lo[1:], hi[1:] (or the union alone when it is the only box): the screen of
-    :class:`~acoustisim.propagation.diffuse.ObjectScreen` in float64."""
-    sx, sy, sz = centre[0] - px, centre[1] - py, centre[2] - pz
+    """Whether the segment p -> q meets the union box lo[0], hi[0] and then one of the boxes
+    lo[1:], hi[1:] (or the union alone when it is the only box): the slab test of
+    :class:`~acoustisim.propagation.diffuse.ObjectScreen`, in float64."""
+    sx, sy, sz = qx - px, qy - py, qz - pz
     for b in range(lo.shape[0]):
         enter, leave = 0.0, 1.0
         for k in range(3):
@@ -243,18 +243,18 @@ def _near(px: float, py: float, pz: float, centre: NDArray[np.float64], lo: NDAr
 
 
 @njit(cache=True, nogil=True)
-def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], centre: NDArray[np.float64],
+def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], end: NDArray[np.float64],
                 lo: NDArray[np.float64], hi: NDArray[np.float64], out: NDArray[np.bool_]) -> None:
-    """:func:`_near` of the points (n,) x 3, written into ``out`` (n,)."""
+    """:func:`_near` of the segments from the points (n,) x 3 to ``end`` (3,), into ``out`` (n,)."""
     for i in range(x.size):
-        out[i] = _near(x[i], y[i], z[i], centre, lo, hi)
+        out[i] = _near(x[i], y[i], z[i], end[0], end[1], end[2], lo, hi)
 
 
 @njit(cache=True, nogil=True)
 def next_event_pairs(
     points: NDArray[np.float64], normal: NDArray[np.float64], h: int, receivers: NDArray[np.float64],
-    tested: NDArray[np.bool_], screen: int, centre: NDArray[np.float64], lo: NDArray[np.float64],
-    hi: NDArray[np.float64], shift: NDArray[np.float64], eps: float, state: NDArray[np.int8],
+    tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64], hi: NDArray[np.float64],
+    shift: NDArray[np.float64], eps: float, state: NDArray[np.int8],
     r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
 ) -> int:
@@ -268,8 +268,8 @@ def next_event_pairs(
     tested : ndarray of bool, shape (n_rx,)
         Receivers whose legs are tested for occlusion.
     screen : int
-        0: no leg can be blocked (no objects); 1: screen the legs with the boxes ``lo``, ``hi``
-        (k, 3) seen from ``centre`` (3,); 2: every leg may be blocked.
+        0: no leg can be blocked (no objects); 1: screen each leg with the boxes ``lo``, ``hi``
+        (k, 3); 2: every leg may be blocked.
     shift : ndarray, shape (3,)
         Subtracted from the leg starts (Embree's frame).
     eps : float
@@ -288,19 +288,14 @@ def next_event_pairs(
         The number of queued legs.
     """
     n_rx = receivers.shape[0]
-    any_tested = False
-    for j in range(n_rx):
-        any_tested = any_tested or tested[j]
     n_legs = 0
     for i in range(h):
         px, py, pz = points[0, i], points[1, i], points[2, i]
         nx, ny, nz = normal[0, i], normal[1, i], normal[2, i]
-        near = False
-        if any_tested and screen != 0:
-            near = screen == 2 or _near(px, py, pz, centre, lo, hi)
         for j in range(n_rx):
             pair = i * n_rx + j
-            dx, dy, dz = receivers[j, 0] - px, receivers[j, 1] - py, receivers[j, 2] - pz
+            qx, qy, qz = receivers[j, 0], receivers[j, 1], receivers[j, 2]
+            dx, dy, dz = qx - px, qy - py, qz - pz
             length = math.sqrt(dx * dx + dy * dy + dz * dz)
             c = dx * nx + dy * ny + dz * nz
             r2[pair] = length
@@ -308,19 +303,21 @@ def next_event_pairs(
             if not c > 0.0:
                 state[pair] = 0
                 continue
-            if near and tested[j] and length > 2.0 * eps:
-                state[pair] = 2
-                inverse = 1.0 / length
-                ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
-                leg_start[n_legs, 0] = px + eps * ux - shift[0]
-                leg_start[n_legs, 1] = py + eps * uy - shift[1]
-                leg_start[n_legs, 2] = pz + eps * uz - shift[2]
-                leg_unit[n_legs, 0], leg_unit[n_legs, 1], leg_unit[n_legs, 2] = ux, uy, uz
-                leg_length[n_legs] = length - 2.0 * eps
-                leg_pair[n_legs] = pair
-                n_legs += 1
-            else:
-                state[pair] = 1
+            state[pair] = 1
+            if not tested[j] or screen == 0 or not length > 2.0 * eps:
+                continue
+            if screen == 1 and not _near(px, py, pz, qx, qy, qz, lo, hi):
+                continue
+            state[pair] = 2
+            inverse = 1.0 / length
+            ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
+            leg_start[n_legs, 0] = px + eps * ux - shift[0]
+            leg_start[n_legs, 1] = py + eps * uy - shift[1]
+            leg_start[n_legs, 2] = pz + eps * uz - shift[2]
+            leg_unit[n_legs, 0], leg_unit[n_legs, 1], leg_unit[n_legs, 2] = ux, uy, uz
+            leg_length[n_legs] = length - 2.0 * eps
+            leg_pair[n_legs] = pair
+            n_legs += 1
     return n_legs
 
 
