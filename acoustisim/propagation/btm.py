@@ -252,6 +252,49 @@ def _group_arange(counts: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray
     return group, np.arange(group.size) - starts[group]
 
 
+def _graded_offsets(
+    span_steps: NDArray[np.float64], has: NDArray[np.bool_], levels: int, grading: int
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Interior node offsets of each branch, in units of the fine step, graded by level.
+
+    A node m (an integer number of fine steps from the branch's start, 0 <= m < span) belongs
+    to level j = min(levels, the largest j with grading 2^j <= min(m, span - m)); it is a node
+    when m is a multiple of 2^j. The elements are therefore 1 step long within ``grading``
+    steps of either end of the branch and double in length every ``grading`` elements away from
+    both ends, up to 2^levels steps; every node lies on the uniform grid of the fine step.
+
+    Returns
+    -------
+    branch : ndarray of int64, shape (k,)
+        Branch of each node, non-decreasing.
+    offset : ndarray, shape (k,)
+        Node offsets (fine steps), increasing within a branch; 0 (the start) included.
+    """
+    nb = span_steps.size
+    span = np.where(has, span_steps, 0.0)
+    j = np.arange(levels + 1)
+    f = grading * (2.0 ** j)  # F_j: level j needs at least F_j steps to both ends
+    f[0] = 0.0
+    f_next = np.r_[f[1:], np.inf]  # F_{j+1}, none above the top level
+    d = 2.0 ** j
+    s = span[:, None]
+    # level j's nodes: multiples of 2^j in A_j = [F_j, min(F_{j+1}, span - F_j)) and in
+    # B_j = [max(span - F_{j+1}, F_{j+1}), span - F_j); A_0 < A_1 < ... < B_1 < B_0
+    a_lo = np.broadcast_to(f, (nb, levels + 1))
+    a_hi = np.minimum(f_next, s - f)
+    b_lo = np.maximum(s - f_next, f_next)
+    b_hi = s - f
+    lo = np.concatenate([a_lo, b_lo[:, ::-1][:, 1:]], axis=1)
+    hi = np.concatenate([a_hi, b_hi[:, ::-1][:, 1:]], axis=1)
+    dd = np.concatenate([d, d[::-1][1:]])
+    first = np.ceil(lo / dd)
+    count = np.maximum(np.ceil(hi / dd) - first, 0.0).astype(np.int64)
+    count[~has] = 0
+    interval, k = _group_arange(count.reshape(-1))
+    offset = (first.reshape(-1)[interval] + k) * np.tile(dd, nb)[interval]
+    return interval // dd.size, offset
+
+
 def discretise_edges(
     length_m: ArrayLike,
     r_s: ArrayLike,
@@ -261,8 +304,14 @@ def discretise_edges(
     path_step_m: float,
     max_element_m: float,
     max_elements: int | None = None,
+    *,
+    coarsening_levels: int = 0,
+    grading: int = 4,
+    cap_growth: float = 0.0,
+    onset_nodes: int = 1,
+    centroid_delays: bool = False,
 ) -> EdgeElements:
-    """Cut edges into elements of equal path-length increments about the least-time point.
+    """Cut edges into elements of graded path-length increments about the least-time point.
 
     Parameters
     ----------
@@ -271,12 +320,30 @@ def discretise_edges(
     r_s, z_s, r_r, z_r : array_like, shape (p,)
         Source and receiver cylindrical coordinates for each pair (m), r > 0.
     path_step_m : float
-        Path-length (m + l) increment between neighbouring element boundaries (m): the
+        Finest path-length (m + l) increment between neighbouring element boundaries (m): the
         delay step times c.
     max_element_m : float
         Longest element along the edge (m); longer ones are split evenly.
     max_elements : int, optional
         Refuse (``ValueError``) to make more elements than this.
+    coarsening_levels : int, optional
+        0 (default): every element spans one ``path_step_m``. J > 0: elements are one step
+        long within ``grading`` steps of a branch's ends (the onset singularity and the end
+        step) and double every ``grading`` elements away from them, up to ``2^J`` steps, all
+        their boundaries on the uniform grid (see :func:`_graded_offsets`).
+    grading : int, optional
+        Elements per level of the graded discretisation (>= 1).
+    onset_nodes : int, optional
+        Nodes between a branch's start and its first step: at ``ONSET_FRACTION`` steps and
+        (when > 1) at that times 2, 4, ... below one step, so that the elements resolve the
+        onset's 1 / sqrt(t - tau0) singularity geometrically.
+    centroid_delays : bool, optional
+        False (default): an element's path length is the mean of its ends'. True: the mean of
+        the path length over the element's extent along z (its centre of weight in delay
+        when the integrand is even along it).
+    cap_growth : float, optional
+        The length cap of an element is ``max_element_m + cap_growth * d``, d its distance
+        from the apex along the edge (m); 0 (default): ``max_element_m`` everywhere.
 
     Returns
     -------
@@ -290,6 +357,8 @@ def discretise_edges(
     """
     if not (path_step_m > 0.0 and max_element_m > 0.0):
         raise ValueError(f"path_step_m and max_element_m must be > 0, got {path_step_m!r}, {max_element_m!r}")
+    if coarsening_levels < 0 or grading < 1:
+        raise ValueError(f"coarsening_levels must be >= 0 and grading >= 1, got {coarsening_levels!r}, {grading!r}")
     length, rs, zs, rr, zr = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (length_m, r_s, z_s, r_r, z_r))
     p = length.size
     z_star, _ = least_time(rs, zs, rr, zr)
@@ -308,26 +377,33 @@ def discretise_edges(
     d_end = path(b_end, b_pair)
     span = np.maximum(d_end - d_start, 0.0)
     has = np.abs(b_end - b_start) > 0.0
-    onset = ONSET_FRACTION * path_step_m
-    # interior nodes: d_start + onset (if below d_end), then d_start + k step (k >= 1) below d_end
-    n_regular = np.where(has, np.ceil(span / path_step_m).astype(np.int64) - 1, 0)
-    n_regular = np.maximum(n_regular, 0)
-    n_onset = (has & (span > onset)).astype(np.int64)
-    n_nodes = np.where(has, 2 + n_onset + n_regular, 0)  # including both ends
+    # onset nodes: ONSET_FRACTION step, then (graded) doubling up to half a step
+    onsets = ONSET_FRACTION * path_step_m * 2.0 ** np.arange(onset_nodes)
+    onsets = onsets[onsets < path_step_m]
     if max_elements is not None:
-        # a lower bound on the element count before allocating: nodes, and the length cap
+        # a lower bound on the element count before allocating: the graded nodes (at least
+        # span / (2^J step)), and the length cap
+        n_graded = np.where(has, np.ceil(span / (path_step_m * 2.0**coarsening_levels)), 0.0)
         cap_count = np.ceil(np.abs(b_end - b_start) / max_element_m)
-        estimate = float(np.sum(np.maximum(n_nodes - 1, cap_count)))
+        estimate = float(np.sum(np.maximum(n_graded, cap_count)))
         if estimate > max_elements:
             raise ValueError(f"the edges need at least {estimate:.3g} elements (limit {max_elements})")
-    node_branch, k = _group_arange(n_nodes)
+    # nodes of each branch: its start (offset 0), the onset node, the graded grid nodes below
+    # the span, and its end
+    # (a branch with a zero span, up to round-off, still gets its start node)
+    span_steps = np.where(has, np.maximum(span / path_step_m, 0.5), 0.0)
+    grid_branch, grid_offset = _graded_offsets(span_steps, has, coarsening_levels, grading)
+    # per branch, the onset nodes below its span, after its start (m = 0)
+    onset_branch, i_onset = np.nonzero(has[:, None] & (onsets[None, :] < span[:, None]))
+    onset_at = np.searchsorted(grid_branch, onset_branch) + 1
+    ends_at = np.searchsorted(grid_branch, np.flatnonzero(has), side="right")
+    # np.insert places equal indices in the given order: a branch's onset nodes before its end
+    node_branch = np.insert(grid_branch, np.r_[onset_at, ends_at], np.r_[onset_branch, np.flatnonzero(has)])
+    node_d_off = np.insert(grid_offset * path_step_m, np.r_[onset_at, ends_at], np.r_[onsets[i_onset], span[has]])
+    n_nodes = np.bincount(node_branch, minlength=2 * p)
+    _, k = _group_arange(n_nodes)
     last = k == n_nodes[node_branch] - 1
-    offset = np.where(
-        k == 0,
-        0.0,
-        np.where((n_onset[node_branch] == 1) & (k == 1), onset, (k - n_onset[node_branch]) * path_step_m),
-    )
-    node_d = d_start[node_branch] + offset
+    node_d = d_start[node_branch] + node_d_off
     bp = b_pair[node_branch]
     node_z = _solve_on_spheroid(node_d, rs[bp], zs[bp], rr[bp], zr[bp], b_upper[node_branch])
     node_z = np.where(k == 0, b_start[node_branch], np.where(last, b_end[node_branch], node_z))
@@ -343,8 +419,11 @@ def discretise_edges(
     e_branch = node_branch[start_node]
     za, zb = node_z[start_node], node_z[start_node + 1]
     da, db = node_d[start_node], node_d[start_node + 1]
-    # split long elements evenly
-    n_sub = np.maximum(np.ceil(np.abs(zb - za) / max_element_m).astype(np.int64), 1)
+    # split long elements evenly; the cap grows with the distance from the apex
+    cap = max_element_m
+    if cap_growth > 0.0:
+        cap = max_element_m + cap_growth * np.minimum(np.abs(za - b_start[e_branch]), np.abs(zb - b_start[e_branch]))
+    n_sub = np.maximum(np.ceil(np.abs(zb - za) / cap).astype(np.int64), 1)
     parent, j = _group_arange(n_sub)
     frac0 = j / n_sub[parent]
     frac1 = (j + 1) / n_sub[parent]
@@ -352,11 +431,26 @@ def discretise_edges(
     z1 = za[parent] + (zb[parent] - za[parent]) * frac1
     sub_pair = b_pair[e_branch[parent]]
     split = n_sub[parent] > 1
-    d0 = np.where(split & (j > 0), path(z0, sub_pair), da[parent])
-    d1 = np.where(split & (j < n_sub[parent] - 1), path(z1, sub_pair), db[parent])
     keep = z1 != z0
-    lo, hi = np.minimum(z0, z1), np.maximum(z0, z1)
-    return EdgeElements(sub_pair[keep], lo[keep], hi[keep], (0.5 * (d0 + d1))[keep])
+    lo, hi, sub_pair = np.minimum(z0, z1)[keep], np.maximum(z0, z1)[keep], sub_pair[keep]
+    if centroid_delays:
+        # the element's mean path length along z (two-point Gauss, exact for the quadratic
+        # growth about the apex): its impulse sits at the centre of its weight in delay, not
+        # at the mean of its ends' delays (near the apex t - tau0 grows as z^2)
+        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * _GAUSS_X[1]
+        mean_path = 0.5 * (path(centre - half, sub_pair) + path(centre + half, sub_pair))
+    else:
+        d0 = np.where(split & (j > 0), path(z0, b_pair[e_branch[parent]]), da[parent])
+        d1 = np.where(split & (j < n_sub[parent] - 1), path(z1, b_pair[e_branch[parent]]), db[parent])
+        mean_path = (0.5 * (d0 + d1))[keep]
+    return EdgeElements(sub_pair, lo, hi, mean_path)
+
+
+def gauss_points(elements: EdgeElements) -> NDArray[np.float64]:
+    """The two Gauss-Legendre points of each element along its edge (m), shape (n, 2)."""
+    centre = 0.5 * (elements.z_start_m + elements.z_end_m)
+    half = 0.5 * (elements.z_end_m - elements.z_start_m)
+    return centre[:, None] + half[:, None] * _GAUSS_X[None, :]
 
 
 def element_gains(
@@ -369,6 +463,8 @@ def element_gains(
     theta_r: ArrayLike,
     z_r: ArrayLike,
     pressure_release: ArrayLike,
+    *,
+    per_point: bool = False,
 ) -> NDArray[np.float64]:
     """Integral of the BTM integrand over each element (1/m, relative to 1 m).
 
@@ -382,10 +478,16 @@ def element_gains(
         Per pair: wedge index, source and receiver cylindrical coordinates (m, rad), boundary
         condition.
 
+    per_point : bool, optional
+        False (default): one gain per element. True: the element's gain split between its two
+        Gauss points (:func:`gauss_points`), so that an element becomes two impulses at those
+        points' delays: a quadrature of the band-limited response exact to third order in the
+        phase across the element, where one impulse per element is exact to first order.
+
     Returns
     -------
-    ndarray, shape (n,)
-        Signed gains.
+    ndarray, shape (n,) or (n, 2)
+        Signed gains; with ``per_point``, the two points' gains (their sum is the element's).
     """
     # per pair: the angular factors of the four terms and the apex model's constants
     nu_p, rs_p, ts_p, zs_p, rr_p, tr_p, zr_p = (
@@ -420,8 +522,9 @@ def element_gains(
     z0, z1 = elements.z_start_m, elements.z_end_m
     half_len = 0.5 * (z1 - z0)
     centre = 0.5 * (z0 + z1)
-    total = np.zeros(z0.size)
-    for x, w in zip(_GAUSS_X, _GAUSS_W):  # the two Gauss points
+    exact_part = np.zeros((_GAUSS_X.size, z0.size))  # w_g beta / (m l) at the Gauss points
+    apex_part = np.zeros((_GAUSS_X.size, z0.size))  # w_g (apex model) at the Gauss points
+    for g, (x, w) in enumerate(zip(_GAUSS_X, _GAUSS_W)):  # the two Gauss points
         z = centre + x * half_len
         a, b = z - zs, z - zr
         ml = np.hypot(rs, a) * np.hypot(rr, b)
@@ -435,7 +538,8 @@ def element_gains(
         for i in range(4):  # the four terms of beta
             exact += terms(hyperbolic + gap[i], i)
             apex += terms(model + gap[i], i)
-        total += w * (exact / ml - apex / ml_star)
+        exact_part[g] = w * exact / ml
+        apex_part[g] = w * apex / ml_star
     # Int of the apex model: sum_i coef_i (atan(A1 / s_i) - atan(A0 / s_i)), A = nu kappa (z - z*),
     # as one atan2((A1 - A0) s, s^2 + A0 A1) per term (exact for s > 0; coef_i = 0 where s_i
     # is 0, on a boundary)
@@ -444,8 +548,15 @@ def element_gains(
     model_integral = np.zeros(z0.size)
     for i in range(4):  # the four terms of beta
         model_integral += coef[i] * np.arctan2(da * s_gap[i], s_gap[i] ** 2 + prod)
-    total = total * half_len + model_integral
-    return -(nu_ / (4.0 * np.pi)) * total
+    scale = -(nu_ / (4.0 * np.pi))
+    if not per_point:
+        total = (np.sum(exact_part, axis=0) - np.sum(apex_part, axis=0)) * half_len + model_integral
+        return scale * total
+    # each Gauss point: its share of the quadrature of the exact integrand, plus half of the
+    # apex model's correction (exact integral minus its own quadrature): the model is peaked
+    # only where elements are short, so the split barely moves weight in delay
+    correction = 0.5 * (model_integral - np.sum(apex_part, axis=0) * half_len)
+    return (scale * (exact_part * half_len + correction)).T
 
 
 __all__ = [
@@ -455,6 +566,7 @@ __all__ = [
     "cosh_eta_minus_one",
     "discretise_edges",
     "element_gains",
+    "gauss_points",
     "infinite_wedge_impulse_response",
     "least_time",
     "wedge_phis",

@@ -28,6 +28,10 @@ class SolverConfig:
         Diffuse scattering events per ray (>= 1).
     edge_segment_m : float
         Length of the elements of a discretised diffracting edge (m, > 0).
+    edge_adaptive : bool
+        True (default): edge elements are one delay step (1/16 period) long near each branch's
+        onset and ends and grow away from them (:data:`acoustisim.propagation.edges.COARSENING_LEVELS`);
+        False: every element is one delay step (the fine reference discretisation).
     amplitude_floor_db : float or None
         Arrivals weaker than this (dB, <= 0) relative to the strongest non-direct arrival are
         dropped; None keeps every path.
@@ -40,6 +44,7 @@ class SolverConfig:
     diffuse_rays: int = 20_000
     diffuse_bounces: int = 1
     edge_segment_m: float = 5e-4
+    edge_adaptive: bool = True
     amplitude_floor_db: float | None = -80.0
     seed: int = 0
 
@@ -71,6 +76,8 @@ class SolverConfig:
             math.isfinite(segment) and segment > 0
         ):
             raise InputError(f"solver.edge_segment_m = {segment!r}: must be a finite number > 0")
+        if not isinstance(self.edge_adaptive, bool):
+            raise InputError(f"solver.edge_adaptive = {self.edge_adaptive!r}: must be true or false")
         floor = self.amplitude_floor_db
         if floor is not None and (
             isinstance(floor, bool) or not isinstance(floor, (int, float)) or not (math.isfinite(floor) and floor <= 0)

@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.btm import discretise_edges, element_gains
+from acoustisim.propagation.btm import discretise_edges, element_gains, gauss_points
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
@@ -47,6 +47,19 @@ from acoustisim.propagation.paths import PathKind, empty_paths_array
 
 DELAY_STEPS_PER_PERIOD = 16
 """Element delay step = 1 / (DELAY_STEPS_PER_PERIOD f0)."""
+
+COARSENING_LEVELS = 2
+"""Graded discretisation (``config.edge_adaptive``): elements grow up to 2^3 delay steps."""
+
+GRADING = 4
+"""Graded discretisation: elements per doubling of their length, counted from a branch's ends."""
+
+CAP_GROWTH = 0.1
+"""Graded discretisation: an element's length cap grows by this fraction of its distance from
+the apex (``config.edge_segment_m`` at the apex)."""
+
+ONSET_NODES = 7
+"""Graded discretisation: nodes at 1/128, 1/64, ..., 1/2 of a step after each branch's start."""
 
 ELEMENT_FLOOR = 1e-6
 """Elements weaker than this fraction of the strongest element are dropped."""
@@ -136,21 +149,29 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     step = c / (DELAY_STEPS_PER_PERIOD * context.centre_frequency_hz)
     try:
         elements = discretise_edges(
-            edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m, MAX_ELEMENTS
+            edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m, MAX_ELEMENTS,
+            coarsening_levels=COARSENING_LEVELS if config.edge_adaptive else 0, grading=GRADING,
+            cap_growth=CAP_GROWTH if config.edge_adaptive else 0.0,
+            onset_nodes=ONSET_NODES if config.edge_adaptive else 1,
         )
     except ValueError as error:
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
-    gains = element_gains(
-        elements, edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge]
-    )
+    args = (edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
+    if config.edge_adaptive:
+        # two impulses per element, at its Gauss points (see element_gains)
+        gains = element_gains(elements, *args, per_point=True).reshape(-1)
+        pair = np.repeat(elements.pair, 2)
+        z_point = gauss_points(elements).reshape(-1)
+        path_length = np.hypot(rs[pair], z_point - zs[pair]) + np.hypot(r_r[pair], z_point - z_r[pair])
+    else:
+        gains = element_gains(elements, *args)
+        pair, z_point, path_length = elements.pair, elements.z_mid_m, elements.path_length_m
     if gains.size == 0:
         return empty_paths_array(0)
     keep = np.abs(gains) > ELEMENT_FLOOR * np.max(np.abs(gains))
-    pair = elements.pair[keep]
-    gains = gains[keep]
-    path_length = elements.path_length_m[keep]
+    pair, gains, path_length, z_point = pair[keep], gains[keep], path_length[keep], z_point[keep]
     e = pair_edge[pair]
-    points = edges.start_m[e] + elements.z_mid_m[keep][:, None] * edges.direction[e]
+    points = edges.start_m[e] + z_point[:, None] * edges.direction[e]
 
     # visibility of each element from the transmitter and from its receiver, one batch
     half = 0.5 * edges.wedge_angle_rad
