@@ -124,16 +124,16 @@ class ModeRun:
     def breakdown(self) -> str:
         """Where the CPU went, ms per sample."""
         per = 1e3 / self.n
-        outside = sum(self.worker_cpu_s) - self.task_cpu_s if self.worker_cpu_s else self.driver_cpu_s - self.task_cpu_s
-        parts = [f"simulate {self.simulate_cpu_s * per:.1f}", f"rest of the task's thread (labels, checksums, "
-                 f"stacking, write calls) {(self.task_cpu_s - self.simulate_cpu_s) * per:.1f}"]
+        parts = [f"simulate {self.simulate_cpu_s * per:.1f}", f"rest of the tasks (labels, checksums, Zarr "
+                 f"writes) {(self.task_cpu_s - self.simulate_cpu_s) * per:.1f}"]
         if self.worker_cpu_s:
-            parts += [f"workers outside the task thread (Zarr's I/O thread, Dask worker) {outside * per:.1f}",
+            outside = sum(self.worker_cpu_s) - self.task_cpu_s
+            parts += [f"workers outside tasks (Dask worker) {outside * per:.1f}",
                       f"driver (client, scheduler, nannies) {self.driver_cpu_s * per:.1f}",
-                      f"of which idle background {self.idle_cores * self.wall_s * per:.1f} "
+                      f"idle background of both {self.idle_cores * self.wall_s * per:.1f} "
                       f"({self.idle_cores * 100:.2f} % of a core x {self.wall_s:.1f} s)"]
         else:
-            parts += [f"driver outside the task thread (Zarr's I/O thread) {outside * per:.1f}"]
+            parts += [f"driver outside tasks {(self.driver_cpu_s - self.task_cpu_s) * per:.1f}"]
         return f"  {self.label} CPU, ms/sample: " + ", ".join(parts)
 
 

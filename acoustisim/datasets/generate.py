@@ -60,10 +60,14 @@ class ChunkResult:
     checksums : tuple of int
         One per sample of the chunk, in order.
     simulate_cpu_s : float
-        CPU time (s) the task's thread spent building and simulating the samples (the plain
-        simulator's cost: the reference of the overhead figures of ``benchmarks/bench_dataset.py``).
+        CPU time (s) of the worker process while it built and simulated the samples (the plain
+        simulator's cost, helper threads such as Embree's included: the reference of the
+        overhead figures of ``benchmarks/bench_dataset.py``). A worker runs one task at a
+        time and writes synchronously, so the only other CPU in that interval is the Dask
+        worker's idle background (about 0.3 % of a core, measured).
     task_cpu_s : float
-        CPU time (s) of the whole task's thread: simulate, labels, checksums and writes.
+        CPU time (s) of the worker process during the whole task: simulate, labels,
+        checksums and the Zarr writes (with Zarr's I/O threads).
     elapsed_s : float
         Wall time (s) of the task.
     worker : int
@@ -103,10 +107,10 @@ class GenerateReport:
     scheduler : str
         "in-process", "local-cluster" or the scheduler address.
     simulate_cpu_s : float
-        Sum over the samples made by this run of the CPU time (s) their task's thread spent
+        Sum over the samples made by this run of the CPU time (s) their worker process spent
         building and simulating them (the rest of the run's CPU is the dataset machinery).
     task_cpu_s : float
-        Sum of the tasks' thread CPU time (s): simulate plus labels, checksums and writes.
+        Sum of the tasks' CPU time (s): simulate plus labels, checksums and writes.
     driver_cpu_s : float
         CPU time (s) of this process during the run phase (with a LocalCluster: the client,
         the scheduler and the nannies, which all live here).
@@ -232,21 +236,21 @@ def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: Chun
     """
     import os
 
-    start, cpu_start = time.perf_counter(), time.thread_time()
+    start, cpu_start = time.perf_counter(), time.process_time()
     simulate_cpu = 0.0
     rows = []
     for sample in samples:
         try:
-            c0 = time.thread_time()
+            c0 = time.process_time()
             scene, simulation, snr_reference = simulate_sample(spec, sample)
-            simulate_cpu += time.thread_time() - c0  # the simulator is single-threaded (checked: = process time)
+            simulate_cpu += time.process_time() - c0
             rows.append(sample_arrays(spec, sample, scene, simulation, vocab, snr_reference))
         except Exception as exc:
             raise RuntimeError(f"sample {sample.index}: {type(exc).__name__}: {exc}") from exc
     del scene, simulation  # the chunk's arrays are all that is kept while writing
     checksums = writer.write_chunk(rows)
     return ChunkResult(samples[0].index, tuple(int(c) for c in checksums), simulate_cpu,
-                       time.thread_time() - cpu_start, time.perf_counter() - start, os.getpid())
+                       time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
 
 
 def store_shape(spec: DatasetSpec) -> StoreShape:
