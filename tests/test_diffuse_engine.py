@@ -89,6 +89,28 @@ def test_per_leg_screen_skips_only_clear_legs(tank):
     assert np.array_equal(screen.near(points), np.any([screen.near(points, j) for j in range(3)], axis=0))
 
 
+def test_receptions_are_exactly_the_clear_facing_legs(tank):
+    # Brute force over every first-bounce event and receiver: the receiver in front of the
+    # face (normal from re-intersecting the departure ray) and the leg clear by Embree (no
+    # screen). The tracer (screen per leg, convex objects' own boxes skipped, the centre
+    # transducer's leg not tested) must emit exactly those pairs.
+    events = trace_diffuse(tank, SolverConfig(diffuse_rays=20_000, seed=9), threads=2)
+    points = events.points_m
+    hits = tank.raycaster.intersect(np.broadcast_to(tank.transmitter_m, points.shape), events.departure_dir)
+    expected = set()
+    for j, receiver in enumerate(tank.receivers_m):
+        facing = np.einsum("ij,ij->i", receiver - points, hits.normal) > 0
+        clear = ~tank.raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
+        expected |= {(int(e), j) for e in np.flatnonzero(facing & clear)}
+    emitted = set(zip(events.event.tolist(), events.channel.tolist()))
+    assert len(emitted) == events.event.size
+    assert emitted == expected
+    # both screens matter here: points on the convex prism and posts, and blocked legs
+    on_object = events.surface >= len(tank.scene.boundaries)
+    assert on_object.mean() > 0.05
+    assert len(expected) < 3 * points.shape[0] - 1000
+
+
 def test_lobe_sampling_density_is_exact():
     # Int D^2 dOmega estimated with the sampler's own solid angles: any mismatch between the
     # density the rays are drawn from and the pdf their weights assume (the guide table, the

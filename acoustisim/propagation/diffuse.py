@@ -297,31 +297,44 @@ class ObjectScreen:
         Grown object boxes (m); row 0 the union of all, then each object's (when there are at
         most :data:`SCREEN_MAX_BOXES`). ``None`` when the screen cannot be used (a receiver
         outside the tank's water): every leg is then tested.
+    own_box : ndarray of int64, shape (n_surfaces,)
+        For a surface that is a convex object, its row in ``lo``, ``hi``; else -1. A leg from
+        a point on a convex body towards a receiver in front of the face cannot re-enter the
+        body, so that box is skipped for it.
     """
 
     receivers: NDArray[np.float64]
     lo: NDArray[np.float64] | None
     hi: NDArray[np.float64] | None
+    own_box: NDArray[np.int64]
 
     @classmethod
     def create(cls, scene: Any, receivers_m: NDArray[np.float64]) -> "ObjectScreen":
         """The screen of ``scene``'s objects for the receivers ``receivers_m`` (n_rx, 3)."""
         receivers = np.ascontiguousarray(receivers_m, dtype=float)
+        own_box = np.full(len(scene.boundaries) + len(scene.objects), -1, dtype=np.int64)
         if scene.tank is not None and not np.all(scene.tank.contains(receivers)):
-            return cls(receivers, None, None)
+            return cls(receivers, None, None, own_box)
         if not scene.objects:
             empty = np.zeros((0, 3))
-            return cls(receivers, empty, empty)
+            return cls(receivers, empty, empty, own_box)
         bounds = np.array([obj.bounds_m for obj in scene.objects])  # (k, 2, 3)
         lo, hi = bounds[:, 0] - SCREEN_MARGIN_M, bounds[:, 1] + SCREEN_MARGIN_M
         union_lo, union_hi = lo.min(axis=0, keepdims=True), hi.max(axis=0, keepdims=True)
         if len(scene.objects) > SCREEN_MAX_BOXES:
-            return cls(receivers, union_lo, union_hi)
-        return cls(receivers, np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi]))
+            return cls(receivers, union_lo, union_hi, own_box)
+        for k, obj in enumerate(scene.objects):
+            # an analytic primitive (sphere, cylinder) is convex; a small mesh is checked
+            convex = obj.primitive is not None or (len(obj.mesh.faces) <= SCREEN_CONVEXITY_FACES and obj.mesh.is_convex)
+            if convex:
+                own_box[len(scene.boundaries) + k] = k + 1
+        return cls(receivers, np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi]), own_box)
 
-    def near(self, points_m: NDArray[np.float64], receiver: int | None = None) -> NDArray[np.bool_]:
+    def near(self, points_m: NDArray[np.float64], receiver: int | None = None,
+             surface: NDArray[np.int64] | None = None) -> NDArray[np.bool_]:
         """Whether the leg from each point (n, 3) to ``receiver`` (an index; None: to any
-        receiver) may cross an object (n,)."""
+        receiver) may cross an object (n,). With ``surface`` (n,), the surface each point lies
+        on, a convex object's own box is skipped (for legs to receivers in front of the face)."""
         points = np.asarray(points_m, dtype=float).reshape(-1, 3)
         n = points.shape[0]
         if self.lo is None:
@@ -331,19 +344,20 @@ class ObjectScreen:
             return near
         x, y, z = (np.ascontiguousarray(points[:, k]) for k in range(3))
         leg = np.empty(n, dtype=bool)
+        own = np.full(n, -1, dtype=np.int64) if surface is None else self.own_box[np.asarray(surface)]
         for end in self.receivers if receiver is None else self.receivers[receiver:receiver + 1]:
-            kernels.near_points(x, y, z, end, self.lo, self.hi, leg)
+            kernels.near_points(x, y, z, own, end, self.lo, self.hi, leg)
             near |= leg
         return near
 
-    def kernel_arguments(self) -> tuple[int, NDArray[np.float64], NDArray[np.float64]]:
-        """(mode, lo, hi) for :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`:
+    def kernel_arguments(self) -> tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+        """(mode, lo, hi, own_box) for :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`:
         mode 0 when no leg can be blocked, 1 to screen with the boxes, 2 when every leg may be."""
         if self.lo is None:
-            return 2, np.zeros((1, 3)), np.zeros((1, 3))
+            return 2, np.zeros((1, 3)), np.zeros((1, 3)), self.own_box
         if self.lo.shape[0] == 0:
-            return 0, np.zeros((1, 3)), np.zeros((1, 3))
-        return 1, self.lo, self.hi
+            return 0, np.zeros((1, 3)), np.zeros((1, 3)), self.own_box
+        return 1, self.lo, self.hi, self.own_box
 
 
 SCREEN_MARGIN_M = 1e-4
@@ -352,6 +366,10 @@ rounding of a 10 m leg in Embree (the screen itself works in float64)."""
 
 SCREEN_MAX_BOXES = 16
 """Objects screened box by box; more are screened by their union box only."""
+
+SCREEN_CONVEXITY_FACES = 20_000
+"""Largest mesh (faces) whose convexity :class:`ObjectScreen` checks; larger non-primitive
+meshes are treated as non-convex (the check would cost more than it saves)."""
 
 
 @dataclass(frozen=True)
@@ -456,7 +474,7 @@ class _Tracer:
     transmitter: NDArray[np.float64]
     frame: tuple[NDArray[np.float64], ...]
     receivers: NDArray[np.float64]
-    screen: tuple[int, NDArray[np.float64], NDArray[np.float64]]
+    screen: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]
     tested: NDArray[np.bool_]
     shared: bool
     seed_hash: np.uint64
@@ -560,9 +578,10 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         r2, cos_r2 = np.empty(pairs), np.empty(pairs)
         leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
-        mode, lo, hi = tracer.screen
+        mode, lo, hi, own_box = tracer.screen
         n_legs = kernels.next_event_pairs(
-            points, normal, n_hits, rx, tracer.tested[min(bounce, 1)], mode, lo, hi, shift, DEFAULT_EPS_M,
+            points, normal, surface, n_hits, rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, shift,
+            DEFAULT_EPS_M,
             state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
         )
         blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])

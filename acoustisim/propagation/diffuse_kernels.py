@@ -210,13 +210,15 @@ def scatter_hits(
 
 
 @njit(cache=True, nogil=True)
-def _near(px: float, py: float, pz: float, qx: float, qy: float, qz: float, lo: NDArray[np.float64],
+def _near(px: float, py: float, pz: float, own: int, qx: float, qy: float, qz: float, lo: NDArray[np.float64],
           hi: NDArray[np.float64]) -> bool:
     """Whether the segment p -> q meets the union box lo[0], hi[0] and then one of the boxes
-    lo[1:], hi[1:] (or the union alone when it is the only box): the slab test of
-    :class:`~acoustisim.propagation.diffuse.ObjectScreen`, in float64."""
+    lo[1:], hi[1:] other than row ``own`` (or the union alone when it is the only box): the
+    slab test of :class:`~acoustisim.propagation.diffuse.ObjectScreen`, in float64."""
     sx, sy, sz = qx - px, qy - py, qz - pz
     for b in range(lo.shape[0]):
+        if b == own:
+            continue
         enter, leave = 0.0, 1.0
         for k in range(3):
             s = sx if k == 0 else (sy if k == 1 else sz)
@@ -243,18 +245,21 @@ def _near(px: float, py: float, pz: float, qx: float, qy: float, qz: float, lo: 
 
 
 @njit(cache=True, nogil=True)
-def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], end: NDArray[np.float64],
-                lo: NDArray[np.float64], hi: NDArray[np.float64], out: NDArray[np.bool_]) -> None:
-    """:func:`_near` of the segments from the points (n,) x 3 to ``end`` (3,), into ``out`` (n,)."""
+def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], own: NDArray[np.int64],
+                end: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64],
+                out: NDArray[np.bool_]) -> None:
+    """:func:`_near` of the segments from the points (n,) x 3 (each skipping box ``own`` (n,))
+    to ``end`` (3,), into ``out`` (n,)."""
     for i in range(x.size):
-        out[i] = _near(x[i], y[i], z[i], end[0], end[1], end[2], lo, hi)
+        out[i] = _near(x[i], y[i], z[i], own[i], end[0], end[1], end[2], lo, hi)
 
 
 @njit(cache=True, nogil=True)
 def next_event_pairs(
-    points: NDArray[np.float64], normal: NDArray[np.float64], h: int, receivers: NDArray[np.float64],
-    tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64], hi: NDArray[np.float64],
-    shift: NDArray[np.float64], eps: float, state: NDArray[np.int8],
+    points: NDArray[np.float64], normal: NDArray[np.float64], surface: NDArray[np.int64], h: int,
+    receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
+    hi: NDArray[np.float64], own_box: NDArray[np.int64], shift: NDArray[np.float64], eps: float,
+    state: NDArray[np.int8],
     r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
 ) -> int:
@@ -264,6 +269,9 @@ def next_event_pairs(
     ----------
     points, normal : ndarray, shape (3, >= h)
         Scattering points (m) and unit normals; the first ``h`` are used.
+    surface : ndarray of int64, shape (>= h,)
+        The surface of each point: its box ``own_box[surface]`` (a convex object's) is skipped
+        by the screen (a leg towards a receiver in front of the face cannot re-enter it).
     receivers : ndarray, shape (n_rx, 3)
     tested : ndarray of bool, shape (n_rx,)
         Receivers whose legs are tested for occlusion.
@@ -306,7 +314,7 @@ def next_event_pairs(
             state[pair] = 1
             if not tested[j] or screen == 0 or not length > 2.0 * eps:
                 continue
-            if screen == 1 and not _near(px, py, pz, qx, qy, qz, lo, hi):
+            if screen == 1 and not _near(px, py, pz, own_box[surface[i]], qx, qy, qz, lo, hi):
                 continue
             state[pair] = 2
             inverse = 1.0 / length
