@@ -2,7 +2,9 @@
 
 For each sharp edge (:mod:`acoustisim.propagation.edge_extraction`) and each receiver, the
 edge is discretised about its least-time point (:mod:`acoustisim.propagation.btm`) and every
-element visible from the transmitter and from the receiver becomes one ``PATH_DTYPE`` row:
+element whose centre is visible from the transmitter and from the receiver becomes two
+``PATH_DTYPE`` rows, at its two Gauss points (``config.edge_adaptive``, the default), or one
+row (the fine discretisation):
 ``kind = EDGE``, ``order = 1``, delay ``(m + l) / c``, ``geometric_gain`` the element's
 integral of ``-(nu / 4 pi) beta / (m l) dz`` (signed), so that the sum of the rows of one edge
 and receiver is its band-limited impulse response relative to the source's pressure at 1 m.
@@ -13,9 +15,18 @@ pressure-release materials (and ``fixed`` ones with a negative coefficient) diff
 pressure-release wedges; every other material, the ``fluid`` ones (steel, PVC, concrete)
 included, as a rigid wedge, the BTM solution existing for the two ideal conditions only.
 
-Discretisation: neighbouring elements differ in path length by ``c / (16 f0)`` (a delay of
-1/(16 f0): 22.5 degrees of phase at 2 f0, the top of the pulse's band, well under the quarter
-period the integral needs) and are at most ``config.edge_segment_m`` long.
+Discretisation: the fine step between neighbouring element boundaries is a delay of 1/(16 f0)
+(22.5 degrees of phase at 2 f0, the top of the pulse's band), elements at most
+``config.edge_segment_m`` long. The graded discretisation (default) keeps that step near each
+branch's onset (refined geometrically down to 1/128 step) and ends, and doubles it every
+:data:`GRADING` elements away from them up to 2^:data:`COARSENING_LEVELS` steps (1/4 period:
+rows every 125 ns on average, above the Nyquist rate of the pulse's band, so its aliases stay
+out of it); the length cap grows by :data:`CAP_GROWTH` times the distance from the apex. Each
+element is two impulses at its Gauss points, a quadrature of the band-limited response exact
+to third order in the phase across an element. Measured against a 4x finer uniform
+reference, the band-limited echo differs by -68 dB (free-edge prism) and -52 dB (thesis
+tank, the fine discretisation's own figure) of the strongest edge echo per channel, with about
+half the rows of the fine discretisation.
 
 Edges left out, each for a physical reason:
 
@@ -39,7 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.btm import discretise_edges, element_gains, gauss_points
+from acoustisim.propagation.btm import EdgeElements, discretise_edges, element_gains, gauss_points
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
@@ -156,6 +167,25 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
         )
     except ValueError as error:
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
+    # visibility of each element's centre from the transmitter and from its receiver, one batch
+    # (before the gains: hidden elements cost no quadrature)
+    e = pair_edge[elements.pair]
+    centres = edges.start_m[e] + elements.z_mid_m[:, None] * edges.direction[e]
+    half = 0.5 * edges.wedge_angle_rad
+    bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
+    probe = centres + VISIBILITY_OFFSET_M * bisector[e]
+    receivers = rx[pair_rx[elements.pair]]
+    n = probe.shape[0]
+    # a receiver at the transmitter (the centre transducer) has the same leg: tested once
+    own_leg = np.flatnonzero(~np.all(rx == tx, axis=1)[pair_rx[elements.pair]])
+    blocked = context.raycaster.occluded(
+        np.concatenate([probe, probe[own_leg]]), np.concatenate([np.broadcast_to(tx, (n, 3)), receivers[own_leg]])
+    )
+    visible = ~blocked[:n]
+    visible[own_leg] &= ~blocked[n:]
+    elements = EdgeElements(elements.pair[visible], elements.z_start_m[visible], elements.z_end_m[visible],
+                            elements.path_length_m[visible])
+
     args = (edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
     if config.edge_adaptive:
         # two impulses per element, at its Gauss points (see element_gains)
@@ -170,31 +200,19 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
         return empty_paths_array(0)
     keep = np.abs(gains) > ELEMENT_FLOOR * np.max(np.abs(gains))
     pair, gains, path_length, z_point = pair[keep], gains[keep], path_length[keep], z_point[keep]
+    if pair.size == 0:
+        return empty_paths_array(0)
     e = pair_edge[pair]
     points = edges.start_m[e] + z_point[:, None] * edges.direction[e]
-
-    # visibility of each element from the transmitter and from its receiver, one batch
-    half = 0.5 * edges.wedge_angle_rad
-    bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
-    probe = points + VISIBILITY_OFFSET_M * bisector[e]
     receivers = rx[pair_rx[pair]]
-    n = points.shape[0]
-    # a receiver at the transmitter (the centre transducer) has the same leg: tested once
-    own_leg = np.flatnonzero(~np.all(rx == tx, axis=1)[pair_rx[pair]])
-    blocked = context.raycaster.occluded(
-        np.concatenate([probe, probe[own_leg]]), np.concatenate([np.broadcast_to(tx, (n, 3)), receivers[own_leg]])
-    )
-    visible = ~blocked[:n]
-    visible[own_leg] &= ~blocked[n:]
-    pair, gains, path_length, e, points, receivers = (
-        pair[visible], gains[visible], path_length[visible], e[visible], points[visible], receivers[visible]
-    )
     channel = pair_rx[pair]
 
     rows = empty_paths_array(points.shape[0])
+    # ids numbered densely in (chain, channel) order: a rank through a table, no sort
     chain_key = edges.chain[e] * n_rx + channel
-    _, group = np.unique(chain_key, return_inverse=True)
-    rows["path_id"] = context.first_path_id + group.reshape(-1)
+    present = np.zeros(int(chain_key.max()) + 1, dtype=np.int64)
+    present[chain_key] = 1
+    rows["path_id"] = context.first_path_id + (np.cumsum(present) - 1)[chain_key]
     rows["channel"] = channel
     rows["kind"] = int(PathKind.EDGE)
     rows["order"] = 1
@@ -203,8 +221,8 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     rows["phase_rad"] = 0.0
     leg1 = points - tx
     leg2 = receivers - points
-    rows["departure_dir"] = leg1 / np.linalg.norm(leg1, axis=1, keepdims=True)
-    rows["arrival_dir"] = leg2 / np.linalg.norm(leg2, axis=1, keepdims=True)
+    rows["departure_dir"] = leg1 / np.sqrt(np.einsum("ij,ij->i", leg1, leg1))[:, None]
+    rows["arrival_dir"] = leg2 / np.sqrt(np.einsum("ij,ij->i", leg2, leg2))[:, None]
     rows["object_ids"][:, 0] = edges.surface[e]
     rows["points_m"][:, 0, :] = points
     return rows

@@ -99,6 +99,20 @@ class Paths:
         rows.setflags(write=False)
         object.__setattr__(self, "rows", rows)
 
+    @classmethod
+    def adopt(cls, rows: NDArray[Any], surface_names: tuple[str, ...] = (), centre_frequency_hz: float = 500e3,
+              sound_speed_m_s: float = 1482.38) -> "Paths":
+        """Paths owning ``rows`` without a copy: for a freshly built PATH_DTYPE array that the
+        caller hands over (it is made read-only; keep no writable reference to it)."""
+        if rows.dtype != PATH_DTYPE or rows.base is not None or not rows.flags.c_contiguous:
+            return cls(rows, surface_names, centre_frequency_hz, sound_speed_m_s)
+        rows.setflags(write=False)
+        paths = object.__new__(cls)
+        for name, value in (("rows", rows), ("surface_names", surface_names),
+                            ("centre_frequency_hz", centre_frequency_hz), ("sound_speed_m_s", sound_speed_m_s)):
+            object.__setattr__(paths, name, value)
+        return paths
+
     def __len__(self) -> int:
         return int(self.rows.size)
 
