@@ -141,7 +141,7 @@ def main() -> int:
         origin = f"{rows.size} path rows from {args.rows}"
     else:
         paths = solve(scene, sonar)
-        rows = rows
+        rows = paths.rows
         origin = f"{len(paths)} path rows ({paths.arrivals().size} arrivals), solve {time.perf_counter() - start:.2f} s"
         if args.save_rows:
             np.save(args.save_rows, rows)
