@@ -277,7 +277,8 @@ class PathSynthesiser:
         keep = int(math.ceil(self.grid.n_samples / self.grid.decimation)) + 1
         fs_dec = self.grid.sample_rate_hz / self.grid.decimation
         record = np.zeros((3, m_dec))
-        columns = {name: rows[name] for name in ROW_COLUMNS}  # strided views, no copies
+        # Strided views, no copies (a copy only for non-native byte order, which numba rejects).
+        columns = {name: rows[name].astype(rows[name].dtype.newbyteorder("="), copy=False) for name in ROW_COLUMNS}
         if rows.size == 0:
             return record
         plans = self.plans
