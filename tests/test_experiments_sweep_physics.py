@@ -107,3 +107,45 @@ def test_measure_position_reports_bias_parts_and_the_true_noise_bound() -> None:
     detector = np.nanmean(out["detectors"]["matched"]["bound_range_m"])
     assert 0 < out["noise_bound_range_m"] < 1.1 * detector
     assert out["noise_bound_bearing_deg"] > 0 and len(out["noise_snr_db"]) == 3
+    # Counting the reverberation as interference can only raise the bound (1 % for the Welch estimate).
+    assert out["reverb_bound_range_m"] >= 0.99 * out["noise_bound_range_m"]
+
+
+def test_calibrated_threshold_error_grows_with_range() -> None:
+    # The seed's threshold detector: a preset level and an offset calibrated at 1 m. At 2.2 m the
+    # edge's echo is ~6 dB weaker (r^-3/2 each way), so it reaches the level later in its rise:
+    # the range error grows by a few tenths of a millimetre (measured +0.4 mm at 2 m and +0.7 mm at
+    # 2.5 m with 50 pings), while its noise jitter is ~0.01 mm.
+    from acoustisim.experiments.point_target import calibrate_threshold
+
+    cal = calibrate_threshold(1.0, 2.0, n_pings=10, seed=2)
+    assert cal["amplitude_v"] > 5 * cal["level_v"] > 0
+    errors = {}
+    for range_m in (1.0, 2.2):
+        out = measure_position(Trial(0, 9, (("range_m", range_m), ("bearing_deg", 2.0), ("n_pings", 10),
+                                            ("repeats", 1), ("detectors", ("threshold",)),
+                                            ("threshold_level_v", cal["level_v"]),
+                                            ("threshold_amplitude_v", cal["amplitude_v"]))))
+        errors[range_m] = out["detectors"]["threshold"]["range_error_m"][0]
+    assert abs(errors[1.0]) < 0.2e-3  # the edge's echo is not the template's shape: a residual of ~0.1 mm
+    assert 0.2e-3 < errors[2.2] - errors[1.0] < 2e-3
+
+
+def test_echo_crlb_is_the_template_bound_in_white_noise_and_scales_with_the_noise_psd() -> None:
+    # Independent method: binsonar's bound 1 / (2 pi beta sqrt(2E/N0)) from the template's RMS
+    # bandwidth and sum(s^2) / sigma^2, for a Gaussian pulse in white noise of known variance.
+    from acoustisim.experiments.point_target import echo_tof_crlb_s
+    from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
+
+    fs, n, sigma = 20e6, 1 << 16, 1e-3
+    t = (np.arange(n) - n / 2) / fs
+    pulse = 0.01 * np.exp(-((t / 2.5e-6) ** 2)) * np.cos(2 * np.pi * 500e3 * t)
+    noise = np.random.default_rng(1).normal(0.0, sigma, (1, n))
+    expected = tof_crlb_s(np.sum(pulse**2) / sigma**2, rms_bandwidth_hz(pulse, fs))
+    std, snr_db = echo_tof_crlb_s(pulse[np.newaxis], noise, fs)
+    # Welch over 128 segments: the in-band PSD estimate is good to ~1 %; 3 % margin.
+    assert std[0] == pytest.approx(float(expected), rel=0.03)
+    assert snr_db[0] == pytest.approx(10 * np.log10(np.sum(pulse**2) / sigma**2), abs=0.15)
+    # Four times the noise power: twice the bound.
+    std4, _ = echo_tof_crlb_s(pulse[np.newaxis], 2.0 * noise, fs)
+    assert std4[0] == pytest.approx(2.0 * std[0], rel=1e-9)

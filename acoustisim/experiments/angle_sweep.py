@@ -11,10 +11,12 @@ NAME = "angle-sweep"
 SUMMARY = "edge target, bearing -12..12 deg at a fixed range, threshold vs matched filter (seed fig. 4-14)"
 DEFAULT_REPEATS = 4
 DEFAULT_PINGS = 50
-DEFAULT_RANGE_M = 1.0
-"""Fixed range (m): the head on the tank's centre line is 1.5 m from both side walls, whose
-normal-incidence echoes would fall inside the +/-0.2 m gate at 1.3-1.7 m (the seed does not give
-its range; it reports the target detected to +/-12 deg, so its walls were outside its window)."""
+DEFAULT_RANGE_M = 2.0
+"""Fixed range (m). The head on the tank's centre line is 1.5 m from both side walls, whose
+normal-incidence echoes fall inside the +/-0.2 m gate at 1.3-1.7 m (the seed does not give its
+range; it reports the target detected to +/-12 deg, so its walls were outside its window). At
+2 m the side receivers see the edge within 1.9 deg of the transmitter's angle (3.7 deg at 1 m,
+where the far receiver reaches its 500 kHz null, 11.1 deg, by a bearing of 7.4 deg)."""
 
 
 def add_arguments(parser: Any) -> None:
@@ -42,7 +44,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
         raise InputError(f"angle sweep: --range must be in [0.05, 8] m, got {range_m}")
     return run_sweep(
         config, variable="bearing_deg", values=frange(start, stop, step), fixed={"range_m": range_m},
-        default_repeats=DEFAULT_REPEATS, default_pings=DEFAULT_PINGS,
+        default_repeats=DEFAULT_REPEATS, default_pings=DEFAULT_PINGS, calibration_at=(range_m, 0.0),
         title=f"Angle sweep at {range_m:g} m: error vs bearing (cf. seed fig. 4-14)", figure_name="angle_sweep.png",
         seed_note=("Seed (fig. 4-14): errors grow with the angle; matched filter within 0.2 deg, threshold within "
                    "0.6 deg, and at large angles the threshold detector loses the target; threshold 0.007 s and "

@@ -11,6 +11,10 @@ NAME = "range-sweep"
 SUMMARY = "edge target, range 0.1-2.5 m at a fixed bearing, threshold vs matched filter (seed fig. 4-13)"
 DEFAULT_REPEATS = 4
 DEFAULT_PINGS = 50
+THRESHOLD_CALIBRATION_RANGE_M = 0.7
+"""Where the threshold detector's level and offset are calibrated (m): the shortest range at which
+the side receivers see the edge within 8 deg of their axes (d = 65 mm), well inside the pistons'
+500 kHz first null (11 deg), so the echo there has the template's shape."""
 
 
 def add_arguments(parser: Any) -> None:
@@ -36,6 +40,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     return run_sweep(
         config, variable="range_m", values=frange(start, stop, step), fixed={"bearing_deg": bearing},
         default_repeats=DEFAULT_REPEATS, default_pings=DEFAULT_PINGS,
+        calibration_at=(THRESHOLD_CALIBRATION_RANGE_M, bearing),
         title=f"Range sweep at {bearing:g} deg: error vs range (cf. seed fig. 4-13)", figure_name="range_sweep.png",
         seed_note=("Seed (fig. 4-13): errors of both detectors grow with range; matched filter within 1 cm, "
                    "threshold within 8 cm; threshold 0.008 s and matched filter 0.866 s per position."),
