@@ -89,26 +89,50 @@ def test_per_leg_screen_skips_only_clear_legs(tank):
     assert np.array_equal(screen.near(points), np.any([screen.near(points, j) for j in range(3)], axis=0))
 
 
-def test_receptions_are_exactly_the_clear_facing_legs(tank):
-    # Brute force over every first-bounce event and receiver: the receiver in front of the
-    # face (normal from re-intersecting the departure ray) and the leg clear by Embree (no
-    # screen). The tracer (screen per leg, convex objects' own boxes skipped, the centre
-    # transducer's leg not tested) must emit exactly those pairs.
-    events = trace_diffuse(tank, SolverConfig(diffuse_rays=20_000, seed=9), threads=2)
+def _brute_force_pairs(context, events):
+    """Every (first-bounce event, receiver) with the receiver in front of the face (normal from
+    re-intersecting the departure ray) and the leg clear by Embree (no screen)."""
     points = events.points_m
-    hits = tank.raycaster.intersect(np.broadcast_to(tank.transmitter_m, points.shape), events.departure_dir)
+    hits = context.raycaster.intersect(np.broadcast_to(context.transmitter_m, points.shape), events.departure_dir)
     expected = set()
-    for j, receiver in enumerate(tank.receivers_m):
+    for j, receiver in enumerate(context.receivers_m):
         facing = np.einsum("ij,ij->i", receiver - points, hits.normal) > 0
-        clear = ~tank.raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
+        clear = ~context.raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
         expected |= {(int(e), j) for e in np.flatnonzero(facing & clear)}
+    return expected
+
+
+def test_receptions_are_exactly_the_clear_facing_legs(tank):
+    # The tracer (screen per leg, convex objects' own boxes skipped, the centre transducer's
+    # leg not tested) must emit exactly the pairs of the brute force.
+    events = trace_diffuse(tank, SolverConfig(diffuse_rays=20_000, seed=9), threads=2)
     emitted = set(zip(events.event.tolist(), events.channel.tolist()))
     assert len(emitted) == events.event.size
+    expected = _brute_force_pairs(tank, events)
     assert emitted == expected
     # both screens matter here: points on the convex prism and posts, and blocked legs
     on_object = events.surface >= len(tank.scene.boundaries)
     assert on_object.mean() > 0.05
-    assert len(expected) < 3 * points.shape[0] - 1000
+    assert len(expected) < 3 * events.points_m.shape[0] - 1000
+
+
+def test_receptions_with_a_receiver_outside_the_water_test_every_leg(tank):
+    # A receiver outside the tank: the boundaries can block its legs, so the screen is off
+    # and every leg is tested by Embree; the result is still exactly the brute force's.
+    from dataclasses import replace
+
+    receivers = tank.receivers_m.copy()
+    receivers[0] = (1.0, -0.5, 0.5)  # behind the y = 0 wall
+    context = replace(tank, receivers_m=receivers)
+    events = trace_diffuse(context, SolverConfig(diffuse_rays=5_000, seed=10), threads=2)
+    emitted = set(zip(events.event.tolist(), events.channel.tolist()))
+    assert emitted == _brute_force_pairs(context, events)
+    assert ObjectScreen.create(context.scene, receivers).kernel_arguments()[0] == 2  # every leg tested
+    # nothing in the water hears it through the wall: the legs from object faces turned
+    # towards it (prism, posts, pipe) are all blocked, the boundaries face away from it
+    assert not np.any(events.channel == 0) and np.any(events.channel == 2)
+    points = events.points_m[events.surface >= len(tank.scene.boundaries)]
+    assert tank.raycaster.occluded(points, np.broadcast_to(receivers[0], points.shape)).all()
 
 
 def test_lobe_sampling_density_is_exact():
