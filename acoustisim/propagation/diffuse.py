@@ -22,13 +22,15 @@ of the position quantised to :data:`SPECKLE_CELL_M` and of ``config.seed``, so t
 same for every receiver and every ping. |X| sqrt(...) is the row's ``geometric_gain`` and
 arg X its ``phase_rad``; directivities and absorption come from the common columns. A row is
 emitted when the receiver is in front of the scattering face and the leg hit -> receiver is
-not occluded (one batched Embree ``occluded`` for the legs that may cross an object: the
-tank's boundaries enclose a convex box and cannot block a leg, so legs missing every object's
-bounding box are clear without a query, see :class:`ObjectScreen`).
+not occluded (one batched Embree occlusion query for the legs that may cross an object: the
+tank's boundaries enclose a convex box and cannot block a leg, so a leg missing every object's
+bounding box, or only the box of the convex object it starts on, is clear without a query,
+see :class:`ObjectScreen`).
 
 The rays are traced in fixed chunks of :data:`CHUNK_RAYS`, each with its own random stream
-(seeded by the solver seed and the chunk index), on a small thread pool (Embree and numpy's
-large-array passes release the GIL): the rows are the same for any number of threads. An
+(seeded by the solver seed and the chunk index), on a small thread pool (Embree, the compiled
+per-hit loops of :mod:`~acoustisim.propagation.diffuse_kernels` and numpy's large-array passes
+release the GIL): the rows are the same for any number of threads. An
 approximate visibility mode (``visibility="centre"``, off by default) tests only the leg to
 the centre receiver and shares the answer with the side receivers: on the thesis tank at its
 default pose it changes the side channels' diffuse energy by 0.003 %, but over 12 random
