@@ -57,7 +57,7 @@ from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation import diffuse_kernels as kernels
-from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, PATH_DTYPE, empty_paths_array
+from acoustisim.propagation.paths import PathKind, PATH_DTYPE, empty_paths_array
 from acoustisim.propagation.ray_threads import resolve_threads, run_in_order
 from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
 
@@ -734,38 +734,6 @@ _PACK_ROWS = 1 << 15
 """Rows packed per task by :func:`diffuse_paths`."""
 
 
-def _pack_rows(rows: NDArray[Any], events: DiffuseEvents, a: int, b: int, first_path_id: int) -> None:
-    """Write receptions ``a:b`` of ``events`` into ``rows[a:b]`` (PATH_DTYPE)."""
-    rows = rows[a:b]
-    e = events.event[a:b]
-    rows["path_id"] = first_path_id + e
-    rows["channel"] = events.channel[a:b]
-    rows["kind"] = int(PathKind.DIFFUSE)
-    order = events.bounce[e]
-    rows["order"] = order
-    rows["path_length_m"] = events.path_length_m[a:b]
-    rows["geometric_gain"] = events.gain[a:b]
-    rows["phase_rad"] = events.phase_rad[a:b]
-    rows["departure_dir"] = events.departure_dir[e]
-    rows["arrival_dir"] = events.arrival_dir[a:b]
-    # interaction chains: walk each event's parents back to the first hit
-    surfaces = rows["object_ids"]
-    points = rows["points_m"]
-    surfaces[...] = -1
-    points[...] = np.nan
-    current = e.copy()
-    level = order - 1
-    for _ in range(int(order.max()) if order.size else 0):  # a handful of bounces
-        alive = current >= 0
-        store = alive & (level < MAX_INTERACTIONS)
-        idx = np.flatnonzero(store)
-        event, slot = current[idx], level[idx]
-        surfaces[idx, slot] = events.surface[event]
-        points[idx, slot] = events.points_m[event]
-        current = np.where(alive, events.parent[np.maximum(current, 0)], -1)
-        level = level - 1
-
-
 def diffuse_paths(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
                   visibility: str = "exact") -> NDArray[Any]:
     """Diffuse reverberation rows for one sonar pose.
@@ -795,10 +763,16 @@ def diffuse_paths(context: SolveContext, config: SolverConfig, *, threads: int |
         return empty_paths_array(0)
     events = trace_diffuse(context, config, threads=threads, visibility=visibility)
     n = events.event.size
-    rows = np.zeros(n, dtype=PATH_DTYPE)
+    rows = np.empty(n, dtype=PATH_DTYPE)  # every byte is written by pack_rows
     first = int(context.first_path_id)
-    run_in_order(lambda a: _pack_rows(rows, events, a, min(a + _PACK_ROWS, n), first), range(0, n, _PACK_ROWS),
-                 resolve_threads(threads))
+    e = events
+
+    def pack(a: int) -> None:
+        kernels.pack_rows(rows, a, min(a + _PACK_ROWS, n), first, int(PathKind.DIFFUSE), e.event, e.channel,
+                          e.path_length_m, e.gain, e.phase_rad, e.arrival_dir, e.points_m, e.surface, e.parent,
+                          e.bounce, e.departure_dir)
+
+    run_in_order(pack, range(0, n, _PACK_ROWS), resolve_threads(threads))
     return rows
 
 

@@ -397,7 +397,71 @@ def write_receptions(
     return k
 
 
+@njit(cache=True, nogil=True)
+def pack_rows(
+    rows: NDArray, start: int, stop: int, first_path_id: int, kind: int, event: NDArray[np.int64],
+    channel: NDArray[np.int64], length: NDArray[np.float64], gain: NDArray[np.float64], phase: NDArray[np.float64],
+    arrival: NDArray[np.float64], points: NDArray[np.float64], surface: NDArray[np.int64],
+    parent: NDArray[np.int64], bounce: NDArray[np.int64], departure: NDArray[np.float64],
+) -> None:
+    """Write receptions ``start:stop`` as rows of the arrivals table (``paths.PATH_DTYPE``).
+
+    Every field of each row is written once, row after row (the rows are 243 bytes wide: a
+    numpy assignment per field would stream over all of them a dozen times): ``path_id`` =
+    ``first_path_id`` + event, channel, ``kind``, ``order`` = the event's bounce, the path
+    length, gain, phase, departure and arrival directions, and the interaction chain (the
+    surfaces and points of the event and its parents, first hit first, -1 / NaN padded); the
+    derived columns (delay, angles, directivities, absorption, amplitude) are zeroed, for
+    ``complete_columns``.
+
+    Parameters
+    ----------
+    rows : structured ndarray of PATH_DTYPE, shape (>= stop,)
+    event, channel, length, gain, phase : ndarray, shape (n,)
+    arrival : ndarray, shape (n, 3)
+        The receptions (:class:`~acoustisim.propagation.diffuse.DiffuseEvents`).
+    points, departure : ndarray, shape (m, 3)
+    surface, parent, bounce : ndarray of int64, shape (m,)
+        The scattering events.
+    """
+    slots = rows[0].object_ids.size if rows.size else 0
+    for i in range(start, stop):
+        row = rows[i]
+        e = event[i]
+        order = bounce[e]
+        row.path_id = first_path_id + e
+        row.channel = channel[i]
+        row.kind = kind
+        row.order = order
+        row.delay_s = 0.0
+        row.path_length_m = length[i]
+        row.geometric_gain = gain[i]
+        row.phase_rad = phase[i]
+        row.angle_tx_rad = 0.0
+        row.angle_rx_rad = 0.0
+        row.directivity_tx = 0.0
+        row.directivity_rx = 0.0
+        row.absorption_db = 0.0
+        row.amplitude = 0.0
+        for k in range(3):
+            row.departure_dir[k] = departure[e, k]
+            row.arrival_dir[k] = arrival[i, k]
+        for slot in range(slots):
+            row.object_ids[slot] = -1
+            for k in range(3):
+                row.points_m[slot, k] = np.nan
+        current, level = e, order - 1
+        while current >= 0 and level >= 0:  # walk back to the first hit
+            if level < slots:
+                row.object_ids[level] = surface[current]
+                for k in range(3):
+                    row.points_m[level, k] = points[current, k]
+            current = parent[current]
+            level -= 1
+
+
 __all__ = [
+    "pack_rows",
     "clear_blocked", "near_points", "next_event_pairs", "scatter_hits", "speckle_into", "splitmix64",
     "transmit_directions", "write_receptions",
 ]
