@@ -446,11 +446,19 @@ def discretise_edges(
     return EdgeElements(sub_pair, lo, hi, mean_path)
 
 
-def gauss_points(elements: EdgeElements) -> NDArray[np.float64]:
-    """The two Gauss-Legendre points of each element along its edge (m), shape (n, 2)."""
+def _gauss_rule(points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gauss-Legendre abscissae and weights on [-1, 1] (the module's two-point rule for 2)."""
+    if points == 2:
+        return _GAUSS_X, _GAUSS_W
+    return np.polynomial.legendre.leggauss(points)
+
+
+def gauss_points(elements: EdgeElements, points: int = 2) -> NDArray[np.float64]:
+    """The Gauss-Legendre points of each element along its edge (m), shape (n, points)."""
+    x, _ = _gauss_rule(points)
     centre = 0.5 * (elements.z_start_m + elements.z_end_m)
     half = 0.5 * (elements.z_end_m - elements.z_start_m)
-    return centre[:, None] + half[:, None] * _GAUSS_X[None, :]
+    return centre[:, None] + half[:, None] * x[None, :]
 
 
 def element_gains(
@@ -465,6 +473,7 @@ def element_gains(
     pressure_release: ArrayLike,
     *,
     per_point: bool = False,
+    points: int = 2,
 ) -> NDArray[np.float64]:
     """Integral of the BTM integrand over each element (1/m, relative to 1 m).
 
@@ -479,15 +488,18 @@ def element_gains(
         condition.
 
     per_point : bool, optional
-        False (default): one gain per element. True: the element's gain split between its two
+        False (default): one gain per element. True: the element's gain split between its
         Gauss points (:func:`gauss_points`), so that an element becomes two impulses at those
         points' delays: a quadrature of the band-limited response exact to third order in the
         phase across the element, where one impulse per element is exact to first order.
+    points : int, optional
+        Gauss-Legendre points per element (2 by default; n points integrate polynomials of
+        degree 2n - 1 exactly).
 
     Returns
     -------
-    ndarray, shape (n,) or (n, 2)
-        Signed gains; with ``per_point``, the two points' gains (their sum is the element's).
+    ndarray, shape (n,) or (n, points)
+        Signed gains; with ``per_point``, the points' gains (their sum is the element's).
     """
     # per pair: the angular factors of the four terms and the apex model's constants
     nu_p, rs_p, ts_p, zs_p, rr_p, tr_p, zr_p = (
@@ -522,9 +534,10 @@ def element_gains(
     z0, z1 = elements.z_start_m, elements.z_end_m
     half_len = 0.5 * (z1 - z0)
     centre = 0.5 * (z0 + z1)
-    exact_part = np.zeros((_GAUSS_X.size, z0.size))  # w_g beta / (m l) at the Gauss points
-    apex_part = np.zeros((_GAUSS_X.size, z0.size))  # w_g (apex model) at the Gauss points
-    for g, (x, w) in enumerate(zip(_GAUSS_X, _GAUSS_W)):  # the two Gauss points
+    gauss_x, gauss_w = _gauss_rule(points)
+    exact_part = np.zeros((gauss_x.size, z0.size))  # w_g beta / (m l) at the Gauss points
+    apex_part = np.zeros((gauss_x.size, z0.size))  # w_g (apex model) at the Gauss points
+    for g, (x, w) in enumerate(zip(gauss_x, gauss_w)):  # the Gauss points
         z = centre + x * half_len
         a, b = z - zs, z - zr
         ml = np.hypot(rs, a) * np.hypot(rr, b)
@@ -555,7 +568,7 @@ def element_gains(
     # each Gauss point: its share of the quadrature of the exact integrand, plus half of the
     # apex model's correction (exact integral minus its own quadrature): the model is peaked
     # only where elements are short, so the split barely moves weight in delay
-    correction = 0.5 * (model_integral - np.sum(apex_part, axis=0) * half_len)
+    correction = (model_integral - np.sum(apex_part, axis=0) * half_len) / gauss_x.size
     return (scale * (exact_part * half_len + correction)).T
 
 

@@ -72,6 +72,9 @@ the apex (``config.edge_segment_m`` at the apex)."""
 ONSET_NODES = 7
 """Graded discretisation: nodes at 1/128, 1/64, ..., 1/2 of a step after each branch's start."""
 
+GAUSS_POINTS = 2
+"""Graded discretisation: impulses (Gauss-Legendre points) per element."""
+
 ELEMENT_FLOOR = 1e-6
 """Elements weaker than this fraction of the strongest element are dropped."""
 
@@ -189,10 +192,11 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     args = (edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
     if config.edge_adaptive:
         # two impulses per element, at its Gauss points (see element_gains)
-        gains = element_gains(elements, *args, per_point=True).reshape(-1)
-        pair = np.repeat(elements.pair, 2)
-        z_point = gauss_points(elements).reshape(-1)
-        path_length = np.hypot(rs[pair], z_point - zs[pair]) + np.hypot(r_r[pair], z_point - z_r[pair])
+        gains2 = element_gains(elements, *args, per_point=True, points=GAUSS_POINTS)
+        pair2 = np.broadcast_to(elements.pair[:, None], gains2.shape)
+        z2 = gauss_points(elements, GAUSS_POINTS)
+        path2 = np.hypot(rs[pair2], z2 - zs[pair2]) + np.hypot(r_r[pair2], z2 - z_r[pair2])
+        gains, pair, z_point, path_length = (v.reshape(-1) for v in (gains2, pair2, z2, path2))
     else:
         gains = element_gains(elements, *args)
         pair, z_point, path_length = elements.pair, elements.z_mid_m, elements.path_length_m
