@@ -556,13 +556,13 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         if bounce:
             directions32 = _float32_rows(directions, None, m)
         triangle = raycaster.first_hit_triangles32(_float32_rows(origins, shift, m), directions32)
-        points, normal, hit_directions, hit_departure = (np.empty((3, m)) for _ in range(4))
+        points, normal, hit_departure = (np.empty((3, m)) for _ in range(3))
         hit_weight, amplitude, hit_travelled, mu, phase = (np.empty(m) for _ in range(5))
         hit_parent, surface = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
         n_hits = kernels.scatter_hits(
             triangle, directions, origins, weight, travelled, parent, departure, tracer.mu, tracer.normal,
-            tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash, points, normal, hit_directions,
-            hit_departure, hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
+            tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash, points, normal, hit_departure,
+            hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
         )
         if n_hits == 0:
             break
@@ -712,13 +712,9 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
 
     def place(index: int) -> None:
         """Write chunk ``index``'s events and receptions at their final place."""
-        chunk, first, a, b = chunks[index], int(event_start[index]), event_start[index], event_start[index + 1]
-        for k in range(3):  # the three coordinates
-            points[a:b, k] = chunk.points[k]
-            departure[a:b, k] = chunk.departure[k]
-        surface[a:b] = chunk.surface
-        np.add(chunk.parent, np.where(chunk.parent >= 0, first, 0), out=parent[a:b])
-        bounce[a:b] = chunk.bounce
+        chunk, first = chunks[index], int(event_start[index])
+        kernels.place_events(chunk.points, chunk.departure, chunk.surface, chunk.parent, chunk.bounce, first, points,
+                             departure, surface, parent, bounce)
         start = int(reception_start[index])
         for p in chunk.pending:  # the bounces
             start = kernels.write_receptions(

@@ -138,7 +138,7 @@ def scatter_hits(
     weight: NDArray[np.float64], travelled: NDArray[np.float64], parent: NDArray[np.int64],
     departure: NDArray[np.float64], tri_mu: NDArray[np.float64], tri_normal: NDArray[np.float64],
     tri_offset: NDArray[np.float64], tri_surface: NDArray[np.int64], cell: float, seed_hash: np.uint64,
-    points: NDArray[np.float64], normal: NDArray[np.float64], out_directions: NDArray[np.float64],
+    points: NDArray[np.float64], normal: NDArray[np.float64],
     out_departure: NDArray[np.float64], out_weight: NDArray[np.float64], amplitude: NDArray[np.float64],
     out_travelled: NDArray[np.float64], out_parent: NDArray[np.int64], surface: NDArray[np.int64],
     mu: NDArray[np.float64], phase: NDArray[np.float64],
@@ -163,8 +163,8 @@ def scatter_hits(
     cell, seed_hash
         As in :func:`speckle_into`.
     points ... phase : outputs, first axis (or second for the (3, m) ones) of length >= m
-        The kept rays' hit points, normals, directions, departures, weights,
-        |X| sqrt(mu weight), path lengths to the hit, parents, surfaces, mu and speckle phase.
+        The kept rays' hit points, normals, departures, weights, |X| sqrt(mu weight), path
+        lengths to the hit, parents, surfaces, mu and speckle phase.
 
     Returns
     -------
@@ -193,7 +193,6 @@ def scatter_hits(
         px, py, pz = ox + distance * dx, oy + distance * dy, oz + distance * dz
         points[0, h], points[1, h], points[2, h] = px, py, pz
         normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
-        out_directions[0, h], out_directions[1, h], out_directions[2, h] = dx, dy, dz
         out_departure[0, h], out_departure[1, h], out_departure[2, h] = (
             departure[0, i], departure[1, i], departure[2, i])
         w = weight[i]
@@ -359,6 +358,23 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
 
 
 @njit(cache=True, nogil=True)
+def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int64],
+                 parent: NDArray[np.int64], bounce: NDArray[np.int64], first: int, out_points: NDArray[np.float64],
+                 out_departure: NDArray[np.float64], out_surface: NDArray[np.int64], out_parent: NDArray[np.int64],
+                 out_bounce: NDArray[np.int64]) -> None:
+    """Copy one chunk's events (vectors as components (3, m), chunk-local parents) into the
+    tracer's output from row ``first`` on (vectors as rows (M, 3), global parents)."""
+    for i in range(surface.size):
+        row = first + i
+        for k in range(3):
+            out_points[row, k] = points[k, i]
+            out_departure[row, k] = departure[k, i]
+        out_surface[row] = surface[i]
+        out_parent[row] = parent[i] + first if parent[i] >= 0 else -1
+        out_bounce[row] = bounce[i]
+
+
+@njit(cache=True, nogil=True)
 def write_receptions(
     h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
     points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
@@ -462,6 +478,7 @@ def pack_rows(
 
 __all__ = [
     "pack_rows",
+    "place_events",
     "clear_blocked", "near_points", "next_event_pairs", "scatter_hits", "speckle_into", "splitmix64",
     "transmit_directions", "write_receptions",
 ]
