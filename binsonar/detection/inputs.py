@@ -94,8 +94,10 @@ class Signals:
 
 
 def _clipped_by_full_scale(waveforms: NDArray[np.float64], full_scale_v: float) -> NDArray[np.bool_]:
-    # A sample at (or beyond) the full scale, within a part in 1e9 for the int16 -> volts rounding.
-    return np.any(np.abs(waveforms) >= full_scale_v * (1.0 - 1e-9), axis=-1)
+    # A sample at (or beyond) the full scale, within a part in 1e9 for the int16 -> volts rounding:
+    # |x| >= L exactly when max(x) >= L or min(x) <= -L (two reductions, no record-sized temporaries).
+    limit = full_scale_v * (1.0 - 1e-9)
+    return (waveforms.max(axis=-1) >= limit) | (waveforms.min(axis=-1) <= -limit)
 
 
 def quantisation_noise_std_v(step_v: float) -> float:

@@ -178,12 +178,17 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     s = np.asarray(template.samples, dtype=float)
     m = s.size
     fs = float(sample_rate_hz)
-    # Centre frequency and RMS bandwidth about it (the template's power spectrum, finely sampled).
-    n_small = sfft.next_fast_len(max(8 * m, 4096), real=True)
-    power = np.abs(sfft.rfft(s, n_small)) ** 2
-    freqs = np.arange(power.size) * fs / n_small
-    centre = float((freqs * power).sum() / power.sum())
-    beta = float(np.sqrt(((freqs - centre) ** 2 * power).sum() / power.sum()))
+    half = m // 2
+    segment_fft = sfft.next_fast_len(2 * half + 2 * m - 1, real=True)
+    spectrum = sfft.rfft(s, segment_fft)
+    spectrum_power = np.abs(spectrum) ** 2
+    # Centre frequency and RMS bandwidth about it, from the template's power spectrum on the
+    # stretch's FFT grid (spacing fs / (3 m), ~30 kHz here): B is rounded to whole samples and
+    # the tone's frequency need only be close to the band's centre, so this grid is fine enough.
+    freqs = np.arange(spectrum_power.size) * fs / segment_fft
+    total = float(spectrum_power.sum())
+    centre = float((freqs * spectrum_power).sum() / total)
+    beta = float(np.sqrt(((freqs - centre) ** 2 * spectrum_power).sum() / total))
     block = int(np.clip(round(BLOCK_BANDWIDTH_FRACTION * fs / max(beta, 1e-12 * fs)), 1, max(1, m // 4)))
     # Windows of at least 2 blocks (an echo centred anywhere has a window whose middle is
     # within B / 2 of its centre) and covering 4 RMS durations of the template's energy.
@@ -198,11 +203,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     tone = np.stack([np.cos(phase), -np.sin(phase)], axis=1)
     taps = matched.analytic_template_conj
     reference = int(np.argmax(np.abs(taps))) - matched.analytic_offset
-    half = m // 2
-    segment_fft = sfft.next_fast_len(2 * half + 2 * m - 1, real=True)
-    spectrum = sfft.rfft(s, segment_fft)
-    spectrum_power = np.abs(spectrum) ** 2
-    tail = np.cumsum(spectrum_power[::-1])[::-1] / spectrum_power.sum()  # energy fraction at bins >= k
+    tail = np.cumsum(spectrum_power[::-1])[::-1] / total  # energy fraction at bins >= k
     k_hi = int(np.argmax(tail < _BAND_TAIL)) if np.any(tail < _BAND_TAIL) else spectrum.size
     k_hi = min(spectrum.size, k_hi + 2)
     weights = 2.0 * np.conj(spectrum[:k_hi])
