@@ -19,7 +19,8 @@ passes over temporary arrays, is compiled here:
    tracer's output at their final place (the chunks are counted first).
 
 Every loop runs in order over its inputs, so the output is deterministic; ``nogil=True`` lets
-the tracer's threads run them in parallel. ``cache=True`` stores the compiled code in
+the tracer's threads run them in parallel; ``error_model="numpy"`` drops the per-division
+zero checks (no divisor here can be 0: each is guarded by the test before it). ``cache=True`` stores the compiled code in
 ``__pycache__`` beside this file (or numba's per-user cache directory): the first call in a
 fresh checkout compiles for a few seconds, later processes load the cache.
 """
@@ -46,7 +47,7 @@ _LOW32 = np.uint64(0xFFFFFFFF)
 _TWO_PI = 2.0 * math.pi
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def splitmix64(x: np.uint64) -> np.uint64:
     """SplitMix64 finaliser of one uint64 (wrapping arithmetic)."""
     z = x + GOLDEN
@@ -55,7 +56,7 @@ def splitmix64(x: np.uint64) -> np.uint64:
     return z ^ (z >> _S31)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _speckle(x: float, y: float, z: float, cell: float, seed_hash: np.uint64) -> tuple[float, float]:
     """|X| and arg X of the speckle factor of the point (x, y, z) (m)."""
     kx = np.uint64(np.int64(math.floor(x / cell)))
@@ -69,7 +70,7 @@ def _speckle(x: float, y: float, z: float, cell: float, seed_hash: np.uint64) ->
     return math.sqrt(-math.log1p(-u1)), _TWO_PI * u2 - math.pi
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], cell: float,
                  seed_hash: np.uint64, magnitude: NDArray[np.float64], phase: NDArray[np.float64]) -> None:
     """Speckle magnitude and phase (n,) of the points (n,) x 3 (m), written into the outputs.
@@ -82,7 +83,7 @@ def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.f
         phase[i] = a
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def transmit_directions(
     u: NDArray[np.float64], cos_phi: NDArray[np.float64], sin_phi: NDArray[np.float64], n_uniform: int,
     guide: NDArray[np.int64], edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float,
@@ -132,7 +133,7 @@ def transmit_directions(
         solid_angle[i] = 1.0 / (uniform_density + lobe_count * lobe_pdf[cell])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def scatter_hits(
     triangle: NDArray[np.int32], directions: NDArray[np.float64], origins: NDArray[np.float64],
     weight: NDArray[np.float64], travelled: NDArray[np.float64], parent: NDArray[np.int64],
@@ -208,7 +209,7 @@ def scatter_hits(
     return h
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _near(px: float, py: float, pz: float, own: int, qx: float, qy: float, qz: float, lo: NDArray[np.float64],
           hi: NDArray[np.float64]) -> bool:
     """Whether the segment p -> q meets the union box lo[0], hi[0] and then one of the boxes
@@ -243,7 +244,7 @@ def _near(px: float, py: float, pz: float, own: int, qx: float, qy: float, qz: f
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64], own: NDArray[np.int64],
                 end: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64],
                 out: NDArray[np.bool_]) -> None:
@@ -253,7 +254,7 @@ def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.fl
         out[i] = _near(x[i], y[i], z[i], own[i], end[0], end[1], end[2], lo, hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def next_event_pairs(
     points: NDArray[np.float64], normal: NDArray[np.float64], surface: NDArray[np.int64], h: int,
     receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
@@ -328,7 +329,7 @@ def next_event_pairs(
     return n_legs
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked: NDArray[np.bool_], shared: bool,
                   n_rx: int, h: int) -> int:
     """Apply Embree's occlusion answers to the pair states; count the receptions.
@@ -357,7 +358,7 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
     return count
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int64],
                  parent: NDArray[np.int64], bounce: NDArray[np.int64], first: int, out_points: NDArray[np.float64],
                  out_departure: NDArray[np.float64], out_surface: NDArray[np.int64], out_parent: NDArray[np.int64],
@@ -374,7 +375,7 @@ def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], su
         out_bounce[row] = bounce[i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def write_receptions(
     h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
     points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
@@ -413,7 +414,7 @@ def write_receptions(
     return k
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def pack_rows(
     rows: NDArray, start: int, stop: int, first_path_id: int, kind: int, event: NDArray[np.int64],
     channel: NDArray[np.int64], length: NDArray[np.float64], gain: NDArray[np.float64], phase: NDArray[np.float64],
