@@ -149,3 +149,11 @@ def test_echo_crlb_is_the_template_bound_in_white_noise_and_scales_with_the_nois
     # Four times the noise power: twice the bound.
     std4, _ = echo_tof_crlb_s(pulse[np.newaxis], 2.0 * noise, fs)
     assert std4[0] == pytest.approx(2.0 * std[0], rel=1e-9)
+
+
+def test_chi2_exceedance_matches_the_two_degree_closed_form() -> None:
+    # chi2 with 2 degrees of freedom has survival exp(-x / 2): P(RMS of 2 samples > 1.5 sigma) = exp(-2.25).
+    from acoustisim.experiments.sweep import chi2_exceedance
+
+    assert chi2_exceedance(2, 2.25) == pytest.approx(math.exp(-2.25), rel=1e-12)
+    assert chi2_exceedance(8, 2.25) < chi2_exceedance(4, 2.25) < chi2_exceedance(2, 2.25)

@@ -9,7 +9,7 @@ from acoustisim.experiments.report import ExperimentReport
 
 NAME = "angle-sweep"
 SUMMARY = "edge target, bearing -12..12 deg at a fixed range, threshold vs matched filter (seed fig. 4-14)"
-DEFAULT_REPEATS = 4
+DEFAULT_REPEATS = 8
 DEFAULT_PINGS = 50
 DEFAULT_RANGE_M = 2.0
 """Fixed range (m). The head on the tank's centre line is 1.5 m from both side walls, whose

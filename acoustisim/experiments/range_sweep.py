@@ -9,7 +9,7 @@ from acoustisim.experiments.report import ExperimentReport
 
 NAME = "range-sweep"
 SUMMARY = "edge target, range 0.1-2.5 m at a fixed bearing, threshold vs matched filter (seed fig. 4-13)"
-DEFAULT_REPEATS = 4
+DEFAULT_REPEATS = 8
 DEFAULT_PINGS = 50
 THRESHOLD_CALIBRATION_RANGE_M = 0.7
 """Where the threshold detector's level and offset are calibrated (m): the shortest range at which

@@ -189,7 +189,8 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
                       f"1.5x the bound with the reverberation as Gaussian interference at "
                       f"{mf['positions_within_1_5_reverb_bound']}; RMS over "
                       f"{repeats} measurement(s) per position (with n measurements an efficient estimator's RMS "
-                      "exceeds 1.5x its bound at a position with probability P(chi2_n > 2.25 n): 6 % for n = 4)")
+                      "exceeds 1.5x its bound at a position with probability P(chi2_n > 2.25 n): "
+                      f"{chi2_exceedance(repeats, 2.25):.1%} for n = {repeats})")
     report.add_section(seed_note)
     if calibration:
         report.add_section(
@@ -207,6 +208,13 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
     report.add_section(markdown_table(header, rows))
     report.add_section(PHYSICS_NOTE)
     return report
+
+
+def chi2_exceedance(n: int, ratio_squared: float) -> float:
+    """P(chi2_n / n > ``ratio_squared``): the chance that the RMS of n Gaussian samples exceeds sqrt(ratio) sigma."""
+    from scipy.stats import chi2
+
+    return float(chi2.sf(ratio_squared * n, n))
 
 
 def frange(start: float, stop: float, step: float) -> list[float]:
