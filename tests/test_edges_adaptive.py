@@ -100,34 +100,63 @@ def band_limited(rows, t0, n, pulse, fs=20e6):
     return np.fft.irfft(spectrum, n)
 
 
-def test_band_limited_edge_echo_matches_a_four_times_finer_reference(monkeypatch):
-    """The prism's edge echo seen obliquely: graded rows against uniform rows at 1/64 period and
-    0.15 mm elements (sinc droop of their 1/64-period boxes 4e-4 at 500 kHz, -68 dB)."""
-    scene = builtin_scene("free-edge")
-    sonar = scene.sonar.with_pose((-1.0, 0.3, 0.2), yaw_deg=-10.0)
+@pytest.mark.parametrize(
+    "scene_name, pose, bound_db",
+    [
+        # The issue's bar for a coarser discretisation is -40 dB of the echo. Measured: the
+        # oblique prism -68 dB (the fine discretisation -75 dB); the thesis tank's prism and
+        # polygonal pipe rim -49 dB (fine: -52 dB). Bounds 13 and 4 dB above those figures.
+        ("free-edge", ((-1.0, 0.3, 0.2), -10.0), -55.0),
+        ("thesis-tank", None, -45.0),
+    ],
+)
+def test_band_limited_edge_echo_matches_a_four_times_finer_reference(monkeypatch, scene_name, pose, bound_db):
+    """Graded rows against uniform rows at 1/64 period and 0.15 mm elements (sinc droop of
+    their 1/64-period boxes 4e-4 at 500 kHz, -68 dB), per channel, relative to the channel's
+    strongest edge echo."""
+    scene = builtin_scene(scene_name)
+    sonar = scene.sonar if pose is None else scene.sonar.with_pose(*pose)
     context = SolveContext.build(scene, sonar, RayCaster.from_scene(scene))
     c = context.sound_speed_m_s
     graded_rows = edge_paths(context, SolverConfig())
     fine_rows = edge_paths(context, SolverConfig(edge_adaptive=False))
     monkeypatch.setattr(edges_module, "DELAY_STEPS_PER_PERIOD", 64)
     reference_rows = edge_paths(context, SolverConfig(edge_adaptive=False, edge_segment_m=1.5e-4))
-    errors = {}
-    for name, rows in (("graded", graded_rows), ("fine", fine_rows)):
-        for part in (rows, reference_rows):
-            part["delay_s"] = part["path_length_m"] / c
-        worst = 0.0
-        for channel in range(3):
-            ref = reference_rows[reference_rows["channel"] == channel]
-            got = rows[rows["channel"] == channel]
-            t0 = ref["delay_s"].min() - 20e-6
-            n = 1 << int(np.ceil(np.log2((ref["delay_s"].max() - t0 + 30e-6) * 20e6)))
-            y_ref = band_limited(ref, t0, n, sonar.pulse)
-            y = band_limited(got, t0, n, sonar.pulse)
-            worst = max(worst, np.abs(y - y_ref).max() / np.abs(y_ref).max())
-        errors[name] = 20 * np.log10(worst)
-    # The issue's bar for a coarser discretisation is -40 dB of the echo; the graded rows (half
-    # as many) measure -68 dB here, the fine ones -75 dB: hold -55 dB, and no worse than the
-    # fine discretisation's error plus 15 dB.
-    assert errors["graded"] < -55.0, errors
-    assert errors["graded"] < errors["fine"] + 15.0, errors
-    assert graded_rows.size < 0.6 * fine_rows.size
+    for part in (graded_rows, reference_rows):
+        part["delay_s"] = part["path_length_m"] / c
+    worst = 0.0
+    for channel in range(3):
+        ref = reference_rows[reference_rows["channel"] == channel]
+        got = graded_rows[graded_rows["channel"] == channel]
+        peak = error = 0.0
+        for path_id in np.unique(ref["path_id"]):
+            r, g = ref[ref["path_id"] == path_id], got[got["path_id"] == path_id]
+            t0 = r["delay_s"].min() - 20e-6
+            n = 1 << int(np.ceil(np.log2((r["delay_s"].max() - t0 + 30e-6) * 20e6)))
+            y_ref = band_limited(r, t0, n, sonar.pulse)
+            y = band_limited(g, t0, n, sonar.pulse)
+            peak, error = max(peak, np.abs(y_ref).max()), max(error, np.abs(y - y_ref).max())
+        worst = max(worst, error / peak)
+    assert 20 * np.log10(worst) < bound_db
+    assert graded_rows.size < 0.9 * fine_rows.size
+
+
+def test_chain_joints_are_open_and_single_edges_are_not():
+    """The thesis tank's pipe rim is one closed chain of segments: every pair of a segment whose
+    neighbours are diffracted too continues at both ends; the prism's vertical edges stand alone."""
+    scene = builtin_scene("thesis-tank")
+    context = SolveContext.build(scene, scene.sonar, RayCaster.from_scene(scene))
+    edges = edges_module.diffracting_edges(edges_module.sharp_edges(context.raycaster, scene), context)
+    n = len(edges)
+    pair_edge = np.repeat(np.arange(n), 3)
+    pair_rx = np.tile(np.arange(3), n)
+    included = np.ones((n, 3), dtype=bool)
+    open_start, open_end = edges_module._open_ends(edges, pair_edge, pair_rx, included)
+    names = np.asarray(scene.surface_names)[edges.surface[pair_edge]]
+    rim = names == "pipe-1"
+    assert rim.sum() > 100 and np.all(open_start[rim]) and np.all(open_end[rim])
+    assert not np.any(open_start[~rim]) and not np.any(open_end[~rim])
+    # a neighbour that is not diffracted for that receiver closes the joint
+    included[pair_edge[rim][0], :] = False
+    open_start, open_end = edges_module._open_ends(edges, pair_edge, pair_rx, included)
+    assert np.sum(~(open_start & open_end)[rim]) == 2 * 3

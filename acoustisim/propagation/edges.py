@@ -105,6 +105,47 @@ def diffracting_edges(edges: SharpEdges, context: SolveContext) -> SharpEdges:
     return edges.select(~integer_nu & ~embedded & (edges.length_m > 0.0))
 
 
+def _open_ends(
+    edges: SharpEdges, pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], included: NDArray[np.bool_]
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """For each (edge, receiver) pair, whether its edge continues past its start (its end) into
+    another edge of its chain whose pair with that receiver is also included: a joint of a
+    polygonal chain, where the summed response has no step.
+
+    Parameters
+    ----------
+    edges : SharpEdges
+        The diffracting edges, n of them.
+    pair_edge, pair_rx : ndarray of int64, shape (p,)
+        The pairs' edges and receivers.
+    included : ndarray of bool, shape (n, n_rx)
+        Which (edge, receiver) pairs are diffracted at all.
+
+    Returns
+    -------
+    open_start, open_end : ndarray of bool, shape (p,)
+    """
+    n = len(edges)
+    # endpoints [starts; ends], keyed by chain and position (shared vertices are bit-identical)
+    points = np.concatenate([edges.start_m, edges.end_m])
+    keys = np.concatenate([np.tile(edges.chain, 2)[:, None].astype(float), points], axis=1)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    order = np.argsort(inverse, kind="stable")
+    partner = np.full(2 * n, -1)
+    shared = counts[inverse[order]] == 2
+    # endpoints of a group of two are consecutive in ``order``: pair them up
+    first = order[shared][0::2]
+    second = order[shared][1::2]
+    partner[first], partner[second] = second % n, first % n
+    open_start = np.zeros(pair_edge.size, dtype=bool)
+    open_end = np.zeros(pair_edge.size, dtype=bool)
+    for out, side in ((open_start, 0), (open_end, 1)):
+        other = partner[side * n + pair_edge]
+        out[:] = (other >= 0) & included[np.maximum(other, 0), pair_rx]
+    return open_start, open_end
+
+
 def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | None = None) -> NDArray[Any]:
     """Edge-diffraction rows for one sonar pose.
 
@@ -159,6 +200,7 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     if pair_edge.size == 0:
         return empty_paths_array(0)
     rs, ts, zs = r_s[pair_edge], th_s[pair_edge], z_s[pair_edge]
+    open_start, open_end = _open_ends(edges, pair_edge, pair_rx, ok.reshape(n_edges, n_rx))
 
     step = c / (DELAY_STEPS_PER_PERIOD * context.centre_frequency_hz)
     try:
@@ -166,7 +208,7 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
             edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m, MAX_ELEMENTS,
             coarsening_levels=COARSENING_LEVELS if config.edge_adaptive else 0, grading=GRADING,
             cap_growth=CAP_GROWTH if config.edge_adaptive else 0.0,
-            onset_nodes=ONSET_NODES if config.edge_adaptive else 1,
+            onset_nodes=ONSET_NODES if config.edge_adaptive else 1, open_start=open_start, open_end=open_end,
         )
     except ValueError as error:
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
