@@ -13,11 +13,18 @@ range +/- ``GATE_HALF_WIDTH_M`` (blanking the main bang and the cross-talk); eac
 earliest echo on the left and right channels gives the path lengths L = c TOF and the seed's
 exact point solution (eqs. 4.30 and the corrected 4.31, ``binsonar.localization.point``).
 
-The bound: the matched filter's TOF standard deviation at its estimated SNR (the Cramer-Rao
-bound, ``Echo.tof_std_s``, the envelope bound 1 / (2 pi beta sqrt(2E/N0)) with beta the
-template's RMS bandwidth and 2E/N0 measured on the averaged ping) propagated through the
-localiser's linearised covariance (``seed_point_covariance``) to range and bearing. It bounds
-the noise's part of the error only.
+The bound (``noise_bound``): the Cramer-Rao bound at the measured SNR of the averaged ping,
+1 / (2 pi beta sqrt(2E/N0)) with beta the template's RMS bandwidth and 2E/N0 the matched
+filter's output SNR of the edge's noise-free echo in the ping's actual noise (the record minus
+the noise-free record), on the left and right channels, propagated through the localiser's
+linearised covariance (``seed_point_covariance``) to range and bearing. It bounds the noise's
+part of the error only. Kept alongside: the detector's own bound (``Echo.tof_std_s``, whose
+noise floor includes the frozen reverberation), the optimal bound of the received echo's
+spectrum in the noise's spectrum (``echo_tof_crlb_s``), and the bound with the diffuse
+reverberation counted as Gaussian interference.
+
+The threshold detector is the seed's: a preset level and an offset calibrated once per sweep
+(``calibrate_threshold``).
 
 The deterministic part: every repeat of a position has the same echo and only new noise, so
 the error splits into a bias, the same in every repeat, and a scatter. The bias is measured
