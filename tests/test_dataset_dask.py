@@ -135,3 +135,28 @@ def test_cli_local_cluster_one_and_two_workers_identical(reference: Path, tmp_pa
                                 capture_output=True, text=True, check=True)
         assert f'"workers": {n}' in result.stdout
         assert_same_samples(reference, out)
+
+
+def test_a_failing_task_on_a_worker_stops_the_run_naming_its_samples(client, tmp_path: Path) -> None:
+    """A task that fails on a worker (here: labels outside the vocabulary) is reported with
+    its samples, and nothing of its chunk is recorded complete."""
+    import dataclasses
+
+    from acoustisim.datasets.generate import _run_on_client, _Tally, open_or_create
+    from acoustisim.datasets.labels import vocabularies
+    from acoustisim.datasets.sampling import plan_samples
+
+    spec = loads_spec(SPEC)
+    vocab = vocabularies(spec)
+    store = open_or_create(spec, tmp_path / "fail.zarr", vocab)
+    samples = plan_samples(spec)
+    chunks = [samples[a:b] for a, b in store.chunks_to_do()][:1]
+    bad = dataclasses.replace(vocab, classes=("nothing",))
+
+    class Bar:
+        def update(self, n: int) -> None:
+            pass
+
+    with pytest.raises(RuntimeError, match=r"^task of samples 0-3 failed: RuntimeError: sample 0: ValueError"):
+        _run_on_client(client, spec, chunks, store.writer(), bad, _Tally(Bar()), 2)
+    assert not store.complete_mask().any()

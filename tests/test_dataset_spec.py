@@ -81,6 +81,7 @@ def test_example_spec_loads_and_round_trips_through_the_card() -> None:
         (('axis = "random"', 'axis = "diagonal"'), "objects[3].axis"),
         (("thickness_m = 0.01", 'thickness_m = 0.01\nmaterials = ["unobtainium"]'), "objects[4].materials"),
         (("seed = 3", "seed = 3\nseeds = 4"), "dataset.seeds"),  # typo: unknown key
+        (("seed = 3", "seed = 3\nsamples_per_chunk = 0"), "dataset.samples_per_chunk"),
     ],
 )
 def test_bad_specs_name_the_key(edit: tuple[str, str], key: str) -> None:

@@ -270,6 +270,7 @@ def test_cli_info_verify_and_bad_spec(dataset: tuple[object, Path], tmp_path: Pa
     assert main(["dataset", "info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["n_complete"] == 5 and info["status"] == "complete"
+    assert (info["samples_per_chunk"], info["layout_version"]) == (2, 2)
     assert main(["dataset", "verify", str(out), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["ok"] is True
     bad = tmp_path / "bad.toml"

@@ -49,6 +49,11 @@ from acoustisim.datasets.store import (
 )
 from acoustisim.errors import InputError
 
+GATHER_BATCH = 16
+"""Finished tasks whose (small) results the driver fetches in one go. The workers record
+completion in the store themselves: the results only feed the run's report."""
+
+
 @dataclass(frozen=True)
 class ChunkResult:
     """What a task returns: the chunk it wrote, its checksums and its costs.
@@ -133,6 +138,8 @@ class GenerateReport:
     task_cpu_s: float = 0.0
     driver_cpu_s: float = 0.0
     worker_busy_s: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+    task_cpu_list_s: tuple[float, ...] = ()
+    """Each task's CPU time (s), in the order the tasks were submitted."""
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -338,17 +345,20 @@ class _Tally:
         self.simulate_cpu_s = 0.0
         self.task_cpu_s = 0.0
         self.by_worker: dict[str, dict[str, float]] = {}
+        self.task_cpu: dict[int, float] = {}
 
-    def add(self, result: ChunkResult, worker: str) -> None:
+    def add(self, result: ChunkResult, worker: str, *, update_bar: bool = True) -> None:
         n = len(result.checksums)
         self.n_samples += n
         self.simulate_cpu_s += result.simulate_cpu_s
         self.task_cpu_s += result.task_cpu_s
+        self.task_cpu[result.start] = result.task_cpu_s
         busy = self.by_worker.setdefault(worker, {"task_cpu_s": 0.0, "elapsed_s": 0.0, "n_samples": 0})
         busy["task_cpu_s"] += result.task_cpu_s
         busy["elapsed_s"] += result.elapsed_s
         busy["n_samples"] += n
-        self.bar.update(n)
+        if update_bar:
+            self.bar.update(n)
 
 
 def _run_in_process(spec: DatasetSpec, chunks: list[list[SampleDescription]], writer: ChunkWriter,
@@ -375,20 +385,30 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[list[SampleDescr
             index_of[future.key] = [sample.index for sample in chunk]
             futures.add(future)
 
+    def collect(finished: list[Any]) -> None:
+        # One gather for several small results: a fetch per task costs the driver more CPU.
+        for result in client.gather(finished):
+            tally.add(result, str(result.worker), update_bar=False)
+        for future in finished:
+            future.release()
+        finished.clear()
+
     for _ in range(window):
         submit_next()
+    finished: list[Any] = []
     try:
-        for future in futures:
-            try:
-                result = future.result()
-            except Exception as exc:
+        for future in futures:  # as_completed: yields finished futures without fetching results
+            if future.status != "finished":
+                exc = future.exception()
                 done = index_of.get(future.key) or []
                 raise RuntimeError(f"task of samples {done[0]}-{done[-1]} failed: {type(exc).__name__}: {exc} "
                                    "(chunks completed so far are recorded; rerun to resume)") from exc
-            index_of.pop(future.key, None)
-            future.release()
+            tally.bar.update(len(index_of.pop(future.key, ())))
+            finished.append(future)
             submit_next()
-            tally.add(result, str(result.worker))
+            if len(finished) >= GATHER_BATCH:
+                collect(finished)
+        collect(finished)
     finally:
         for future in list(futures.futures):
             future.cancel()
@@ -546,6 +566,7 @@ def generate(
         task_cpu_s=tally.task_cpu_s,
         driver_cpu_s=driver_cpu,
         worker_busy_s=tally.by_worker,
+        task_cpu_list_s=tuple(tally.task_cpu[start] for start in sorted(tally.task_cpu)),
     )
 
 

@@ -25,6 +25,8 @@ def dataset_info(path: str | Path) -> dict[str, Any]:
         "n_time": shape.n_time,
         "max_objects": shape.max_objects,
         "max_arrivals": shape.max_arrivals,
+        "samples_per_chunk": shape.chunk_samples,
+        "layout_version": card.get("layout_version"),
         "bytes_on_disk": size,
         "code_version": card.get("code_version"),
         "created_utc": card.get("created_utc"),
@@ -44,7 +46,8 @@ def format_info(info: dict[str, Any]) -> str:
         f"{info['n_time']} time samples (int16)",
         f"  objects: up to {info['max_objects']} per sample; per class: {counts.get('objects_per_class', {})}",
         f"  arrivals: up to {info['max_arrivals']} stored per sample; per kind: {counts.get('arrivals_per_kind', {})}",
-        f"  on disk: {info['bytes_on_disk'] / 1e6:.1f} MB; code: {info['code_version']}; created {info['created_utc']}",
+        f"  on disk: {info['bytes_on_disk'] / 1e6:.1f} MB in chunks of {info['samples_per_chunk']} samples (layout "
+        f"version {info['layout_version']}); code: {info['code_version']}; created {info['created_utc']}",
     ]
     hist = info.get("snr_histogram") or {}
     if hist.get("counts"):
