@@ -13,6 +13,7 @@ lies inside its polygon and that the path stays on the reflecting side of every 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
@@ -189,21 +190,29 @@ class PlanarMirrors:
         """Images (n, 3) of points (n, 3) across the planes of mirrors (n,)."""
         return points - 2.0 * self.signed_distance(points, mirror)[:, None] * self.normal[mirror]
 
+    @cached_property
+    def _barycentric_frames(self) -> tuple[NDArray[np.float64], ...]:
+        """Per mirror and triangle, the pose-independent parts of the barycentric test: the
+        first vertex a, the edges v0 = b - a and v1 = c - a (m, t, 3), and d00, d01, d11 and
+        the determinant (m, t) (inf where degenerate)."""
+        tri = self.triangles
+        a, b, c = tri[:, :, 0], tri[:, :, 1], tri[:, :, 2]
+        v0, v1 = b - a, c - a
+        d00 = np.einsum("ntk,ntk->nt", v0, v0)
+        d01 = np.einsum("ntk,ntk->nt", v0, v1)
+        d11 = np.einsum("ntk,ntk->nt", v1, v1)
+        den = d00 * d11 - d01 * d01
+        den = np.where(den > 0, den, np.inf)
+        return a, v0, v1, d00, d01, d11, den
+
     def contains(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether points (n, 3) on the planes of mirrors (n,) lie inside their polygons (or discs)."""
         radius = self.disc_radius[mirror]
         in_disc = np.linalg.norm(points - self.point[mirror], axis=1) <= radius * (1.0 + _INSIDE_TOL)
-        tri = self.triangles[mirror]  # (n, t, 3, 3)
-        a, b, c = tri[:, :, 0], tri[:, :, 1], tri[:, :, 2]
-        p = points[:, None, :]
-        v0, v1, v2 = b - a, c - a, p - a
-        d00 = np.einsum("ntk,ntk->nt", v0, v0)
-        d01 = np.einsum("ntk,ntk->nt", v0, v1)
-        d11 = np.einsum("ntk,ntk->nt", v1, v1)
+        a, v0, v1, d00, d01, d11, den = (part[mirror] for part in self._barycentric_frames)
+        v2 = points[:, None, :] - a
         d20 = np.einsum("ntk,ntk->nt", v2, v0)
         d21 = np.einsum("ntk,ntk->nt", v2, v1)
-        den = d00 * d11 - d01 * d01
-        den = np.where(den > 0, den, np.inf)
         v = (d11 * d20 - d01 * d21) / den
         w = (d00 * d21 - d01 * d20) / den
         u = 1.0 - v - w
