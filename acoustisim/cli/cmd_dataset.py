@@ -1,7 +1,8 @@
 """``acoustisim dataset``: generate, verify and describe synthetic datasets.
 
 - ``acoustisim dataset generate SPEC.toml --out DATA.zarr [--workers N] [--scheduler ADDRESS] [--json]``
-  (running it again on the same ``--out`` resumes: only the missing samples are made)
+  (running it again on the same ``--out`` resumes: only the unfinished chunks of samples are
+  made, see ``samples_per_chunk``)
 - ``acoustisim dataset verify DATA.zarr [--json]``: exit 0 when complete and every checksum
   matches, 1 otherwise
 - ``acoustisim dataset info DATA.zarr [--json]``

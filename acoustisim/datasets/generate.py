@@ -142,7 +142,10 @@ class GenerateReport:
     """Each task's CPU time (s), in the order the tasks were submitted."""
 
     def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The report as JSON-ready values (without the per-task list)."""
+        data = dataclasses.asdict(self)
+        data.pop("task_cpu_list_s")
+        return data
 
 
 def code_version() -> str:
