@@ -317,7 +317,7 @@ def discretise_edges(
     grading: int = 4,
     cap_growth: float = 0.0,
     onset_nodes: int = 1,
-    centroid_delays: bool = False,
+    path_lengths: bool = True,
     open_start: ArrayLike | None = None,
     open_end: ArrayLike | None = None,
 ) -> EdgeElements:
@@ -352,10 +352,9 @@ def discretise_edges(
         edge of its chain, so that the summed response has no step there. A branch starting
         at such a joint (its apex beyond it) grades from the apex of its edge's line, not from
         the joint, and gets no onset nodes beyond the first.
-    centroid_delays : bool, optional
-        False (default): an element's path length is the mean of its ends'. True: the mean of
-        the path length over the element's extent along z (its centre of weight in delay
-        when the integrand is even along it).
+    path_lengths : bool, optional
+        False: leave ``path_length_m`` NaN (for callers placing impulses at their own points,
+        as :func:`gauss_points`), saving its evaluation.
     cap_growth : float, optional
         The length cap of an element is ``max_element_m + cap_growth * d``, d its distance
         from the apex along the edge (m); 0 (default): ``max_element_m`` everywhere.
@@ -462,16 +461,12 @@ def discretise_edges(
     split = n_sub[parent] > 1
     keep = z1 != z0
     lo, hi, sub_pair = np.minimum(z0, z1)[keep], np.maximum(z0, z1)[keep], sub_pair[keep]
-    if centroid_delays:
-        # the element's mean path length along z (two-point Gauss, exact for the quadratic
-        # growth about the apex): its impulse sits at the centre of its weight in delay, not
-        # at the mean of its ends' delays (near the apex t - tau0 grows as z^2)
-        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * _GAUSS_X[1]
-        mean_path = 0.5 * (path(centre - half, sub_pair) + path(centre + half, sub_pair))
-    else:
+    if path_lengths:
         d0 = np.where(split & (j > 0), path(z0, b_pair[e_branch[parent]]), da[parent])
         d1 = np.where(split & (j < n_sub[parent] - 1), path(z1, b_pair[e_branch[parent]]), db[parent])
         mean_path = (0.5 * (d0 + d1))[keep]
+    else:
+        mean_path = np.full(lo.size, np.nan)
     return EdgeElements(sub_pair, lo, hi, mean_path)
 
 
@@ -577,7 +572,7 @@ def element_gains(
         model = 0.5 * (nk * (z - z_star)) ** 2
         exact = np.zeros(z0.size)
         apex = np.zeros(z0.size)
-        for i in range(4):  # the four terms of beta
+        for i in range(4):  # the four terms of beta (row by row: faster than one (4, n) pass)
             exact += terms(hyperbolic + gap[i], i)
             apex += terms(model + gap[i], i)
         exact_part[g] = w * exact / ml

@@ -209,6 +209,7 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
             coarsening_levels=COARSENING_LEVELS if config.edge_adaptive else 0, grading=GRADING,
             cap_growth=CAP_GROWTH if config.edge_adaptive else 0.0,
             onset_nodes=ONSET_NODES if config.edge_adaptive else 1, open_start=open_start, open_end=open_end,
+            path_lengths=not config.edge_adaptive,
         )
     except ValueError as error:
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None

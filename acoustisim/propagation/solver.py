@@ -146,7 +146,9 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         add(edge_paths(context.with_first_path_id(next_id), config, prepared.sharp_edges))
     if "diffuse" in config.mechanisms:
         add(diffuse_paths(context.with_first_path_id(next_id), config))
-    rows = np.concatenate(parts) if parts else empty_paths_array(0)
+    # joined as raw records (np.concatenate of a structured dtype copies field by field)
+    records = np.dtype((np.void, PATH_DTYPE.itemsize))
+    rows = np.concatenate([part.view(records) for part in parts]).view(PATH_DTYPE) if parts else empty_paths_array(0)
     rows = complete_columns(rows, context)
     # np.take gathers whole records several times faster than fancy indexing of a structured array
     rows = np.take(rows, np.lexsort((rows["delay_s"], rows["channel"])))
