@@ -33,6 +33,7 @@ def _scene(objects=(), sonar=SonarHead()) -> Scene:
         ({"diffuse_bounces": 0}, "diffuse_bounces"),
         ({"edge_segment_m": 0.0}, "edge_segment_m"),
         ({"edge_segment_m": float("nan")}, "edge_segment_m"),
+        ({"edge_adaptive": "yes"}, "edge_adaptive"),
         ({"amplitude_floor_db": 10.0}, "amplitude_floor_db"),
         ({"mechanisms": ("direct", "magic")}, "mechanisms"),
         ({"mechanisms": "direct"}, "mechanisms"),
