@@ -130,6 +130,11 @@ class LocalPlan:
     segment_fft: int
     segment_weights: NDArray[np.complex128] = field(repr=False)
     tap_partial: NDArray[np.complex128] = field(repr=False)
+    tap_parts: NDArray[np.float64] = field(repr=False)
+    """Real and imaginary parts of the analytic taps and of ``tap_partial``, shape (4, m_a + 1)
+    (taps in the first m_a columns of rows 0-1, running sums in rows 2-3)."""
+    exclusion: int
+    """Coarse windows blanked each side of a pick: ceil(m / block), at least 1 (a template length)."""
 
     @property
     def template_length(self) -> int:
@@ -208,6 +213,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     k_hi = min(spectrum.size, k_hi + 2)
     weights = 2.0 * np.conj(spectrum[:k_hi])
     weights[0] *= 0.5
+    partial = np.concatenate([[0.0], np.cumsum(taps)])
     return LocalPlan(
         matched=matched,
         block=block,
@@ -219,7 +225,9 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         half=half,
         segment_fft=int(segment_fft),
         segment_weights=weights,
-        tap_partial=np.concatenate([[0.0], np.cumsum(taps)]),
+        tap_partial=partial,
+        tap_parts=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0), partial.real, partial.imag]),
+        exclusion=max(1, -(-m // block)),
     )
 
 
@@ -350,6 +358,44 @@ def segment_correlation(
     return sfft.ifft(spectrum, plan.segment_fft, axis=-1)[:, : 2 * plan.half + 1]
 
 
+def _offsets(dc: NDArray[np.float64] | None, n_rows: int) -> NDArray[np.float64]:
+    """Per-row offsets for the kernels (zeros for none)."""
+    return np.zeros(n_rows) if dc is None else dc
+
+
+def _candidate_correlations(
+    plan: LocalPlan,
+    rows: NDArray[np.float64],
+    candidates: int,
+    lag_bounds: tuple[int, int],
+    dc: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+    """z around each row's ``candidates`` coarse picks: what ``coarse_lags`` then
+    ``segment_correlation`` give, from one compiled pass (``local_kernels.coarse_stretches``)
+    and one batched short FFT pair over all rows' stretches.
+
+    Returns
+    -------
+    z : ndarray, shape (n_rows * candidates, segment_fft), complex
+        Row r's pick k at r * candidates + k; its first 2 half + 1 entries are z at lags
+        ``start + 0 .. 2 half``.
+    start : ndarray of int, shape (n_rows * candidates,)
+    """
+    import scipy.fft as sfft
+
+    from binsonar.detection import local_kernels
+
+    n_rows = rows.shape[0]
+    segments = np.empty((n_rows * candidates, plan.segment_fft))
+    start = np.empty(n_rows * candidates, dtype=np.int64)
+    local_kernels.coarse_stretches(np.ascontiguousarray(rows), _offsets(dc, n_rows), plan.tone, plan.span,
+                                   plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
+                                   plan.segment_length, segments, start)
+    spectrum = sfft.rfft(segments, axis=-1)[:, : plan.segment_weights.size]
+    spectrum *= plan.segment_weights
+    return sfft.ifft(spectrum, plan.segment_fft, axis=-1), start
+
+
 def detect_local_matched(
     rows: NDArray[np.float64],
     plan: LocalPlan,
@@ -405,25 +451,18 @@ def detect_local_matched(
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc)
     k = int(candidates)
-    coarse = coarse_lags(plan, rows, k, (lag_lo, lag_hi), dc)  # (n_rows, k)
-    # Each stretch covers lags coarse -/+ half, moved inside [lag_lo, lag_hi] when it can be.
     width = 2 * plan.half + 1
-    start = np.maximum(np.minimum(coarse - plan.half, lag_hi - (width - 1)), lag_lo).reshape(-1)
-    row_of = np.repeat(np.arange(n_rows), k)
-    values = segment_correlation(plan, rows, row_of, start, dc)  # (n_rows * k, width)
-    power = values.real ** 2 + values.imag ** 2
-    lags = start[:, np.newaxis] + np.arange(width)
-    power[(lags < lag_lo) | (lags > lag_hi)] = -1.0  # the same lags as the full filter
-    best = np.argmax(power.reshape(n_rows, k * width), axis=1)
-    r = np.arange(n_rows)
-    peak_lag = lags.reshape(n_rows, k * width)[r, best]
-    # Sub-sample refinement exactly as the full matched filter's (direct z around the peak).
-    refine_lags = peak_lag[:, np.newaxis] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
-    direct = lags_time_domain(matched, rows, r, refine_lags)
-    if dc is not None:
-        direct -= dc_correlation(matched, n, dc, refine_lags, plan.tap_partial)
-    direct[(refine_lags < lag_lo) | (refine_lags > lag_hi)] = 0.0
-    lag, peak = refine(direct, refine_lags)
+    z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc)  # (n_rows * k, >= width)
+    values = np.empty((n_rows, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
+    refined = np.empty((n_rows, 2))
+    settings = np.array([k, width, lag_lo, lag_hi, matched.analytic_offset], dtype=np.int64)
+    from binsonar.detection import local_kernels
+
+    # Sub-sample refinement as the full matched filter's (direct z around the peak, then
+    # ``matched.refine``'s log-parabolic vertex, compiled: tests/test_detection_local_kernels.py).
+    local_kernels.local_peaks(z, start, np.ascontiguousarray(rows), _offsets(dc, n_rows), plan.tap_parts, settings,
+                              values, refined)
+    lag, peak = refined[:, 0], refined[:, 1]
     noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
     values_out = echo_values(matched, lag, peak, noise_mean, matched.threshold_factor(pfa), t0_s)
     out: list[list[tuple[float, float, float, float, float]]] = []

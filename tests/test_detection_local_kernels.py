@@ -1,0 +1,101 @@
+"""The local matched filter's compiled kernels against its numpy definitions (an independent
+implementation of each step: ``coarse_lags``, ``segment_correlation``, ``matched.lags_time_domain``
+minus ``matched.dc_correlation``, ``matched.refine``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from binsonar.detection.local import (
+    REFINE_HALF_WIDTH,
+    _candidate_correlations,
+    coarse_lags,
+    detect_local_matched,
+    plan_local,
+    segment_correlation,
+)
+from binsonar.detection.matched import dc_correlation, lags_time_domain, refine
+from binsonar.recording import Template
+
+FS = 20e6
+N = 60_000
+
+
+def _template() -> Template:
+    t = (np.arange(201) - 100) / FS
+    return Template(np.exp(-13.8 * t**2 / 5e-6**2) * np.cos(2 * np.pi * 500e3 * t), FS, -100 / FS)
+
+
+def _rows(seed: int, dc: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    rng = np.random.default_rng(seed)
+    s = _template().samples
+    rows = rng.standard_normal((3, N)) * np.sqrt(np.sum(s**2) / 100.0)  # 2E/N0 = 20 dB
+    for r, start in enumerate((1000, 31_234, N - 201)):  # the last at the record's very end
+        rows[r, start:start + s.size] += s
+    rows[1, 5000:5201] += 0.6 * s  # a weaker second echo: a second candidate
+    offsets = rng.normal(0.0, 0.05, 3) if dc else None
+    return (rows + offsets[:, None] if dc else rows), offsets
+
+
+@pytest.mark.parametrize("dc", [False, True])
+@pytest.mark.parametrize("bounds", [(0, N - 201), (0, 20_000), (4000, 40_000)])
+def test_candidates_and_stretch_correlations_match_the_numpy_definitions(dc, bounds):
+    plan = plan_local(_template(), N, FS)
+    rows, offsets = _rows(1, dc)
+    k = 3
+    z, start = _candidate_correlations(plan, rows, k, bounds, offsets)
+    coarse = coarse_lags(plan, rows, k, bounds, offsets)
+    width = 2 * plan.half + 1
+    expected_start = np.maximum(np.minimum(coarse - plan.half, bounds[1] - (width - 1)), bounds[0]).reshape(-1)
+    # Integer picks: equal exactly (the sums' rounding, ~1e-16 relative, cannot reorder windows
+    # whose statistics differ by the noise's scatter).
+    assert np.array_equal(start, expected_start)
+    expected = segment_correlation(plan, rows, np.repeat(np.arange(3), k), expected_start, offsets)
+    # Same FFTs of the same stretches: equal to rounding (1e-12 of the peak |z|).
+    assert np.max(np.abs(z[:, :width] - expected)) < 1e-12 * np.max(np.abs(expected))
+
+
+@pytest.mark.parametrize("dc", [False, True])
+def test_refinement_matches_the_full_filters_refinement(dc):
+    from binsonar.detection import local_kernels
+
+    plan = plan_local(_template(), N, FS)
+    matched = plan.matched
+    rows, offsets = _rows(2, dc)
+    lo, hi = 0, N - 201
+    z, start = _candidate_correlations(plan, rows, 3, (lo, hi), offsets)
+    n_lags = 2 * REFINE_HALF_WIDTH + 1
+    values = np.empty((3, n_lags), dtype=complex)
+    refined = np.empty((3, 2))
+    settings = np.array([3, 2 * plan.half + 1, lo, hi, matched.analytic_offset])
+    local_kernels.local_peaks(z, start, rows, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
+                              values, refined)
+    # The numpy definition: the largest |z| over the candidates' lags, then the direct z.
+    width = 2 * plan.half + 1
+    power = np.abs(z[:, :width]) ** 2
+    lags = start[:, None] + np.arange(width)
+    best = np.argmax(power.reshape(3, -1), axis=1)
+    peak_lag = lags.reshape(3, -1)[np.arange(3), best]
+    refine_lags = peak_lag[:, None] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
+    direct = lags_time_domain(matched, rows, np.arange(3), refine_lags)
+    if offsets is not None:
+        direct -= dc_correlation(matched, N, offsets, refine_lags, plan.tap_partial)
+    direct[(refine_lags < lo) | (refine_lags > hi)] = 0.0
+    lag, peak = refine(direct, refine_lags)
+    # Dot products of ~1000 taps in another order: 1e-12 of the peak; the vertex then moves by
+    # ~1e-12 samples; 1e-9 samples (50 fs) and 1e-9 relative leave room.
+    assert np.max(np.abs(values - direct)) < 1e-12 * np.max(np.abs(direct))
+    assert np.max(np.abs(refined[:, 0] - lag)) < 1e-9
+    assert np.max(np.abs(refined[:, 1] / peak - 1.0)) < 1e-9
+    # Echoes where they were put (row 2's at the last full-overlap lag): the TOF's Cramer-Rao
+    # bound at 20 dB is ~135 ns (2.7 samples; 42 ns at 30 dB in benchmarks/bench_detection.py),
+    # so 15 samples is > 5 standard deviations, and far below the 3,000+ between the echoes.
+    assert np.max(np.abs(refined[:, 0] - [1000, 31_234, N - 201])) < 15.0
+
+
+def test_non_contiguous_rows_give_the_same_echoes():
+    plan = plan_local(_template(), N, FS)
+    rows, _ = _rows(3, False)
+    strided = np.asfortranarray(rows)
+    assert detect_local_matched(strided, plan, t0_s=0.0) == detect_local_matched(rows, plan, t0_s=0.0)
