@@ -90,3 +90,21 @@ def test_bad_material_is_rejected(kwargs):
     base = {"name": "x", "density_kg_m3": 1000.0, "sound_speed_m_s": 1500.0}
     with pytest.raises(ValueError):
         Material(**{**base, **kwargs})
+
+
+def test_machined_steel_is_steel_with_the_small_perturbation_mu():
+    # The library value recomputed by the formula it came from (materials.py docstring): rms 3 um,
+    # 500 kHz, c = 1482 m/s, 60 deg incidence. The library stores the formula's double (17 digits),
+    # so they agree to rounding: 1e-14 allows a few ulp of platform libm differences in sin/sqrt/pi.
+    from acoustisim.experiments.point_target import small_roughness_lambert_mu
+
+    machined, steel = get_material("steel-machined"), get_material("steel")
+    mu = small_roughness_lambert_mu(3e-6, 500e3, 1482.0, 60.0)
+    assert machined.diffuse_mu == pytest.approx(mu, rel=1e-14)
+    assert f"{machined.diffuse_mu:.2e}" == "1.93e-05"  # the value quoted in docstrings and README
+    # The same metal: only the surface finish differs, so the (specular) reflection is the same.
+    for field in ("density_kg_m3", "sound_speed_m_s", "shear_speed_m_s", "model", "fixed_reflection"):
+        assert getattr(machined, field) == getattr(steel, field)
+    # mu scales as h^2: the library's rough steel (0.002) is a face of about 31 um rms.
+    h_rough = 3e-6 * np.sqrt(steel.diffuse_mu / mu)
+    assert 28e-6 < h_rough < 33e-6

@@ -53,7 +53,6 @@ def measure_group(trial: Trial) -> dict[str, Any]:
     from acoustisim.experiments.point_target import (
         EDGE_M, GATE_HALF_WIDTH_M, edge_tank_scene, estimate_point, solver_config)
     from acoustisim.experiments.truth import object_truth
-    from acoustisim.propagation import solve
     from acoustisim.simulation import simulate
     from binsonar.detection import detect
 
@@ -69,16 +68,9 @@ def measure_group(trial: Trial) -> dict[str, Any]:
     sonar = replace(sonar, record_length_s=stop_s + tail_s)
     truth = object_truth(scene, sonar, scene.objects[0])
     t, cpu = time.perf_counter(), time.process_time()
-    # Paths traced in the scene with the prism's own (machined-steel) material; the recording is
-    # synthesised from them with the same scene holding the library "steel" (same geometry and
-    # medium): a recording's truth stores its scene as a scene file, which names library
-    # materials only (``edge_tank_scene``'s notes).
-    paths = solve(scene, sonar, solver_config(p))
-    record_scene = edge_tank_scene("steel")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
-        sim = simulate(record_scene, sonar, solver_config=solver_config(p), seed=trial.seed, n_pings=n_pings,
-                       paths=paths)
+        sim = simulate(scene, sonar, solver_config=solver_config(p), seed=trial.seed, n_pings=n_pings)
     simulate_s = time.perf_counter() - t
     simulate_cpu_s = time.process_time() - cpu
     recording = gate_recording(sim.recording, start_s, stop_s + tail_s)

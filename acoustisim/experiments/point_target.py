@@ -34,9 +34,11 @@ re-synthesising the noise-free record from subsets of the paths: the edge's diff
 alone (the beam's effect on the extended edge's echo), plus the specular paths (walls, floor,
 surface), plus the diffuse reverberation (everything).
 
-The prism's faces: machined steel. Its Lambert strength is not a sea-floor value: it follows
-from first-order small-perturbation scattering for an rms roughness of
-``PRISM_RMS_ROUGHNESS_M`` (``small_roughness_lambert_mu``).
+The prism's faces: machined steel, the library's "steel-machined" (``prism_material``). Its
+Lambert strength is not a sea-floor value: it follows from first-order small-perturbation
+scattering for an rms roughness of ``PRISM_RMS_ROUGHNESS_M`` (``small_roughness_lambert_mu``; the
+library's "steel", mu = 0.002, is a rusted or sand-blasted face). Being a library material, it is
+what the recording's truth scene names: the paths and the truth come from the same scene.
 """
 
 from __future__ import annotations
@@ -113,19 +115,21 @@ def small_roughness_lambert_mu(rms_roughness_m: float, frequency_hz: float, soun
     return sigma / math.cos(t) ** 2
 
 
+PRISM_MATERIAL = "steel-machined"
+"""The prism's library material: steel with the Lambert strength of ``PRISM_RMS_ROUGHNESS_M`` at
+500 kHz and 60 deg incidence (``acoustisim.materials``' docstring gives the derivation)."""
+
+
 def prism_material() -> Any:
-    """Machined steel whose Lambert strength follows from ``PRISM_RMS_ROUGHNESS_M`` at 500 kHz.
+    """The library's machined steel ("steel-machined"), the prism's material.
 
-    The faces of a prism seen along its bisector are at 90 - angle / 2 deg from the line of sight
-    (incidence 60 deg for the 60-degree prism).
+    Its ``diffuse_mu`` is ``small_roughness_lambert_mu(PRISM_RMS_ROUGHNESS_M, 500 kHz, 1482 m/s,
+    60 deg)`` to 3 significant digits: the faces of a prism seen along its bisector are at
+    90 - angle / 2 deg from the line of sight (incidence 60 deg for the 60-degree prism).
     """
-    from dataclasses import replace
-
     from acoustisim.materials import get_material
 
-    steel = get_material("steel")
-    mu = small_roughness_lambert_mu(PRISM_RMS_ROUGHNESS_M, 500e3, 1482.0, 90.0 - 0.5 * PRISM_ANGLE_DEG)
-    return replace(steel, name="steel-machined", diffuse_mu=mu)
+    return get_material(PRISM_MATERIAL)
 
 
 def edge_tank_scene(prism: Any = None) -> Scene:
@@ -134,10 +138,9 @@ def edge_tank_scene(prism: Any = None) -> Scene:
     Parameters
     ----------
     prism : Material or str, optional
-        The prism's material; default ``prism_material()`` (machined steel). A scene file
-        stores materials by name, so a scene that ``simulate`` writes into a recording's truth
-        needs a library material ("steel"): the sweeps trace paths in the default scene and
-        hand ``simulate`` those paths with the "steel" scene (same geometry and medium).
+        The prism's material; default ``prism_material()`` (machined steel). With a library
+        material, ``simulate`` writes the scene into a recording's truth (a scene file names
+        library materials only).
     """
     from acoustisim.medium import Medium
     from scenes.builders import default_sonar, edge_prism
@@ -349,15 +352,13 @@ THRESHOLD_LEVEL_SIGMA = 6.0
 averaged ping at the calibration position (a per-sample false-alarm probability of 2e-9)."""
 
 
-def position_setup(range_m: float, bearing_deg: float) -> tuple[Any, Any, Any, Any, list[float], tuple[float, float]]:
-    """The scene, the recording's scene, the posed sonar, the edge's truth, its true TOFs and the gate of a position.
+def position_setup(range_m: float, bearing_deg: float) -> tuple[Any, Any, Any, list[float], tuple[float, float]]:
+    """The scene, the posed sonar, the edge's truth, its true TOFs and the gate of a position.
 
     Returns
     -------
     scene : Scene
-        For propagation (machined-steel prism).
-    record_scene : Scene
-        The same with the library's "steel", for ``simulate`` (see ``edge_tank_scene``).
+        ``edge_tank_scene()`` (machined-steel prism): for propagation and for ``simulate``.
     sonar : SonarHead
         Placed with the edge at ``range_m`` and ``bearing_deg``, seen along the prism's bisector.
     truth : ObjectTruth
@@ -369,7 +370,6 @@ def position_setup(range_m: float, bearing_deg: float) -> tuple[Any, Any, Any, A
     from dataclasses import replace
 
     scene = edge_tank_scene()
-    record_scene = edge_tank_scene("steel")
     c = float(scene.medium.sound_speed)
     start_s, stop_s = range_window_s(range_m, c, GATE_HALF_WIDTH_M)
     sonar = pose_for_target(scene.sonar, (*EDGE_M, scene.sonar.position_m[2]), range_m, bearing_deg,
@@ -379,7 +379,7 @@ def position_setup(range_m: float, bearing_deg: float) -> tuple[Any, Any, Any, A
     tx, rx = sonar.transmitter_position, sonar.receiver_positions
     truth_tof = [(float(np.linalg.norm(truth.position_tank_m - tx)) + float(np.linalg.norm(truth.position_tank_m - r)))
                  / c for r in rx]
-    return scene, record_scene, sonar, truth, truth_tof, (start_s, stop_s + TEMPLATE_S)
+    return scene, sonar, truth, truth_tof, (start_s, stop_s + TEMPLATE_S)
 
 
 def calibrate_threshold(range_m: float, bearing_deg: float, n_pings: int, seed: int,
@@ -405,16 +405,16 @@ def calibrate_threshold(range_m: float, bearing_deg: float, n_pings: int, seed: 
     from acoustisim.simulation import simulate
     from acoustisim.synthesis.pings import PingSynthesiser
 
-    scene, record_scene, sonar, _, _, gate = position_setup(range_m, bearing_deg)
+    scene, sonar, _, _, gate = position_setup(range_m, bearing_deg)
     paths = solve(scene, sonar, solver_config({"reverberation": reverberation}))
     synthesiser = PingSynthesiser.create(sonar, scene.medium)
     edge = Paths(paths.rows[path_subsets(paths)["edge"]], paths.surface_names, paths.centre_frequency_hz,
                  paths.sound_speed_m_s)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
-        sim = simulate(record_scene, sonar, paths=paths, seed=seed, n_pings=n_pings, average=n_pings > 1,
+        sim = simulate(scene, sonar, paths=paths, seed=seed, n_pings=n_pings, average=n_pings > 1,
                        synthesiser=synthesiser)
-        edge_clean = simulate(record_scene, sonar, paths=edge, n_pings=1, synthesiser=synthesiser).clean
+        edge_clean = simulate(scene, sonar, paths=edge, n_pings=1, synthesiser=synthesiser).clean
     fs = sim.recording.sample_rate_hz
     t0 = sim.recording.t0_s
     span = slice(int(math.floor((gate[0] - t0) * fs)), int(math.ceil((gate[1] - t0) * fs)))
@@ -451,7 +451,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     range_m, bearing_deg = float(p["range_m"]), float(p["bearing_deg"])
     n_pings, repeats = int(p["n_pings"]), int(p["repeats"])
     detectors = tuple(p.get("detectors", DETECTORS))
-    scene, record_scene, sonar, truth, truth_tof, gate = position_setup(range_m, bearing_deg)
+    scene, sonar, truth, truth_tof, gate = position_setup(range_m, bearing_deg)
     c = float(scene.medium.sound_speed)
     start_s, stop_s = gate[0], gate[1] - TEMPLATE_S
     half_baseline = float(sonar.separation_m)
@@ -475,7 +475,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
         t, cpu = time.perf_counter(), time.process_time()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
-            sim = simulate(record_scene, sonar, paths=paths, seed=int(seeds[k]), n_pings=n_pings, average=n_pings > 1,
+            sim = simulate(scene, sonar, paths=paths, seed=int(seeds[k]), n_pings=n_pings, average=n_pings > 1,
                            synthesiser=synthesiser)
         sim_s += time.perf_counter() - t
         sim_cpu_s += time.process_time() - cpu
@@ -491,7 +491,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
                                    paths.sound_speed_m_s)
                     with warnings.catch_warnings():
                         warnings.simplefilter("ignore")
-                        clean = simulate(record_scene, sonar, paths=subset, seed=0, n_pings=1,
+                        clean = simulate(scene, sonar, paths=subset, seed=0, n_pings=1,
                                          synthesiser=synthesiser).clean
                 noise_free[part] = noise_free_errors(sim.recording, clean, detectors, truth_tof, truth, c,
                                                      half_baseline, gate)
