@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
 from acoustisim.propagation.raycast import RayCaster
+from acoustisim.propagation.specular_kernels import backtrace_chains, unfold_chains
 from acoustisim.scene import Scene, SceneObject
 
 MAX_OBJECT_MIRRORS = 256
@@ -203,7 +204,7 @@ class PlanarMirrors:
         d11 = np.einsum("ntk,ntk->nt", v1, v1)
         den = d00 * d11 - d01 * d01
         den = np.where(den > 0, den, np.inf)
-        return a, v0, v1, d00, d01, d11, den
+        return tuple(np.ascontiguousarray(part) for part in (a, v0, v1, d00, d01, d11, den))
 
     def contains(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether points (n, 3) on the planes of mirrors (n,) lie inside their polygons (or discs)."""
@@ -287,14 +288,8 @@ def unfold(mirrors: PlanarMirrors, start: NDArray[np.float64],
     valid : ndarray of bool, shape (n,)
         Each image lies strictly in front of the next mirror (the wave can reach its face).
     """
-    n, k = sequences.shape
-    images = np.empty((n, k + 1, 3))
-    images[:, 0] = start
-    valid = np.ones(n, dtype=bool)
-    for j in range(k):
-        m = sequences[:, j]
-        valid &= mirrors.signed_distance(images[:, j], m) > 0.0
-        images[:, j + 1] = mirrors.reflect(images[:, j], m)
+    images, valid = unfold_chains(mirrors.point, mirrors.normal, _as_float_rows(start, sequences.shape[0]),
+                                  np.ascontiguousarray(sequences, dtype=np.int64))
     return images, valid
 
 
@@ -318,27 +313,16 @@ def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: ND
         Every point lies inside its polygon, between its neighbours on the unfolded line, and
         every leg leaves and reaches the mirrors on their water side.
     """
-    n, k = sequences.shape
-    points = np.empty((n, k, 3))
-    valid = np.ones(n, dtype=bool)
-    current = np.asarray(end, dtype=float)
-    for j in range(k - 1, -1, -1):
-        m = sequences[:, j]
-        source = images[:, j + 1]
-        d_cur = mirrors.signed_distance(current, m)
-        d_src = mirrors.signed_distance(source, m)
-        # the segment current -> image must cross the plane: current in front (or on the plane,
-        # within round-off: a path through a right-angle corner line, where the two reflection
-        # points coincide), image behind
-        valid &= (d_cur > -_ON_PLANE_TOL_M) & (d_src < 0.0)
-        denom = np.where(valid, d_cur - d_src, 1.0)
-        t = np.maximum(d_cur, 0.0) / denom
-        x = current + t[:, None] * (source - current)
-        live = np.flatnonzero(valid)  # the polygon test only where the chain is still alive
-        valid[live] = mirrors.contains(x[live], m[live])
-        points[:, j] = x
-        current = x
-    return points, valid
+    n = sequences.shape[0]
+    a, v0, v1, d00, d01, d11, den = mirrors._barycentric_frames
+    return backtrace_chains(mirrors.point, mirrors.normal, mirrors.disc_radius, a, v0, v1, d00, d01, d11, den,
+                            np.ascontiguousarray(images, dtype=float), np.ascontiguousarray(sequences, dtype=np.int64),
+                            _as_float_rows(end, n), _ON_PLANE_TOL_M, _INSIDE_TOL)
+
+
+def _as_float_rows(points: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    """``points`` as a C-contiguous float64 array (n, 3) (broadcast views copied)."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(points, dtype=float), (n, 3)))
 
 
 __all__ = ["MAX_OBJECT_MIRRORS", "PlanarMirrors", "backtrace", "mirror_sequences", "is_polyhedral", "object_patch_count", "unfold"]
