@@ -388,9 +388,9 @@ def _candidate_correlations(
     n_rows = rows.shape[0]
     segments = np.empty((n_rows * candidates, plan.segment_fft))
     start = np.empty(n_rows * candidates, dtype=np.int64)
-    local_kernels.coarse_stretches(np.ascontiguousarray(rows), _offsets(dc, n_rows), plan.tone, plan.span,
-                                   plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
-                                   plan.segment_length, segments, start)
+    settings = np.array([plan.span, plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
+                         plan.segment_length], dtype=np.int64)
+    local_kernels.coarse_stretches(rows, _offsets(dc, n_rows), plan.tone, settings, segments, start)
     spectrum = sfft.rfft(segments, axis=-1)[:, : plan.segment_weights.size]
     spectrum *= plan.segment_weights
     return sfft.ifft(spectrum, plan.segment_fft, axis=-1), start
@@ -452,6 +452,7 @@ def detect_local_matched(
                         floor_v=noise_floor_v, offset_v=dc)
     k = int(candidates)
     width = 2 * plan.half + 1
+    rows = np.ascontiguousarray(rows)  # the kernels read rows as contiguous blocks (no copy when they are)
     z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc)  # (n_rows * k, >= width)
     values = np.empty((n_rows, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
     refined = np.empty((n_rows, 2))
@@ -460,7 +461,7 @@ def detect_local_matched(
 
     # Sub-sample refinement as the full matched filter's (direct z around the peak, then
     # ``matched.refine``'s log-parabolic vertex, compiled: tests/test_detection_local_kernels.py).
-    local_kernels.local_peaks(z, start, np.ascontiguousarray(rows), _offsets(dc, n_rows), plan.tap_parts, settings,
+    local_kernels.local_peaks(z, start, rows, _offsets(dc, n_rows), plan.tap_parts, settings,
                               values, refined)
     lag, peak = refined[:, 0], refined[:, 1]
     noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter

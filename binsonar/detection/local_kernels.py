@@ -27,22 +27,67 @@ from numba import njit
 from numpy.typing import NDArray
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=True)
 def _block_power(row: NDArray[np.float64], first_block: int, energy: NDArray[np.float64], tone: NDArray[np.float64],
                  offset_re: float, offset_im: float) -> None:
-    """|z_b|^2 of blocks first_block + 0 .. energy.size - 1 of one (contiguous) row.
+    """|z_b|^2 of blocks first_block + 0 .. energy.size - 1 of one row.
 
-    One matrix product of the blocks, as rows of a (n_blocks, block) view, with the (block, 2)
-    tone table: BLAS reads each sample once, at about the speed of a plain pass over the row
-    (a compiled loop of per-block dot products measured 1.5x slower here).
+    Four blocks at a time: eight independent multiply-add chains over the tone table, with no
+    reduction inside a block, so each sample is read once and the pass runs at about the speed
+    of a plain read of the row (1.15x measured; one block at a time, a horizontal sum per
+    block, 1.6x; BLAS's (n_blocks, block) @ (block, 2), 1.15x but with its own threads).
+    fastmath is safe here: finite sums only.
     """
     block = tone.shape[0]
     n_blocks = energy.size
-    parts = np.dot(row[first_block * block: (first_block + n_blocks) * block].reshape(n_blocks, block), tone)
-    for j in range(n_blocks):
-        re = parts[j, 0] - offset_re
-        im = parts[j, 1] - offset_im
-        energy[j] = re * re + im * im
+    c = np.ascontiguousarray(tone[:, 0])
+    s = np.ascontiguousarray(tone[:, 1])
+    j = 0
+    while j < n_blocks:
+        count = min(4, n_blocks - j)
+        base = (first_block + j) * block
+        if count == 4:
+            x0 = row[base: base + block]
+            x1 = row[base + block: base + 2 * block]
+            x2 = row[base + 2 * block: base + 3 * block]
+            x3 = row[base + 3 * block: base + 4 * block]
+            r0 = r1 = r2 = r3 = 0.0
+            i0 = i1 = i2 = i3 = 0.0
+            for q in range(block):
+                cq = c[q]
+                sq = s[q]
+                r0 += x0[q] * cq
+                r1 += x1[q] * cq
+                r2 += x2[q] * cq
+                r3 += x3[q] * cq
+                i0 += x0[q] * sq
+                i1 += x1[q] * sq
+                i2 += x2[q] * sq
+                i3 += x3[q] * sq
+            r0 -= offset_re
+            r1 -= offset_re
+            r2 -= offset_re
+            r3 -= offset_re
+            i0 -= offset_im
+            i1 -= offset_im
+            i2 -= offset_im
+            i3 -= offset_im
+            energy[j] = r0 * r0 + i0 * i0
+            energy[j + 1] = r1 * r1 + i1 * i1
+            energy[j + 2] = r2 * r2 + i2 * i2
+            energy[j + 3] = r3 * r3 + i3 * i3
+        else:
+            for u in range(count):
+                x = row[base + u * block: base + (u + 1) * block]
+                re = 0.0
+                im = 0.0
+                for q in range(block):
+                    re += x[q] * c[q]
+                    im += x[q] * s[q]
+                re -= offset_re
+                im -= offset_im
+                energy[j + u] = re * re + im * im
+        j += count
 
 
 @njit(cache=True, nogil=True)
@@ -50,14 +95,7 @@ def coarse_stretches(
     rows: NDArray[np.float64],
     dc: NDArray[np.float64],
     tone: NDArray[np.float64],
-    span: int,
-    reference: int,
-    exclusion: int,
-    lag_lo: int,
-    lag_hi: int,
-    candidates: int,
-    half: int,
-    segment_length: int,
+    settings: NDArray[np.int64],
     segments: NDArray[np.float64],
     starts: NDArray[np.int64],
 ) -> None:
@@ -71,19 +109,20 @@ def coarse_stretches(
         Offset still in each row (zeros for none).
     tone : ndarray, shape (block, 2), C-contiguous
         cos and -sin of 2 pi f0 k / fs (``LocalPlan.tone``).
-    span, reference, exclusion : int
-        Blocks per window; the template's envelope-peak index; windows blanked each side of a
-        pick (a template length).
-    lag_lo, lag_hi : int
-        Inclusive range of searched lags.
-    candidates, half, segment_length : int
-        Picks per row; lags searched each side of a pick; samples per stretch (2 half + m).
+    settings : ndarray of int, shape (8,)
+        span (blocks per window), reference (the template's envelope-peak index), exclusion
+        (windows blanked each side of a pick: a template length), lag_lo and lag_hi (inclusive
+        range of searched lags), candidates (picks per row), half (lags searched each side of a
+        pick), segment_length (samples per stretch, 2 half + m). One array rather than eight
+        arguments: each argument costs the call a few microseconds of type dispatch.
     segments : ndarray, shape (n_rows * candidates, n_fft), written
         Stretch of each pick (row r's pick k at r * candidates + k), ``rows - dc``, samples
         outside the record and beyond ``segment_length`` set to 0.
     starts : ndarray of int, shape (n_rows * candidates,), written
         Lag of each stretch's sample 0 (its first searched lag).
     """
+    span, reference, exclusion, lag_lo, lag_hi = settings[0], settings[1], settings[2], settings[3], settings[4]
+    candidates, half, segment_length = settings[5], settings[6], settings[7]
     n_rows, n = rows.shape
     block = tone.shape[0]
     n_blocks = n // block
