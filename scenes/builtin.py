@@ -3,7 +3,7 @@
 ``thesis-tank``
     The 9 m x 3 m x 1 m concrete tank of fresh water at 20 C, the default sonar at
     (1.0, 1.5, 0.5) m looking down +x, and targets like the seed's figures 3-8 and 4-12: a
-    steel 60-degree edge prism 1.5 m ahead on the boresight, pointing at the sonar; two PVC
+    machined-steel 60-degree edge prism 1.5 m ahead on the boresight, pointing at the sonar; two PVC
     posts at about 8.5 deg right and 9 deg left (inside the +/-11 deg first null at 500 kHz);
     a PVC cylinder at 6.5 deg left behind them, clear of their shadows; and a third post far
     off axis (seen from other poses). Every object is at least 5 cm from the walls and from
@@ -33,7 +33,7 @@ def _thesis_tank() -> Scene:
     tank = Tank(length_m=9.0, width_m=3.0, water_depth_m=1.0, wall_material="concrete", floor_material="concrete")
     depth = tank.water_depth_m
     objects = (
-        edge_prism("edge-1", (2.5, 1.5), 60.0, 180.0, 0.10, depth, "steel"),
+        edge_prism("edge-1", (2.5, 1.5), 60.0, 180.0, 0.10, depth, "steel-machined"),
         post("post-1", (3.0, 1.2), 0.025, depth, "pvc"),
         post("post-2", (3.2, 1.85), 0.025, depth, "pvc"),
         post("post-3", (6.5, 0.6), 0.025, depth, "pvc"),

@@ -50,7 +50,7 @@ def test_thesis_tank_layout(scenes):
     assert kinds.count("post") >= 2 and "edge" in kinds and "cylinder" in kinds
     assert scene.triangle_count < 200_000
     edge = scene.object("edge-1")
-    assert edge.material.name == "steel" and edge.parameter("interior_angle_deg") == 60.0
+    assert edge.material.name == "steel-machined" and edge.parameter("interior_angle_deg") == 60.0
     # The edge faces the sonar about 1.5 m ahead on its bearing: its nearest point is the edge.
     nearest = edge.mesh.vertices[np.argmin(np.linalg.norm(edge.mesh.vertices - scene.sonar.position_m, axis=1))]
     np.testing.assert_allclose(nearest[:2], [2.5, 1.5])

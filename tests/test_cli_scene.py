@@ -44,7 +44,7 @@ def test_show_json_is_one_object_with_the_facts(capsys):
     assert summary["tank"]["bounds_m"] == [[0.0, 0.0, 0.0], [9.0, 3.0, 1.0]]
     assert len(summary["boundaries"]) == 6
     objects = {o["name"]: o for o in summary["objects"]}
-    assert objects["edge-1"]["kind"] == "edge" and objects["edge-1"]["material"] == "steel"
+    assert objects["edge-1"]["kind"] == "edge" and objects["edge-1"]["material"] == "steel-machined"
     assert objects["edge-1"]["triangles"] == 8
     assert objects["pipe-1"]["primitive"]["type"] == "cylinder"
     assert summary["triangle_count"] == sum(o["triangles"] for o in summary["objects"]) + 12

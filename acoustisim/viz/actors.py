@@ -45,6 +45,7 @@ MATERIAL_COLORS: Mapping[str, RGB] = MappingProxyType({
     "pvc-pipe-air": (0.86, 0.40, 0.18),
     "pvc-pipe-water": (0.70, 0.25, 0.10),
     "steel": (0.40, 0.45, 0.52),
+    "steel-machined": (0.55, 0.60, 0.66),
     "aluminium": (0.68, 0.70, 0.74),
     "rubber": (0.15, 0.15, 0.15),
     "sand": (0.84, 0.74, 0.50),
