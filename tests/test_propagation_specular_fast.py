@@ -2,8 +2,8 @@
 
 ``specular_rows`` (compiled image-source kernels, one pass over every chain length) must give
 the same rows as the numpy code it replaced, kept here verbatim as the slow reference
-(``reference_specular_rows`` and the ``unfold`` / ``backtrace`` / ``mirror_sequences`` it
-used, as of commit 21590e5), over random poses of the thesis tank and of a tank with a
+(``reference_specular_rows`` and the ``unfold`` / ``backtrace`` / ``mirror_sequences`` /
+``specular_points`` it used, as of commit 21590e5), over random poses of the thesis tank and of a tank with a
 sphere, a cylinder and a prism: same rows in the same order, delays and gains equal to 1e-12
 (relative; the kernels add the same terms in the same order as numpy, so only the last
 bits of a dot product may differ).
@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.propagation import image_source
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, specular_points
+from acoustisim.propagation.curved import CurvedSet, go_amplitude, go_amplitude_general
 from acoustisim.propagation.image_source import PlanarMirrors
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene, prepare
@@ -29,6 +29,122 @@ from acoustisim.propagation.solver import check_sonar
 from acoustisim.propagation.specular import direct_rows, specular_rows
 
 # ---------------------------------------------------------------- frozen reference (old code)
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def circle_specular_point(a2: NDArray[np.float64], b2: NDArray[np.float64],
+                          radius: float | NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Specular points on a circle of ``radius`` centred at the origin, in 2-D.
+
+    Parameters
+    ----------
+    a2, b2 : ndarray, shape (n, 2)
+        Source and receiver (outside the circle).
+    radius : float or ndarray (n,)
+
+    Returns
+    -------
+    points : ndarray, shape (n, 2)
+        X on the circle where d/dphi (|a - X| + |b - X|) = 0 (the visible, least-length one).
+    valid : ndarray of bool, shape (n,)
+        Both ends outside the circle and in front of the tangent at X (lit side).
+    """
+    rad = np.broadcast_to(np.asarray(radius, dtype=float), (a2.shape[0],))
+    ax, ay, bx, by = a2[:, 0], a2[:, 1], b2[:, 0], b2[:, 1]
+    na, nb = np.hypot(ax, ay), np.hypot(bx, by)
+    sx, sy = ax / na + bx / nb, ay / na + by / nb
+    # opposite directions (forward scatter): no lit stationary point; keep phi finite
+    degenerate = np.hypot(sx, sy) <= 1e-12
+    phi = np.where(degenerate, np.arctan2(ay, ax), np.arctan2(sy, sx))
+    r2 = rad * rad
+    for _ in range(40):
+        c, s = np.cos(phi), np.sin(phi)
+        xx, xy = rad * c, rad * s
+        # r(phi) = |P - X|: r' = -(P - X).X' / r, r'' = (a^2 + (P - X).X) / r - r'^2 / r, X' = a(-s, c)
+        dax, day, dbx, dby = ax - xx, ay - xy, bx - xx, by - xy
+        ra, rb = np.hypot(dax, day), np.hypot(dbx, dby)
+        rpa = -rad * (-dax * s + day * c) / ra
+        rpb = -rad * (-dbx * s + dby * c) / rb
+        d1 = rpa + rpb
+        d2 = (r2 + dax * xx + day * xy - rpa * rpa) / ra + (r2 + dbx * xx + dby * xy - rpb * rpb) / rb
+        step = np.clip(d1 / np.where(np.abs(d2) > 1e-300, d2, 1e-300), -0.5, 0.5)
+        phi = phi - step
+        if not np.any(np.abs(step) > 1e-10):  # quadratic: the error left is ~ step^2
+            break
+    c, s = np.cos(phi), np.sin(phi)
+    x = rad[:, None] * np.stack([c, s], axis=1)
+    valid = ((ax - x[:, 0]) * c + (ay - x[:, 1]) * s > 0.0) & ((bx - x[:, 0]) * c + (by - x[:, 1]) * s > 0.0)
+    valid &= (na > rad) & (nb > rad) & ~degenerate
+    return x, valid
+
+
+def _dot(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.einsum("ij,ij->i", u, v)
+
+
+def specular_points(curved: CurvedSet, which: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], ...]:
+    """Specular points of (image) sources ``a`` and receivers ``b`` on primitives ``which``.
+
+    Parameters
+    ----------
+    curved : CurvedSet
+    which : ndarray of int64, shape (n,)
+        Index of the primitive of each candidate.
+    a, b : ndarray, shape (n, 3)
+        Source and receiver (m).
+
+    Returns
+    -------
+    point, normal : ndarray, shape (n, 3)
+        Specular point X (m) and unit outward normal.
+    valid : ndarray of bool, shape (n,)
+        Lit from both ends, both ends outside, and (cylinders) X within the finite length.
+    e1, e2 : ndarray, shape (n, 3)
+        Principal tangent directions (cylinders: around, along the axis).
+    k1, k2 : ndarray, shape (n,)
+        Principal curvatures (1/m): sphere (1/a, 1/a), cylinder (1/a, 0).
+    """
+    sph = curved.is_sphere[which]
+    c = curved.centre[which]
+    rad = curved.radius[which]
+    u = a - c
+    v = b - c
+    # in-plane basis: spheres, the plane of (centre, a, b); cylinders, the plane normal to the axis
+    frame = curved.frame[which]
+    e1_s = _unit(u)
+    w = v - _dot(v, e1_s)[:, None] * e1_s
+    helper = np.where(np.abs(e1_s[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    # collinear centre, source and receiver: any plane through the line will do
+    w = np.where(np.linalg.norm(w, axis=1, keepdims=True) > 1e-12 * np.linalg.norm(v, axis=1, keepdims=True),
+                 w, np.cross(e1_s, helper))
+    e2_s = _unit(w)
+    p_axis = np.where(sph[:, None], e1_s, frame[:, 0])
+    q_axis = np.where(sph[:, None], e2_s, frame[:, 1])
+    axis = frame[:, 2]
+    a2 = np.column_stack([_dot(u, p_axis), _dot(u, q_axis)])
+    b2 = np.column_stack([_dot(v, p_axis), _dot(v, q_axis)])
+    x2, valid = circle_specular_point(a2, b2, rad)
+    # cylinders: lift along the axis where the unrolled path is straight
+    za, zb = _dot(u, axis), _dot(v, axis)
+    rho_a = np.linalg.norm(a2 - x2, axis=1)
+    rho_b = np.linalg.norm(b2 - x2, axis=1)
+    z = np.where(sph, 0.0, za + (zb - za) * rho_a / np.where(rho_a + rho_b > 0, rho_a + rho_b, 1.0))
+    # inclusive (1e-9 m of round-off): a post meeting the free surface or the floor at a right
+    # angle reflects a monostatic double bounce exactly at the junction
+    valid &= sph | (np.abs(z) <= 0.5 * curved.length[which] + 1e-9)
+    normal = _unit(x2[:, :1] * p_axis + x2[:, 1:] * q_axis)
+    point = c + rad[:, None] * normal + z[:, None] * np.where(sph[:, None], 0.0, axis)
+    # principal directions: cylinder (around, along); sphere any tangent pair
+    helper_n = np.where(np.abs(normal[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    e1 = _unit(np.where(sph[:, None], np.cross(normal, helper_n), np.cross(axis, normal)))
+    e2 = np.where(sph[:, None], np.cross(normal, e1), axis)
+    k1 = 1.0 / rad
+    k2 = np.where(sph, 1.0 / rad, 0.0)
+    return point, normal, valid, e1, e2, k1, k2
+
+
 def mirror_sequences(sees: NDArray[np.bool_], length: int, first: NDArray[np.bool_] | None = None,
                      last: NDArray[np.bool_] | None = None) -> NDArray[np.int64]:
     """Candidate mirror sequences (k, length) along which a wave could travel.

@@ -29,9 +29,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
+from acoustisim.propagation.specular_kernels import circle_newton
 
 _NEWTON_STEPS = 40
-"""Most Newton iterations on the circle (vectorised; stops once every step is below 1e-10 rad,
+"""Most Newton iterations on the circle (compiled, :func:`.specular_kernels.circle_newton`; stops once every step is below 1e-10 rad,
 leaving an error of order step^2, i.e. ~1e-20 rad, by quadratic convergence).
 From the bisector start it converges quadratically, in under 10 steps for visible points."""
 
@@ -64,21 +65,8 @@ def circle_specular_point(a2: NDArray[np.float64], b2: NDArray[np.float64],
     # opposite directions (forward scatter): no lit stationary point; keep phi finite
     degenerate = np.hypot(sx, sy) <= 1e-12
     phi = np.where(degenerate, np.arctan2(ay, ax), np.arctan2(sy, sx))
-    r2 = rad * rad
-    for _ in range(_NEWTON_STEPS):
-        c, s = np.cos(phi), np.sin(phi)
-        xx, xy = rad * c, rad * s
-        # r(phi) = |P - X|: r' = -(P - X).X' / r, r'' = (a^2 + (P - X).X) / r - r'^2 / r, X' = a(-s, c)
-        dax, day, dbx, dby = ax - xx, ay - xy, bx - xx, by - xy
-        ra, rb = np.hypot(dax, day), np.hypot(dbx, dby)
-        rpa = -rad * (-dax * s + day * c) / ra
-        rpb = -rad * (-dbx * s + dby * c) / rb
-        d1 = rpa + rpb
-        d2 = (r2 + dax * xx + day * xy - rpa * rpa) / ra + (r2 + dbx * xx + dby * xy - rpb * rpb) / rb
-        step = np.clip(d1 / np.where(np.abs(d2) > 1e-300, d2, 1e-300), -0.5, 0.5)
-        phi = phi - step
-        if not np.any(np.abs(step) > 1e-10):  # quadratic: the error left is ~ step^2
-            break
+    phi = circle_newton(*(np.ascontiguousarray(q, dtype=float) for q in (ax, ay, bx, by, rad)),
+                        np.array(phi, dtype=float), _NEWTON_STEPS, 1e-10)
     c, s = np.cos(phi), np.sin(phi)
     x = rad[:, None] * np.stack([c, s], axis=1)
     valid = ((ax - x[:, 0]) * c + (ay - x[:, 1]) * s > 0.0) & ((bx - x[:, 0]) * c + (by - x[:, 1]) * s > 0.0)

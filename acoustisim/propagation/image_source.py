@@ -23,6 +23,11 @@ from acoustisim.propagation.raycast import RayCaster
 from acoustisim.propagation.specular_kernels import backtrace_chains, unfold_chains
 from acoustisim.scene import Scene, SceneObject
 
+CACHED_SEQUENCE_ROWS = 200_000
+"""Mirror sequences of one length are enumerated once per scene if there are at most this many
+(bounded by m x (most mirrors one sees)^(length - 1)); beyond, once per pose with the pose's end
+constraints (fewer rows)."""
+
 MAX_OBJECT_MIRRORS = 256
 """Objects (without a curved primitive) with more planar patches than this are not used as
 mirrors: they are smooth or finely detailed meshes, not polyhedra (traced through their
@@ -205,6 +210,36 @@ class PlanarMirrors:
         den = d00 * d11 - d01 * d01
         den = np.where(den > 0, den, np.inf)
         return tuple(np.ascontiguousarray(part) for part in (a, v0, v1, d00, d01, d11, den))
+
+    @cached_property
+    def _sequence_cache(self) -> dict[int, NDArray[np.int64]]:
+        """Every mirror sequence of a length, unconstrained at its ends (:meth:`sequences`)."""
+        return {}
+
+    def sequences(self, length: int, first: NDArray[np.bool_] | None = None,
+                  last: NDArray[np.bool_] | None = None) -> NDArray[np.int64]:
+        """:func:`mirror_sequences` of :attr:`sees` (same rows, same order).
+
+        The sequences of a length without end constraints depend on the scene only: short ones
+        (up to :data:`CACHED_SEQUENCE_ROWS` rows) are enumerated once and filtered by ``first``
+        and ``last`` for each pose (the enumeration is lexicographic, so filtering keeps the
+        order).
+        """
+        if length == 0:
+            return np.zeros((1, 0), dtype=np.int64)
+        cache = self._sequence_cache
+        if length not in cache:
+            rows_bound = self.count * int(self.sees.sum(axis=1).max(initial=0)) ** (length - 1)
+            if rows_bound > CACHED_SEQUENCE_ROWS:
+                return mirror_sequences(self.sees, length, first, last)
+            cache[length] = mirror_sequences(self.sees, length)
+        seqs = cache[length]
+        keep = np.ones(seqs.shape[0], dtype=bool)
+        if first is not None:
+            keep &= np.asarray(first, dtype=bool)[seqs[:, 0]]
+        if last is not None:
+            keep &= np.asarray(last, dtype=bool)[seqs[:, -1]]
+        return seqs[keep]
 
     def contains(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether points (n, 3) on the planes of mirrors (n,) lie inside their polygons (or discs)."""

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, specular_points
-from acoustisim.propagation.image_source import PlanarMirrors, backtrace, mirror_sequences, unfold
+from acoustisim.propagation.image_source import PlanarMirrors, backtrace, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 
@@ -97,7 +97,7 @@ def _receivers_in_front(context: SolveContext, mirrors: PlanarMirrors) -> NDArra
 def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, chain_base: int,
                    first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
     tx = context.transmitter_m
-    seqs = mirror_sequences(mirrors.sees, order, first, last)
+    seqs = mirrors.sequences(order, first, last)
     images, ok = unfold(mirrors, np.broadcast_to(tx, (seqs.shape[0], 3)), seqs)
     chain_ids = np.flatnonzero(ok)
     seqs, images = seqs[ok], images[ok]
@@ -148,9 +148,9 @@ def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[
     tx = context.transmitter_m
     n_rx = context.receivers_m.shape[0]
     any_seen = np.any(seen_by, axis=0)
-    seq_b = mirror_sequences(mirrors.sees, n_before, first, any_seen)
+    seq_b = mirrors.sequences(n_before, first, any_seen)
     # in path order, from the object to the receiver
-    seq_a = mirror_sequences(mirrors.sees, n_after, any_seen, last)
+    seq_a = mirrors.sequences(n_after, any_seen, last)
     images_b, ok_b = unfold(mirrors, np.broadcast_to(tx, (seq_b.shape[0], 3)), seq_b)
     # receiver-side images, once per (after sequence, receiver)
     ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)

@@ -119,4 +119,45 @@ def backtrace_chains(point: NDArray[np.float64], normal: NDArray[np.float64], di
     return points, valid
 
 
-__all__ = ["backtrace_chains", "unfold_chains"]
+
+
+
+@njit(cache=True, nogil=True)
+def circle_newton(ax: NDArray[np.float64], ay: NDArray[np.float64], bx: NDArray[np.float64],
+                  by: NDArray[np.float64], rad: NDArray[np.float64], phi: NDArray[np.float64],
+                  max_steps: int, tol: float) -> NDArray[np.float64]:
+    """Newton's method on the angle ``phi`` (n,) of the specular point on circles of radius
+    ``rad`` (n,) centred at the origin, for sources (ax, ay) and receivers (bx, by) (n,), in
+    place and returned.
+
+    The loop of :func:`acoustisim.propagation.curved.circle_specular_point`, step for step:
+    every row takes every step until no row's step exceeds ``tol`` (rad), at most
+    ``max_steps`` steps; each step clipped to +-0.5 rad.
+    """
+    n = phi.shape[0]
+    for _ in range(max_steps):
+        moving = False
+        for i in range(n):
+            r = rad[i]
+            c, s = math.cos(phi[i]), math.sin(phi[i])
+            xx, xy = r * c, r * s
+            dax, day, dbx, dby = ax[i] - xx, ay[i] - xy, bx[i] - xx, by[i] - xy
+            ra, rb = math.hypot(dax, day), math.hypot(dbx, dby)
+            rpa = -r * (-dax * s + day * c) / ra
+            rpb = -r * (-dbx * s + dby * c) / rb
+            d1 = rpa + rpb
+            r2 = r * r
+            d2 = (r2 + dax * xx + day * xy - rpa * rpa) / ra + (r2 + dbx * xx + dby * xy - rpb * rpb) / rb
+            step = d1 / (d2 if abs(d2) > 1e-300 else 1e-300)
+            if step < -0.5:
+                step = -0.5
+            elif step > 0.5:
+                step = 0.5
+            phi[i] = phi[i] - step
+            if abs(step) > tol:
+                moving = True
+        if not moving:
+            break
+    return phi
+
+__all__ = ["backtrace_chains", "circle_newton", "unfold_chains"]
