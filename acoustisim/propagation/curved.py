@@ -29,16 +29,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
-from acoustisim.propagation.specular_kernels import circle_newton
+from acoustisim.propagation.specular_kernels import circle_newton, primitive_specular_points
 
 _NEWTON_STEPS = 40
 """Most Newton iterations on the circle (compiled, :func:`.specular_kernels.circle_newton`; stops once every step is below 1e-10 rad,
 leaving an error of order step^2, i.e. ~1e-20 rad, by quadratic convergence).
 From the bisector start it converges quadratically, in under 10 steps for visible points."""
-
-
-def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def circle_specular_point(a2: NDArray[np.float64], b2: NDArray[np.float64],
@@ -127,10 +123,6 @@ def cylinder_frame(cylinder: CylinderPrimitive) -> NDArray[np.float64]:
     return np.stack([p, q, axis])
 
 
-def _dot(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.einsum("ij,ij->i", u, v)
-
-
 def specular_points(curved: CurvedSet, which: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64]
                     ) -> tuple[NDArray[np.float64], ...]:
     """Specular points of (image) sources ``a`` and receivers ``b`` on primitives ``which``.
@@ -154,43 +146,15 @@ def specular_points(curved: CurvedSet, which: NDArray[np.int64], a: NDArray[np.f
     k1, k2 : ndarray, shape (n,)
         Principal curvatures (1/m): sphere (1/a, 1/a), cylinder (1/a, 0).
     """
-    sph = curved.is_sphere[which]
-    c = curved.centre[which]
-    rad = curved.radius[which]
-    u = a - c
-    v = b - c
-    # in-plane basis: spheres, the plane of (centre, a, b); cylinders, the plane normal to the axis
-    frame = curved.frame[which]
-    e1_s = _unit(u)
-    w = v - _dot(v, e1_s)[:, None] * e1_s
-    helper = np.where(np.abs(e1_s[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    # collinear centre, source and receiver: any plane through the line will do
-    w = np.where(np.linalg.norm(w, axis=1, keepdims=True) > 1e-12 * np.linalg.norm(v, axis=1, keepdims=True),
-                 w, np.cross(e1_s, helper))
-    e2_s = _unit(w)
-    p_axis = np.where(sph[:, None], e1_s, frame[:, 0])
-    q_axis = np.where(sph[:, None], e2_s, frame[:, 1])
-    axis = frame[:, 2]
-    a2 = np.column_stack([_dot(u, p_axis), _dot(u, q_axis)])
-    b2 = np.column_stack([_dot(v, p_axis), _dot(v, q_axis)])
-    x2, valid = circle_specular_point(a2, b2, rad)
-    # cylinders: lift along the axis where the unrolled path is straight
-    za, zb = _dot(u, axis), _dot(v, axis)
-    rho_a = np.linalg.norm(a2 - x2, axis=1)
-    rho_b = np.linalg.norm(b2 - x2, axis=1)
-    z = np.where(sph, 0.0, za + (zb - za) * rho_a / np.where(rho_a + rho_b > 0, rho_a + rho_b, 1.0))
-    # inclusive (1e-9 m of round-off): a post meeting the free surface or the floor at a right
-    # angle reflects a monostatic double bounce exactly at the junction
-    valid &= sph | (np.abs(z) <= 0.5 * curved.length[which] + 1e-9)
-    normal = _unit(x2[:, :1] * p_axis + x2[:, 1:] * q_axis)
-    point = c + rad[:, None] * normal + z[:, None] * np.where(sph[:, None], 0.0, axis)
-    # principal directions: cylinder (around, along); sphere any tangent pair
-    helper_n = np.where(np.abs(normal[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    e1 = _unit(np.where(sph[:, None], np.cross(normal, helper_n), np.cross(axis, normal)))
-    e2 = np.where(sph[:, None], np.cross(normal, e1), axis)
-    k1 = 1.0 / rad
-    k2 = np.where(sph, 1.0 / rad, 0.0)
-    return point, normal, valid, e1, e2, k1, k2
+    # the formulas below in one compiled loop (specular_kernels.primitive_specular_points): in
+    # the plane of (centre, a, b) for spheres, normal to the axis for cylinders, the circle
+    # problem (circle_specular_point); cylinders then lift X along the axis where the unrolled
+    # path is straight, inclusive of 1e-9 m at the ends (a post meeting the free surface or the
+    # floor at a right angle reflects a monostatic double bounce exactly at the junction)
+    return primitive_specular_points(
+        curved.is_sphere, curved.centre, np.ascontiguousarray(curved.frame), curved.radius, curved.length,
+        np.ascontiguousarray(which, dtype=np.int64), np.ascontiguousarray(a, dtype=float),
+        np.ascontiguousarray(b, dtype=float), _NEWTON_STEPS, 1e-10)
 
 
 def sphere_specular_point(sphere: SpherePrimitive, a: NDArray[np.float64],

@@ -160,4 +160,117 @@ def circle_newton(ax: NDArray[np.float64], ay: NDArray[np.float64], bx: NDArray[
             break
     return phi
 
-__all__ = ["backtrace_chains", "circle_newton", "unfold_chains"]
+
+@njit(cache=True, nogil=True)
+def _norm3(x0: float, x1: float, x2: float) -> float:
+    return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+
+
+@njit(cache=True, nogil=True)
+def primitive_specular_points(is_sphere: NDArray[np.bool_], centre: NDArray[np.float64], frame: NDArray[np.float64],
+                              radius: NDArray[np.float64], length: NDArray[np.float64], which: NDArray[np.int64],
+                              a: NDArray[np.float64], b: NDArray[np.float64], max_steps: int, tol: float
+                              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                                         NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                         NDArray[np.float64]]:
+    """:func:`acoustisim.propagation.curved.specular_points` on the arrays of a ``CurvedSet``
+    (``is_sphere``, ``centre``, ``frame``, ``radius``, ``length``), for sources ``a`` and
+    receivers ``b`` (n, 3) on primitives ``which`` (n,): the same formulas in the same order,
+    the Newton steps of :func:`circle_newton` (all rows step until none moves). Returns point,
+    normal, valid, e1, e2, k1, k2.
+    """
+    n = which.shape[0]
+    ax, ay = np.empty(n), np.empty(n)
+    bx, by = np.empty(n), np.empty(n)
+    rad = np.empty(n)
+    phi = np.empty(n)
+    na, nb = np.empty(n), np.empty(n)
+    degenerate = np.empty(n, dtype=np.bool_)
+    p_ax, q_ax = np.empty((n, 3)), np.empty((n, 3))
+    za, zb = np.empty(n), np.empty(n)
+    for i in range(n):
+        r = which[i]
+        sph = is_sphere[r]
+        rad[i] = radius[r]
+        u0, u1, u2 = a[i, 0] - centre[r, 0], a[i, 1] - centre[r, 1], a[i, 2] - centre[r, 2]
+        v0, v1, v2 = b[i, 0] - centre[r, 0], b[i, 1] - centre[r, 1], b[i, 2] - centre[r, 2]
+        if sph:
+            nu = _norm3(u0, u1, u2)
+            e0, e1, e2 = u0 / nu, u1 / nu, u2 / nu
+            dv = v0 * e0 + v1 * e1 + v2 * e2
+            w0, w1, w2 = v0 - dv * e0, v1 - dv * e1, v2 - dv * e2
+            if not _norm3(w0, w1, w2) > 1e-12 * _norm3(v0, v1, v2):
+                # collinear centre, source and receiver: any plane through the line will do
+                h0, h1 = (1.0, 0.0) if abs(e0) < 0.9 else (0.0, 1.0)
+                w0, w1, w2 = e1 * 0.0 - e2 * h1, e2 * h0 - e0 * 0.0, e0 * h1 - e1 * h0
+            nw = _norm3(w0, w1, w2)
+            p_ax[i, 0], p_ax[i, 1], p_ax[i, 2] = e0, e1, e2
+            q_ax[i, 0], q_ax[i, 1], q_ax[i, 2] = w0 / nw, w1 / nw, w2 / nw
+        else:
+            for k in range(3):
+                p_ax[i, k] = frame[r, 0, k]
+                q_ax[i, k] = frame[r, 1, k]
+        ax[i] = u0 * p_ax[i, 0] + u1 * p_ax[i, 1] + u2 * p_ax[i, 2]
+        ay[i] = u0 * q_ax[i, 0] + u1 * q_ax[i, 1] + u2 * q_ax[i, 2]
+        bx[i] = v0 * p_ax[i, 0] + v1 * p_ax[i, 1] + v2 * p_ax[i, 2]
+        by[i] = v0 * q_ax[i, 0] + v1 * q_ax[i, 1] + v2 * q_ax[i, 2]
+        za[i] = u0 * frame[r, 2, 0] + u1 * frame[r, 2, 1] + u2 * frame[r, 2, 2]
+        zb[i] = v0 * frame[r, 2, 0] + v1 * frame[r, 2, 1] + v2 * frame[r, 2, 2]
+        na[i], nb[i] = math.hypot(ax[i], ay[i]), math.hypot(bx[i], by[i])
+        sx, sy = ax[i] / na[i] + bx[i] / nb[i], ay[i] / na[i] + by[i] / nb[i]
+        # opposite directions (forward scatter): no lit stationary point; keep phi finite
+        degenerate[i] = math.hypot(sx, sy) <= 1e-12
+        phi[i] = math.atan2(ay[i], ax[i]) if degenerate[i] else math.atan2(sy, sx)
+    circle_newton(ax, ay, bx, by, rad, phi, max_steps, tol)
+    point, normal = np.empty((n, 3)), np.empty((n, 3))
+    e1_out, e2_out = np.empty((n, 3)), np.empty((n, 3))
+    k1, k2 = np.empty(n), np.empty(n)
+    valid = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        r = which[i]
+        sph = is_sphere[r]
+        c, s = math.cos(phi[i]), math.sin(phi[i])
+        x0, x1 = rad[i] * c, rad[i] * s
+        ok = ((ax[i] - x0) * c + (ay[i] - x1) * s > 0.0) and ((bx[i] - x0) * c + (by[i] - x1) * s > 0.0)
+        ok = ok and (na[i] > rad[i]) and (nb[i] > rad[i]) and not degenerate[i]
+        # cylinders: lift along the axis where the unrolled path is straight
+        da0, da1 = ax[i] - x0, ay[i] - x1
+        db0, db1 = bx[i] - x0, by[i] - x1
+        rho_a = math.sqrt(da0 * da0 + da1 * da1)
+        rho_b = math.sqrt(db0 * db0 + db1 * db1)
+        if sph:
+            z = 0.0
+        else:
+            z = za[i] + (zb[i] - za[i]) * rho_a / (rho_a + rho_b if rho_a + rho_b > 0 else 1.0)
+            ok = ok and abs(z) <= 0.5 * length[r] + 1e-9
+        valid[i] = ok
+        m0 = x0 * p_ax[i, 0] + x1 * q_ax[i, 0]
+        m1 = x0 * p_ax[i, 1] + x1 * q_ax[i, 1]
+        m2 = x0 * p_ax[i, 2] + x1 * q_ax[i, 2]
+        nm = _norm3(m0, m1, m2)
+        n0, n1, n2 = m0 / nm, m1 / nm, m2 / nm
+        normal[i, 0], normal[i, 1], normal[i, 2] = n0, n1, n2
+        g0, g1, g2 = (0.0, 0.0, 0.0) if sph else (frame[r, 2, 0], frame[r, 2, 1], frame[r, 2, 2])
+        point[i, 0] = centre[r, 0] + rad[i] * n0 + z * g0
+        point[i, 1] = centre[r, 1] + rad[i] * n1 + z * g1
+        point[i, 2] = centre[r, 2] + rad[i] * n2 + z * g2
+        # principal directions: cylinder (around, along); sphere any tangent pair
+        if sph:
+            h0, h1 = (1.0, 0.0) if abs(n0) < 0.9 else (0.0, 1.0)
+            t0, t1, t2 = n1 * 0.0 - n2 * h1, n2 * h0 - n0 * 0.0, n0 * h1 - n1 * h0
+        else:
+            f0, f1, f2 = frame[r, 2, 0], frame[r, 2, 1], frame[r, 2, 2]
+            t0, t1, t2 = f1 * n2 - f2 * n1, f2 * n0 - f0 * n2, f0 * n1 - f1 * n0
+        nt = _norm3(t0, t1, t2)
+        t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
+        e1_out[i, 0], e1_out[i, 1], e1_out[i, 2] = t0, t1, t2
+        if sph:
+            e2_out[i, 0], e2_out[i, 1], e2_out[i, 2] = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0
+        else:
+            e2_out[i, 0], e2_out[i, 1], e2_out[i, 2] = frame[r, 2, 0], frame[r, 2, 1], frame[r, 2, 2]
+        k1[i] = 1.0 / rad[i]
+        k2[i] = 1.0 / rad[i] if sph else 0.0
+    return point, normal, valid, e1_out, e2_out, k1, k2
+
+
+__all__ = ["backtrace_chains", "circle_newton", "primitive_specular_points", "unfold_chains"]
