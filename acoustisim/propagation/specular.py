@@ -41,6 +41,7 @@ from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, sp
 from acoustisim.propagation.image_source import PlanarMirrors, backtrace, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
+from acoustisim.propagation.specular_kernels import incidence_cosines
 
 _REAL_TOL = 1e-12
 """|Im R| below this fraction of |R| counts as a real coefficient (sign kept in the gain)."""
@@ -322,23 +323,11 @@ def _smooth_chains(context: SolveContext, prepared: PreparedScene, n_before: int
 
 
 def _incidence_cosines(chains: _Chains) -> list[NDArray[np.float64]]:
-    """|cos| of the incidence angle at each vertex j of the chains: k arrays (n,)."""
-    n = chains.length.shape[0]
-    cosines = []
-    previous = np.zeros((n, 3))
-    for j in range(len(chains.material)):
-        leg = chains.vertices[:, j + 1] - chains.vertices[:, j]
-        norm = np.linalg.norm(leg, axis=1, keepdims=True)
-        incoming = leg / np.where(norm > 0, norm, 1.0)
-        if j > 0:
-            # a zero-length leg (two reflections on a corner line): the wave arrives along the
-            # previous direction mirrored by the previous surface
-            n_prev = chains.normal[:, j - 1]
-            mirrored = previous - 2.0 * np.einsum("ij,ij->i", previous, n_prev)[:, None] * n_prev
-            incoming = np.where(norm > 1e-12, incoming, mirrored)
-        previous = incoming
-        cosines.append(np.abs(np.einsum("ij,ij->i", incoming, chains.normal[:, j])))
-    return cosines
+    """|cos| of the incidence angle at each vertex j of the chains: k arrays (n,) (a zero-length
+    leg, two reflections on a corner line, arrives along the previous direction mirrored by the
+    previous surface; :func:`.specular_kernels.incidence_cosines`)."""
+    cosines = incidence_cosines(np.ascontiguousarray(chains.vertices), np.ascontiguousarray(chains.normal))
+    return [cosines[:, j] for j in range(cosines.shape[1])]
 
 
 def _reflection_products(groups: list[_Chains], prepared: PreparedScene, context: SolveContext

@@ -273,4 +273,33 @@ def primitive_specular_points(is_sphere: NDArray[np.bool_], centre: NDArray[np.f
     return point, normal, valid, e1_out, e2_out, k1, k2
 
 
-__all__ = ["backtrace_chains", "circle_newton", "primitive_specular_points", "unfold_chains"]
+
+@njit(cache=True, nogil=True)
+def incidence_cosines(vertices: NDArray[np.float64], normals: NDArray[np.float64]) -> NDArray[np.float64]:
+    """|cos| of the incidence angle (n, k) at each interaction of chains with ``vertices``
+    (n, k + 2, 3) (transmitter, k points, receiver) and unit ``normals`` (n, k, 3).
+
+    A zero-length leg (<= 1e-12 m: two reflections on a corner line) arrives along the previous
+    direction mirrored by the previous surface.
+    """
+    n, k = normals.shape[0], normals.shape[1]
+    out = np.empty((n, k))
+    for i in range(n):
+        p0, p1, p2 = 0.0, 0.0, 0.0
+        for j in range(k):
+            l0 = vertices[i, j + 1, 0] - vertices[i, j, 0]
+            l1 = vertices[i, j + 1, 1] - vertices[i, j, 1]
+            l2 = vertices[i, j + 1, 2] - vertices[i, j, 2]
+            norm = _norm3(l0, l1, l2)
+            scale = norm if norm > 0 else 1.0
+            c0, c1, c2 = l0 / scale, l1 / scale, l2 / scale
+            if j > 0 and not norm > 1e-12:
+                m0, m1, m2 = normals[i, j - 1, 0], normals[i, j - 1, 1], normals[i, j - 1, 2]
+                d = p0 * m0 + p1 * m1 + p2 * m2
+                c0, c1, c2 = p0 - 2.0 * d * m0, p1 - 2.0 * d * m1, p2 - 2.0 * d * m2
+            p0, p1, p2 = c0, c1, c2
+            out[i, j] = abs(c0 * normals[i, j, 0] + c1 * normals[i, j, 1] + c2 * normals[i, j, 2])
+    return out
+
+
+__all__ = ["backtrace_chains", "circle_newton", "incidence_cosines", "primitive_specular_points", "unfold_chains"]
