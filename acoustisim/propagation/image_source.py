@@ -357,7 +357,10 @@ def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: ND
 
 def _as_float_rows(points: NDArray[np.float64], n: int) -> NDArray[np.float64]:
     """``points`` as a C-contiguous float64 array (n, 3) (broadcast views copied)."""
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(points, dtype=float), (n, 3)))
+    points = np.asarray(points, dtype=float)
+    if points.shape != (n, 3):
+        points = np.broadcast_to(points, (n, 3))
+    return np.ascontiguousarray(points)
 
 
 __all__ = ["MAX_OBJECT_MIRRORS", "PlanarMirrors", "backtrace", "mirror_sequences", "is_polyhedral", "object_patch_count", "unfold"]

@@ -90,9 +90,8 @@ def direct_rows(context: SolveContext) -> NDArray[Any]:
 
 def _receivers_in_front(context: SolveContext, mirrors: PlanarMirrors) -> NDArray[np.bool_]:
     """Mirrors (m,) with at least one receiver in front of them."""
-    ids = np.arange(mirrors.count)
-    return np.any(
-        [mirrors.signed_distance(np.broadcast_to(r, (mirrors.count, 3)), ids) > 0 for r in context.receivers_m], axis=0)
+    ahead = np.einsum("rmk,mk->rm", context.receivers_m[:, None, :] - mirrors.point, mirrors.normal)
+    return np.any(ahead > 0, axis=0)
 
 
 def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, chain_base: int,
@@ -322,63 +321,125 @@ def _smooth_chains(context: SolveContext, prepared: PreparedScene, n_before: int
     return merged, chain_base
 
 
-def _incidence_cosines(chains: _Chains) -> list[NDArray[np.float64]]:
-    """|cos| of the incidence angle at each vertex j of the chains: k arrays (n,) (a zero-length
-    leg, two reflections on a corner line, arrives along the previous direction mirrored by the
-    previous surface; :func:`.specular_kernels.incidence_cosines`)."""
-    cosines = incidence_cosines(np.ascontiguousarray(chains.vertices), np.ascontiguousarray(chains.normal))
-    return [cosines[:, j] for j in range(cosines.shape[1])]
+_SOURCES = ("mirror", "curved", "smooth")
+"""Reflector kinds of a chain's vertices, coded by their index in the merged chains."""
 
 
-def _reflection_products(groups: list[_Chains], prepared: PreparedScene, context: SolveContext
-                         ) -> list[NDArray[np.complex128]]:
-    """Product over each chain's vertices of R(cos theta_incidence), for every group: (n_g,) complex.
+@dataclass
+class _Merged:
+    """Chains of every order and kind in one padded array (rows in group order).
 
-    The coefficients of every vertex of every group are evaluated together, one
-    ``Material.reflection_coefficient`` call per (reflector kind, material), then multiplied in
-    vertex order per chain.
+    A chain of order k < K fills slots 0..k-1; its vertices k+2.. repeat the receiver, its
+    surfaces and patches are -1, its normals 0 and its reflector kind -1 beyond.
+    """
+
+    order: NDArray[np.int64]  # (n,)
+    vertices: NDArray[np.float64]  # (n, K + 2, 3)
+    surface: NDArray[np.int64]  # (n, K)
+    patch: NDArray[np.int64]  # (n, K)
+    normal: NDArray[np.float64]  # (n, K, 3)
+    kind: NDArray[np.int64]  # (n, K) index into _SOURCES, -1 for padding
+    material: NDArray[np.int64]  # (n, K) index into the kind's material table
+    length: NDArray[np.float64]  # (n,)
+    spreading: NDArray[np.float64]  # (n,)
+    channel: NDArray[np.int64]  # (n,)
+    chain: NDArray[np.int64]  # (n,)
+    has_phase: NDArray[np.bool_]  # (n,) the chain's group has a stationary-point phase
+    phase: NDArray[np.float64]  # (n,) that phase (0 elsewhere)
+
+    def select(self, keep: NDArray[np.bool_]) -> "_Merged":
+        """The chains where ``keep`` is true."""
+        return _Merged(*(getattr(self, name)[keep] for name in self.__dataclass_fields__))
+
+
+def _merge(groups: list[_Chains]) -> _Merged:
+    """Stack the groups' chains, padded to the largest order."""
+    sizes = [chains.length.shape[0] for chains in groups]
+    n = sum(sizes)
+    big = max((chains.surface.shape[1] for chains in groups), default=0)
+    order = np.empty(n, dtype=np.int64)
+    vertices = np.empty((n, big + 2, 3))
+    surface = np.full((n, big), -1, dtype=np.int64)
+    patch = np.full((n, big), -1, dtype=np.int64)
+    normal = np.zeros((n, big, 3))
+    kind = np.full((n, big), -1, dtype=np.int64)
+    material = np.zeros((n, big), dtype=np.int64)
+    has_phase = np.zeros(n, dtype=bool)
+    phase = np.zeros(n)
+    lo = 0
+    for chains, size in zip(groups, sizes):
+        hi = lo + size
+        k = chains.surface.shape[1]
+        order[lo:hi] = k
+        vertices[lo:hi, :k + 2] = chains.vertices
+        vertices[lo:hi, k + 2:] = chains.vertices[:, -1:]
+        surface[lo:hi, :k] = chains.surface
+        patch[lo:hi, :k] = chains.patch
+        normal[lo:hi, :k] = chains.normal
+        for j, (source, index) in enumerate(chains.material):
+            kind[lo:hi, j] = _SOURCES.index(source)
+            material[lo:hi, j] = index
+        if chains.phase is not None:
+            has_phase[lo:hi] = True
+            phase[lo:hi] = chains.phase
+        lo = hi
+    return _Merged(order, vertices, surface, patch, normal, kind, material,
+                   np.concatenate([chains.length for chains in groups]) if groups else np.zeros(0),
+                   np.concatenate([chains.spreading for chains in groups]) if groups else np.zeros(0),
+                   np.concatenate([chains.channel for chains in groups]) if groups else np.zeros(0, np.int64),
+                   np.concatenate([chains.chain for chains in groups]) if groups else np.zeros(0, np.int64),
+                   has_phase, phase)
+
+
+def _unblocked(chains: _Merged, prepared: PreparedScene) -> NDArray[np.bool_]:
+    """Chains (n,) none of whose legs is occluded: one batched Embree query over every leg
+    (legs ending on a mirror or a curved object ignore that patch)."""
+    n, big = chains.surface.shape
+    if n == 0:
+        return np.ones(0, dtype=bool)
+    legs = np.arange(big + 1) <= chains.order[:, None]  # (n, K + 1) real legs
+    pad = np.full((n, 1), -1, dtype=np.int64)
+    start_patch = np.concatenate([pad, chains.patch], axis=1)  # patch at each leg's start
+    end_patch = np.concatenate([chains.patch, pad], axis=1)
+    blocked_legs = prepared.raycaster.occluded(
+        chains.vertices[:, :-1][legs], chains.vertices[:, 1:][legs],
+        exclude_patches=np.stack([start_patch, end_patch], axis=2)[legs])
+    blocked = np.zeros((n, big + 1), dtype=bool)
+    blocked[legs] = blocked_legs
+    return ~blocked.any(axis=1)
+
+
+def _reflection_products(chains: _Merged, prepared: PreparedScene, context: SolveContext) -> NDArray[np.complex128]:
+    """Product over each chain's vertices of R(cos theta_incidence): (n,) complex.
+
+    One ``Material.reflection_coefficient`` call per (reflector kind, material) over every
+    vertex, then the factors multiplied in vertex order per chain.
     """
     rho, c = context.density_kg_m3, context.sound_speed_m_s
     tables = {"mirror": prepared.mirrors.materials, "curved": tuple(r.material for r in prepared.curved),
               "smooth": tuple(r.material for r in prepared.smooth)}
-    cosines = [_incidence_cosines(chains) for chains in groups]
-    # every (group, vertex) slot, by reflector kind: its material indices and cosines concatenated
-    slots: dict[str, list[tuple[int, int]]] = {}
-    for g, chains in enumerate(groups):
-        for j, (source, _) in enumerate(chains.material):
-            slots.setdefault(source, []).append((g, j))
-    factors: dict[tuple[int, int], NDArray[np.complex128]] = {}
-    for source, where in slots.items():
-        index = np.concatenate([groups[g].material[j][1] for g, j in where])
-        cos_i = np.concatenate([cosines[g][j] for g, j in where])
+    # |cos| of the incidence angle at each vertex (a zero-length leg, two reflections on a corner
+    # line, arrives along the previous direction mirrored by the previous surface)
+    cos_i = incidence_cosines(chains.vertices, chains.normal, chains.order)
+    factor = np.ones(cos_i.shape, dtype=complex)
+    for code, source in enumerate(_SOURCES):
+        at = chains.kind == code
+        if not at.any():
+            continue
+        index = chains.material[at]
+        cos_at = cos_i[at]
         r = np.ones(index.size, dtype=complex)
         for m in np.unique(index):
             sel = index == m
-            r[sel] = tables[source][int(m)].reflection_coefficient(cos_i[sel], rho, c)
-        bounds = np.cumsum([0] + [cosines[g][j].size for g, j in where])
-        for (g, j), lo, hi in zip(where, bounds[:-1], bounds[1:]):
-            factors[(g, j)] = r[lo:hi]
-    products = []
-    for g, chains in enumerate(groups):
-        total = np.ones(chains.length.shape[0], dtype=complex)
-        for j in range(len(chains.material)):
-            total *= factors[(g, j)]
-        products.append(total)
-    return products
+            r[sel] = tables[source][int(m)].reflection_coefficient(cos_at[sel], rho, c)
+        factor[at] = r
+    total = np.ones(cos_i.shape[0], dtype=complex)
+    for j in range(cos_i.shape[1]):
+        total *= factor[:, j]
+    return total
 
 
-def _select(chains: _Chains, keep: NDArray[np.bool_]) -> _Chains:
-    """The chains where ``keep`` is true."""
-    return _Chains(
-        chains.vertices[keep], chains.surface[keep], chains.patch[keep], chains.normal[keep],
-        [(source, index[keep]) for source, index in chains.material], chains.length[keep],
-        chains.spreading[keep], chains.channel[keep], chains.chain[keep],
-        None if chains.phase is None else chains.phase[keep],
-    )
-
-
-def _rows_from_chains(chains: _Chains, reflection: NDArray[np.complex128], path_id_base: int) -> NDArray[Any]:
-    k = chains.surface.shape[1]
+def _rows_from_chains(chains: _Merged, reflection: NDArray[np.complex128], path_id_base: int) -> NDArray[Any]:
     n = chains.length.shape[0]
     rows = empty_paths_array(n)
     if n == 0:
@@ -390,17 +451,20 @@ def _rows_from_chains(chains: _Chains, reflection: NDArray[np.complex128], path_
     rows["path_id"] = path_id_base + chains.chain
     rows["channel"] = chains.channel
     rows["kind"] = PathKind.SPECULAR
-    rows["order"] = k
+    rows["order"] = chains.order
     rows["path_length_m"] = chains.length
     rows["geometric_gain"] = np.where(real, gain * r.real, gain * np.abs(r))
     rows["phase_rad"] = np.where(real, 0.0, -np.angle(r))
     dep = v[:, 1] - v[:, 0]
-    arr = v[:, -1] - v[:, -2]
+    last = np.arange(n)
+    arr = v[last, chains.order + 1] - v[last, chains.order]
     rows["departure_dir"] = dep / np.linalg.norm(dep, axis=1, keepdims=True)
     rows["arrival_dir"] = arr / np.linalg.norm(arr, axis=1, keepdims=True)
-    m = min(k, MAX_INTERACTIONS)
+    m = min(chains.surface.shape[1], MAX_INTERACTIONS)
     rows["object_ids"][:, :m] = chains.surface[:, :m]
-    rows["points_m"][:, :m] = v[:, 1:1 + m]
+    points = v[:, 1:1 + m].copy()
+    points[np.arange(m) >= chains.order[:, None]] = np.nan  # the padding convention of PATH_DTYPE
+    rows["points_m"][:, :m] = points
     return rows
 
 
@@ -438,38 +502,13 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
             for n_after in range(max_order - n_before):
                 chains, chain_base = _smooth_chains(context, prepared, n_before, n_after, chain_base, first, last)
                 groups.append(chains)
-    # one batched occlusion query over every leg of every candidate
-    origins, targets, excludes = [], [], []
-    for chains in groups:
-        n, legs = chains.vertices.shape[0], chains.vertices.shape[1] - 1
-        if n == 0:
-            continue
-        origins.append(chains.vertices[:, :-1].reshape(-1, 3))
-        targets.append(chains.vertices[:, 1:].reshape(-1, 3))
-        pad = np.full((n, 1), -1, dtype=np.int64)
-        start_patch = np.concatenate([pad, chains.patch], axis=1)  # patch at each leg's start
-        end_patch = np.concatenate([chains.patch, pad], axis=1)
-        excludes.append(np.stack([start_patch, end_patch], axis=2).reshape(-1, 2))
-    if origins:
-        blocked_legs = prepared.raycaster.occluded(
-            np.concatenate(origins), np.concatenate(targets), exclude_patches=np.concatenate(excludes))
-    live: list[_Chains] = []
-    offset = 0
-    for chains in groups:
-        n, legs = chains.vertices.shape[0], chains.vertices.shape[1] - 1
-        if n == 0:
-            continue
-        blocked = blocked_legs[offset:offset + n * legs].reshape(n, legs).any(axis=1)
-        offset += n * legs
-        live.append(_select(chains, ~blocked))
-    out = [empty_paths_array(0)]
-    for chains, reflection in zip(live, _reflection_products(live, prepared, context)):
-        if chains.phase is not None:
-            # R in the physics convention exp(-i omega t) and the stationary-point phase in the
-            # engineering one: convert the latter back before multiplying
-            reflection = reflection * np.exp(-1j * chains.phase)
-        out.append(_rows_from_chains(chains, reflection, context.first_path_id))
-    return _deduplicate_rows(np.concatenate(out))
+    chains = _merge(groups)
+    live = chains.select(_unblocked(chains, prepared))
+    reflection = _reflection_products(live, prepared, context)
+    # R in the physics convention exp(-i omega t) and the stationary-point phase in the
+    # engineering one: convert the latter back before multiplying
+    reflection[live.has_phase] = reflection[live.has_phase] * np.exp(-1j * live.phase[live.has_phase])
+    return _deduplicate_rows(_rows_from_chains(live, reflection, context.first_path_id))
 
 
 def _deduplicate_rows(rows: NDArray[Any]) -> NDArray[Any]:

@@ -275,18 +275,20 @@ def primitive_specular_points(is_sphere: NDArray[np.bool_], centre: NDArray[np.f
 
 
 @njit(cache=True, nogil=True)
-def incidence_cosines(vertices: NDArray[np.float64], normals: NDArray[np.float64]) -> NDArray[np.float64]:
-    """|cos| of the incidence angle (n, k) at each interaction of chains with ``vertices``
-    (n, k + 2, 3) (transmitter, k points, receiver) and unit ``normals`` (n, k, 3).
+def incidence_cosines(vertices: NDArray[np.float64], normals: NDArray[np.float64],
+                      order: NDArray[np.int64]) -> NDArray[np.float64]:
+    """|cos| of the incidence angle (n, k) at each interaction of chains of ``order`` (n,)
+    (<= k) interactions with ``vertices`` (n, k + 2, 3) (transmitter, the interaction points,
+    receiver, padding) and unit ``normals`` (n, k, 3); 1 at padded slots.
 
     A zero-length leg (<= 1e-12 m: two reflections on a corner line) arrives along the previous
     direction mirrored by the previous surface.
     """
     n, k = normals.shape[0], normals.shape[1]
-    out = np.empty((n, k))
+    out = np.ones((n, k))
     for i in range(n):
         p0, p1, p2 = 0.0, 0.0, 0.0
-        for j in range(k):
+        for j in range(order[i]):
             l0 = vertices[i, j + 1, 0] - vertices[i, j, 0]
             l1 = vertices[i, j + 1, 1] - vertices[i, j, 1]
             l2 = vertices[i, j + 1, 2] - vertices[i, j, 2]
