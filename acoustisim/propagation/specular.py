@@ -31,7 +31,7 @@ engineering (FFT) convention, so ``phase_rad = -arg(R)``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -140,25 +140,55 @@ class _Candidates:
     n_chains: int  # number of chain numbers used
 
 
-def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bool_], n_before: int,
-                n_after: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> _Candidates:
-    """Every (before sequence, after sequence, receiver, reflector) whose images are valid, pruned
-    by the mirror/reflector visibility table ``seen_by`` (r, m)."""
-    n_refl = seen_by.shape[0]
+@dataclass
+class _Sides:
+    """The unfolded mirror sequences before and after a reflector, by length, for one pose and
+    one reflector visibility table (shared by every split of a chain order)."""
+
+    before: dict[int, tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]]
+    after: dict[int, tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
+                           NDArray[np.bool_]]]
+
+
+def _sides(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bool_], lengths: Iterable[int],
+           first: NDArray[np.bool_], last: NDArray[np.bool_]) -> _Sides:
+    """Sequences of each of ``lengths`` mirrors before a reflector (from the transmitter, with
+    their images and validity) and after it (in path order, from the reflector to the
+    receiver; the receiver's images once per (sequence, receiver): rows ``ra`` of the
+    sequences, ``rr`` of the receivers)."""
     tx = context.transmitter_m
     n_rx = context.receivers_m.shape[0]
     any_seen = np.any(seen_by, axis=0)
-    seq_b = mirrors.sequences(n_before, first, any_seen)
-    # in path order, from the object to the receiver
-    seq_a = mirrors.sequences(n_after, any_seen, last)
-    images_b, ok_b = unfold(mirrors, np.broadcast_to(tx, (seq_b.shape[0], 3)), seq_b)
-    # receiver-side images, once per (after sequence, receiver)
-    ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)
-    rr = np.tile(np.arange(n_rx), seq_a.shape[0])
-    images_a, ok_a = unfold(mirrors, context.receivers_m[rr], seq_a[ra][:, ::-1])
+    before, after = {}, {}
+    for k in lengths:
+        seq_b = mirrors.sequences(k, first, any_seen)
+        images_b, ok_b = unfold(mirrors, tx, seq_b)
+        before[k] = (seq_b, images_b, ok_b)
+        seq_a = mirrors.sequences(k, any_seen, last)
+        ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)
+        rr = np.tile(np.arange(n_rx), seq_a.shape[0])
+        images_a, ok_a = unfold(mirrors, context.receivers_m[rr], seq_a[ra][:, ::-1])
+        after[k] = (seq_a, ra, rr, images_a, ok_a)
+    return _Sides(before, after)
+
+
+def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bool_], n_before: int,
+                n_after: int, first: NDArray[np.bool_], last: NDArray[np.bool_],
+                sides: _Sides | None = None) -> _Candidates:
+    """Every (before sequence, after sequence, receiver, reflector) whose images are valid, pruned
+    by the mirror/reflector visibility table ``seen_by`` (r, m); ``sides``: :func:`_sides` of
+    the same table when the caller has them."""
+    n_refl = seen_by.shape[0]
+    if sides is None:
+        sides = _sides(context, mirrors, seen_by, sorted({n_before, n_after}), first, last)
+    seq_b, images_b, ok_b = sides.before[n_before]
+    seq_a, ra, rr, images_a, ok_a = sides.after[n_after]
     ib = np.flatnonzero(ok_b)
     iar = np.flatnonzero(ok_a)
-    gb, gar, gr = (g.ravel() for g in np.meshgrid(ib, iar, np.arange(n_refl), indexing="ij"))
+    # every (ib, iar, reflector) triple, in that nesting order
+    gb = np.repeat(ib, iar.size * n_refl)
+    gar = np.tile(np.repeat(iar, n_refl), ib.size)
+    gr = np.tile(np.arange(n_refl), ib.size * iar.size)
     keep = np.ones(gb.size, dtype=bool)
     if n_before:
         keep &= seen_by[gr, seq_b[gb, -1]]
@@ -247,8 +277,9 @@ def _mixed_chains(context: SolveContext, prepared: PreparedScene, max_order: int
     mirrors = prepared.mirrors
     splits = [(n_before, n_after) for n_before in range(max_order) for n_after in range(max_order - n_before)]
     cands, bases = [], []
+    sides = _sides(context, mirrors, prepared.curved_seen_by, range(max_order), first, last)
     for n_before, n_after in splits:
-        cand = _candidates(context, mirrors, prepared.curved_seen_by, n_before, n_after, first, last)
+        cand = _candidates(context, mirrors, prepared.curved_seen_by, n_before, n_after, first, last, sides)
         cands.append(cand)
         bases.append(chain_base)
         chain_base += cand.n_chains
