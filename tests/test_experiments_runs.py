@@ -65,8 +65,22 @@ def test_angle_sweep_tiny_without_reverberation(tmp_path: Path) -> None:
 
 
 def test_nine_methods_tiny(tmp_path: Path) -> None:
-    out = _run("nine-methods", tmp_path, 4, pings_per_position=2, min_range=2.0, max_range=2.5)
+    out = _run("nine-methods", tmp_path, 4, pings_per_position=2, min_range=2.0, max_range=2.5, timing_repeats=1)
     assert out["positions"] == 2 and out["pings"] == 4
+    # Timed on the whole acquired record as the seed did (not a cut-out around the target): the
+    # default sonar's 12.5 ms at 20 MHz, 250,000 samples per channel; the search is gated instead.
+    from acoustisim.experiments.point_target import edge_tank_scene
+
+    sonar = edge_tank_scene().sonar
+    full = int(round(sonar.record_length_s * sonar.sample_rate_hz))
+    assert full == 250_000 and out["timed_samples"] == full
+    assert out["timed_record_length_s"] == sonar.record_length_s and out["timing_repeats"] == 1
+    for group in out["groups"]:
+        assert group["timed_samples"] == full
+        start_s, stop_s = group["search_window_s"]
+        assert start_s < 2.0 * group["truth_range_m"] / 1482.0 < stop_s < sonar.record_length_s / 2
+    assert set(out["cpu_time_ratios"]) == {"seed-9/seed-4", "seed-9/seed-8"}
+    assert all(v > 0 for v in out["cpu_time_ratios"].values())
     summary = out["summary"]
     assert list(summary) == [f"seed-{k}" for k in range(1, 10)]
     for name, s in summary.items():
