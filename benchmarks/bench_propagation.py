@@ -7,8 +7,16 @@ each with the graded edge discretisation (the default, ``SolverConfig.edge_adapt
 the fine 1/16-period one (the same-run baseline of the edge work). Then it checks that a scene
 of over a million triangles loads and solves.
 
-Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large]``
-(``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine).
+Two figures of the whole solve follow: the CPU-time cost of the amplitude floor (judged across
+the pulse band, ``SolverConfig.amplitude_floor_db = -80``) against keep-all (``None``) on the
+default configuration (with 20 000 diffuse rays), and the CPU time of
+:func:`~acoustisim.propagation.columns.complete_columns` on the diffuse rows of
+``--columns-rays`` rays (about 2.1 rows per ray), with ``--columns-before FILE`` (an older
+``acoustisim/propagation/columns.py``, e.g. ``git show 21590e5:acoustisim/propagation/columns.py
+> /tmp/columns_before.py``) timed interleaved with it as the same-run baseline.
+
+Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]``
+(``--repeats 21 --skip-large``: about 40 s on a quiet 2-core machine).
 """
 
 from __future__ import annotations
@@ -28,12 +36,64 @@ def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
     return float(np.median(times))
 
 
+def _floor_and_columns(prepared, args) -> None:
+    """The amplitude floor's cost in a full solve, and complete_columns on many diffuse rows."""
+    import importlib.util
+
+    from acoustisim.propagation import SolverConfig, solve
+    from acoustisim.propagation.columns import complete_columns
+    from acoustisim.propagation.context import SolveContext
+    from acoustisim.propagation.diffuse import diffuse_paths
+
+    repeats = max(3, args.repeats)
+    floored, keep_all = SolverConfig(), SolverConfig(amplitude_floor_db=None)
+    n_floored, n_all = len(solve(prepared, config=floored)), len(solve(prepared, config=keep_all))
+    cpu = {"floor": [], "keep": []}
+    for _ in range(repeats):  # alternating, so both see the same load
+        for key, config in (("floor", floored), ("keep", keep_all)):
+            start = time.process_time()
+            solve(prepared, config=config)
+            cpu[key].append(time.process_time() - start)
+    floor_s, keep_s = float(np.median(cpu["floor"])), float(np.median(cpu["keep"]))
+    print(f"  full default solve ({floored.diffuse_rays} diffuse rays), CPU medians over {repeats}: "
+          f"floor -80 dB across the band {floor_s * 1e3:.1f} ms ({n_floored} rows kept), keep-all "
+          f"{keep_s * 1e3:.1f} ms ({n_all} rows); floor cost {(floor_s - keep_s) * 1e3:.1f} ms")
+
+    scene = prepared.scene
+    context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
+    rows = diffuse_paths(context, SolverConfig(diffuse_rays=args.columns_rays))
+    functions = {"compiled": complete_columns}
+    if args.columns_before:
+        spec = importlib.util.spec_from_file_location("columns_before", args.columns_before)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        functions["before"] = module.complete_columns
+    for function in functions.values():  # compile / warm up
+        function(rows.copy(), context)
+    cpu = {key: [] for key in functions}
+    for _ in range(repeats):
+        for key, function in functions.items():
+            work = rows.copy()
+            start = time.process_time()
+            function(work, context)
+            cpu[key].append(time.process_time() - start)
+    now = float(np.median(cpu["compiled"]))
+    line = (f"  complete_columns on {rows.size} diffuse rows ({args.columns_rays} rays): CPU median "
+            f"{now * 1e3:.1f} ms")
+    if "before" in cpu:
+        before = float(np.median(cpu["before"]))
+        line += f"; before ({args.columns_before}) {before * 1e3:.1f} ms; before / now = {before / now:.2f}"
+    print(line)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeats", type=int, default=21)
     parser.add_argument("--skip-large", action="store_true", help="skip the 1.3-million-triangle scene")
     parser.add_argument("--large-user-mesh", action="store_true",
                         help="also a 1.3-million-triangle user mesh without primitive (smooth-mesh tracer; ~1 min)")
+    parser.add_argument("--columns-rays", type=int, default=200_000)
+    parser.add_argument("--columns-before", default=None, help="an older columns.py to time against")
     args = parser.parse_args()
 
     import trimesh
@@ -78,6 +138,8 @@ def main() -> None:
             cpu = _median_time(lambda: solve(prepared, config=config), repeats, time.process_time)
             mode = "" if "edge" not in mechanisms else (" graded edges" if adaptive else " fine edges (1/16 period)")
             print(f"    {label}{mode}: {cpu * 1e3:.2f} ms, {n_rows} rows")
+
+    _floor_and_columns(prepared, args)
 
     if args.skip_large:
         return

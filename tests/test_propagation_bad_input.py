@@ -38,6 +38,14 @@ def _scene(objects=(), sonar=SonarHead()) -> Scene:
         ({"mechanisms": ("direct", "magic")}, "mechanisms"),
         ({"mechanisms": "direct"}, "mechanisms"),
         ({"seed": -3}, "seed"),
+        ({"threads": 0}, "threads"),
+        ({"threads": 1.5}, "threads"),
+        ({"threads": True}, "threads"),
+        ({"diffuse_visibility": "approximate"}, "diffuse_visibility"),
+        ({"diffuse_visibility": None}, "diffuse_visibility"),
+        ({"amplitude_floor_band_hz": (7e5, 3e5)}, "amplitude_floor_band_hz"),
+        ({"amplitude_floor_band_hz": (0.0, 3e5)}, "amplitude_floor_band_hz"),
+        ({"amplitude_floor_band_hz": "wide"}, "amplitude_floor_band_hz"),
     ],
 )
 def test_bad_config_names_the_field(kwargs, field):

@@ -88,19 +88,3 @@ def test_every_row_is_labelled_consistently(tank):
         assert np.all(np.isfinite(row["points_m"][:k])) and np.all(np.isnan(row["points_m"][k:]))
     table = paths.arrivals_table()
     assert {"direct", "specular"} == {entry["kind"] for entry in table}
-
-
-def test_amplitude_floor_culls_only_weak_arrivals(tank):
-    _, prepared, paths = tank
-    floor_db = -40.0
-    culled = solve(prepared, config=replace(DETERMINISTIC, amplitude_floor_db=floor_db))
-    strongest = paths["amplitude"][paths["kind"] != PathKind.DIRECT].max()
-    threshold = strongest * 10 ** (floor_db / 20)
-    kept = {(int(r["path_id"]), int(r["channel"])) for r in culled.rows}
-    for row in paths.rows:
-        key = (int(row["path_id"]), int(row["channel"]))
-        if row["kind"] == PathKind.DIRECT or row["amplitude"] >= threshold:
-            assert key in kept
-        else:
-            assert key not in kept
-    assert 0 < len(culled) < len(paths)

@@ -9,13 +9,15 @@ mechanism's rows) computes the rest, so all mechanisms agree on them.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation.directivity import piston_directivity  # noqa: F401 (the formula reproduced)
 
 
 def _off_axis_parts(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.float64],
@@ -53,46 +55,92 @@ def off_axis_angle(directions: NDArray[np.float64], axis: NDArray[np.float64]) -
     return np.arctan2(sin_part, cos_part)
 
 
-def _components(directions: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Directions (n, 3) (e.g. a strided structured field) as contiguous component rows (3, n)."""
-    return np.ascontiguousarray(np.asarray(directions, dtype=float).T)
+_NEPER_PER_DB = -math.log(10.0) / 20.0
+"""10^(-L / 20) = exp(L * _NEPER_PER_DB) (a few ulp from numpy's power)."""
 
 
-_DERIVED = ("angle_tx_rad", "angle_rx_rad", "directivity_tx", "directivity_rx", "absorption_db", "amplitude")
-"""Derived float64 columns written together (consecutive in ``PATH_DTYPE``)."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _angle_and_argument(x: float, y: float, z: float, ax: float, ay: float, az: float, sign: float,
+                        ka: float) -> tuple[float, float]:
+    """The angle off the axis a of the direction sign * d (rad) and the piston argument
+    x = k a sin(angle), or 0.0 where |x| < 1e-8 (where 2 J1(x)/x = 1 - x^2/8 rounds to 1.0),
+    or NaN behind the piston (cos(angle) < 0: directivity 0, and scipy's J1 of NaN is cheap).
 
-
-def _float_block(rows: NDArray[Any], names: tuple[str, ...]) -> NDArray[np.float64] | None:
-    """A writable (n, len(names)) float64 view of consecutive float64 fields of ``rows``, or None
-    if the fields are not laid out back to back."""
-    fields = rows.dtype.fields
-    if fields is None or any(name not in fields or fields[name][0] != np.float64 for name in names):
-        return None
-    offsets = [fields[name][1] for name in names]
-    if any(b - a != 8 for a, b in zip(offsets, offsets[1:])):
-        return None
-    overlay = np.dtype({"names": ["block"], "formats": [(np.float64, (len(names),))], "offsets": [offsets[0]],
-                        "itemsize": rows.dtype.itemsize})
-    return rows.view(overlay)["block"]
-
-
-def _run_starts(components: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Whether each direction, given as component rows (3, n), differs from the previous one
-    (True for the first).
-
-    Rows of one diffuse scattering event (or of one edge element) going to several receivers
-    share their departure direction and sit next to each other, so the transmitter-side columns
-    are computed once per run of equal directions.
+    The products and sums of :func:`_off_axis_parts` in the same order; the direction -d has
+    the same |d x a| and exactly -(d . a).
     """
-    n = components.shape[1]
-    start = np.ones(n, dtype=bool)
-    if n > 1:
-        x, y, z = components
-        same = x[1:] == x[:-1]
-        same &= y[1:] == y[:-1]
-        same &= z[1:] == z[:-1]
-        np.logical_not(same, out=start[1:])
-    return start
+    cx = y * az - z * ay
+    cy = z * ax - x * az
+    cz = x * ay - y * ax
+    sin_part = math.sqrt(cx * cx + cy * cy + cz * cz)
+    cos_part = sign * (x * ax + y * ay + z * az)
+    angle = math.atan2(sin_part, cos_part)
+    # cos(angle) < 0 is cos_part < 0, except within rounding of 90 deg, where cos decides
+    if cos_part < 0.0 and (cos_part < -1e-12 or math.cos(angle) < 0.0):
+        return angle, math.nan
+    # sin(atan2(s, c)) = s / hypot(s, c), without the sine (a few ulp from numpy's sin)
+    arg = ka * (sin_part / math.sqrt(sin_part * sin_part + cos_part * cos_part))
+    return angle, (0.0 if abs(arg) < 1e-8 else arg)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _angle_pass(departure: NDArray[np.float64], arrival: NDArray[np.float64], ax: float, ay: float, az: float,
+                ka: float, run: NDArray[np.intp], head_angle: NDArray[np.float64], head_x: NDArray[np.float64],
+                rx_angle: NDArray[np.float64], rx_x: NDArray[np.float64]) -> int:
+    """Transmitter angles and arguments once per run of equal departure directions (``run[i]``
+    is row i's run, ``head_*[run]`` its values), receiver ones per row (of -arrival_dir).
+    Returns the number of runs."""
+    runs = -1
+    px = py = pz = 0.0
+    for i in range(run.size):
+        x = departure[i, 0]
+        y = departure[i, 1]
+        z = departure[i, 2]
+        if runs < 0 or x != px or y != py or z != pz:
+            runs += 1
+            px, py, pz = x, y, z
+            head_angle[runs], head_x[runs] = _angle_and_argument(x, y, z, ax, ay, az, 1.0, ka)
+        run[i] = runs
+        rx_angle[i], rx_x[i] = _angle_and_argument(arrival[i, 0], arrival[i, 1], arrival[i, 2], ax, ay, az, -1.0, ka)
+    return runs + 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _directivity(x: float, j1x: float) -> float:
+    """2 J1(x)/x as :func:`piston_directivity` gives it, from the argument stored by
+    :func:`_angle_and_argument` and J1 of it."""
+    if math.isnan(x):
+        return 0.0
+    if x == 0.0:
+        return 1.0
+    return 2.0 * j1x / x
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], c: float, alpha_db_per_m: float,
+              run: NDArray[np.intp], head_angle: NDArray[np.float64], head_x: NDArray[np.float64],
+              head_j1: NDArray[np.float64], rx_angle: NDArray[np.float64], rx_x: NDArray[np.float64],
+              rx_j1: NDArray[np.float64], delay: NDArray[np.float64], angle_tx: NDArray[np.float64],
+              angle_rx: NDArray[np.float64], directivity_tx: NDArray[np.float64],
+              directivity_rx: NDArray[np.float64], absorption: NDArray[np.float64],
+              amplitude: NDArray[np.float64]) -> None:
+    """Every derived field of every row, written in one pass over the rows."""
+    last = -1
+    d_tx = 0.0
+    for i in range(run.size):
+        r = run[i]
+        if r != last:
+            last = r
+            d_tx = _directivity(head_x[r], head_j1[r])
+        d_rx = _directivity(rx_x[i], rx_j1[i])
+        loss = length[i] * alpha_db_per_m
+        delay[i] = length[i] / c
+        angle_tx[i] = head_angle[r]
+        angle_rx[i] = rx_angle[i]
+        directivity_tx[i] = d_tx
+        directivity_rx[i] = d_rx
+        absorption[i] = loss
+        amplitude[i] = abs(gain[i] * d_tx * d_rx) * math.exp(loss * _NEPER_PER_DB)  # 10^(-loss / 20)
 
 
 def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
@@ -100,58 +148,37 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
 
     ``delay_s = path_length_m / c``; ``angle_tx_rad`` is the departure direction's angle off the
     boresight, ``angle_rx_rad`` the angle off the boresight of the direction the wave comes from
-    (``-arrival_dir``); directivities are 2 J1(x)/x at the centre frequency; ``absorption_db`` is
-    the medium's absorption at the centre frequency (``context.absorption_db_per_m``, evaluated
-    once per solve) times the path length; ``amplitude`` is
-    |geometric_gain| D_tx D_rx 10^(-absorption_db / 20) (absolute value: a side lobe's sign is
-    kept in the directivity columns).
+    (``-arrival_dir``); directivities are 2 J1(x)/x at the centre frequency
+    (:func:`piston_directivity`); ``absorption_db`` is the medium's absorption at the centre
+    frequency (``context.absorption_db_per_m``, evaluated once per solve) times the path
+    length; ``amplitude`` is |geometric_gain| D_tx D_rx 10^(-absorption_db / 20) (absolute
+    value: a side lobe's sign is kept in the directivity columns).
 
-    Each source field is read once into a contiguous array and each derived field written once;
-    the transmitter angle and directivity are evaluated once per run of consecutive rows with
-    the same departure direction (the receivers of one scattering event) and repeated.
+    Two compiled passes over the rows: :func:`_angle_pass` reads the directions (in place,
+    strided) into contiguous angles and piston arguments, scipy's J1 is evaluated on these,
+    once per run of consecutive rows with the same departure direction (the receivers of one
+    scattering event) and once per row for the receiver. The values are bit for bit those of
+    the per-column numpy formulation (same operations in the same order, the same J1).
     """
     n = rows.size
     if n == 0:
         return rows
-    c = context.sound_speed_m_s
-    f0 = context.centre_frequency_hz
-    a = context.piston_radius_m
-    length = np.ascontiguousarray(rows["path_length_m"])
-    # (6, n): the derived columns, each contiguous, written to the rows in one pass at the end
-    derived = np.empty((len(_DERIVED), n))
-    angle_tx, angle_rx, directivity_tx, directivity_rx, absorption, amplitude = derived
-    departure = _components(rows["departure_dir"])
-    start = _run_starts(departure)
-    heads = np.flatnonzero(start)
-    if heads.size < n:
-        sin_part, cos_part = _off_axis_parts(*departure[:, heads], context.boresight)
-        angle_heads = np.arctan2(sin_part, cos_part)
-        run = np.cumsum(start) - 1
-        np.take(angle_heads, run, out=angle_tx)
-        np.take(piston_directivity(angle_heads, f0, a, c), run, out=directivity_tx)
-    else:
-        sin_part, cos_part = _off_axis_parts(*departure, context.boresight)
-        np.arctan2(sin_part, cos_part, out=angle_tx)
-        directivity_tx[:] = piston_directivity(angle_tx, f0, a, c)
-    del departure
-    # the wave comes from -arrival_dir: same |d x a|, cosine negated (exactly)
-    sin_part, cos_part = _off_axis_parts(*_components(rows["arrival_dir"]), context.boresight)
-    np.negative(cos_part, out=cos_part)
-    np.arctan2(sin_part, cos_part, out=angle_rx)
-    directivity_rx[:] = piston_directivity(angle_rx, f0, a, c)
-    np.multiply(length, context.absorption_db_per_m, out=absorption)
-    np.multiply(rows["geometric_gain"], directivity_tx, out=amplitude)
-    amplitude *= directivity_rx
-    np.abs(amplitude, out=amplitude)
-    amplitude *= 10.0 ** (-absorption / 20.0)
-    derived = derived.T
-    block = _float_block(rows, _DERIVED)
-    if block is not None:  # one strided pass over the rows instead of one per field
-        block[:] = derived
-    else:
-        for j, name in enumerate(_DERIVED):
-            rows[name] = derived[:, j]
-    rows["delay_s"] = length / c
+    from scipy.special import j1
+
+    c = float(context.sound_speed_m_s)
+    a = float(context.piston_radius_m)
+    # k a as piston_directivity forms it: (2 pi f0 / c) a
+    ka = float(2.0 * np.pi * np.asarray(context.centre_frequency_hz, dtype=float) / c) * a
+    ax, ay, az = (float(v) for v in np.asarray(context.boresight, dtype=float))
+    run = np.empty(n, dtype=np.intp)
+    head_angle, head_x, rx_angle, rx_x = np.empty((4, n))
+    runs = _angle_pass(rows["departure_dir"], rows["arrival_dir"], ax, ay, az, ka, run, head_angle, head_x,
+                       rx_angle, rx_x)
+    head_x = head_x[:runs]
+    _row_pass(rows["path_length_m"], rows["geometric_gain"], c, float(context.absorption_db_per_m), run,
+              head_angle, head_x, j1(head_x), rx_angle, rx_x, j1(rx_x), rows["delay_s"], rows["angle_tx_rad"],
+              rows["angle_rx_rad"], rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"],
+              rows["amplitude"])
     return rows
 
 

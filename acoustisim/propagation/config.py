@@ -35,8 +35,20 @@ class SolverConfig:
     amplitude_floor_db : float or None
         Arrivals weaker than this (dB, <= 0) relative to the strongest non-direct arrival are
         dropped; None keeps every path.
+    amplitude_floor_band_hz : tuple of 2 float or None
+        (lowest, highest) frequency (Hz) over which an arrival's level is judged against the
+        floor; None (default): the band where the sonar's pulse spectrum is within 20 dB of
+        its peak. See :func:`acoustisim.propagation.solver.band_levels`.
     seed : int
         Seed of the diffuse tracer's random draws (>= 0).
+    threads : int or None
+        Worker threads of the diffuse tracer (>= 1); None (default): every available core.
+        The paths are the same for any value.
+    diffuse_visibility : str
+        "exact" (default): every scattering point's leg to each receiver is tested for
+        occlusion; "centre": only the leg to the centre receiver is tested and its answer
+        reused for the side receivers (faster, approximate; see
+        :data:`acoustisim.propagation.diffuse.VISIBILITY_MODES`).
     """
 
     max_order: int = 3
@@ -46,7 +58,10 @@ class SolverConfig:
     edge_segment_m: float = 5e-4
     edge_adaptive: bool = True
     amplitude_floor_db: float | None = -80.0
+    amplitude_floor_band_hz: tuple[float, float] | None = None
     seed: int = 0
+    threads: int | None = None
+    diffuse_visibility: str = "exact"
 
     def __post_init__(self) -> None:
         def integer(name: str, minimum: int) -> None:
@@ -83,6 +98,28 @@ class SolverConfig:
             isinstance(floor, bool) or not isinstance(floor, (int, float)) or not (math.isfinite(floor) and floor <= 0)
         ):
             raise InputError(f"solver.amplitude_floor_db = {floor!r}: must be a finite number <= 0 or None")
+        band = self.amplitude_floor_band_hz
+        if band is not None:
+            try:
+                low, high = (float(v) for v in band)
+            except (TypeError, ValueError):
+                low = high = math.nan
+            if isinstance(band, str) or not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
+                raise InputError(
+                    f"solver.amplitude_floor_band_hz = {band!r}: must be two finite frequencies 0 < low <= high (Hz) "
+                    "or None (the pulse's -20 dB band)"
+                )
+            object.__setattr__(self, "amplitude_floor_band_hz", (low, high))
+        threads = self.threads
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+            raise InputError(f"solver.threads = {threads!r}: must be an integer >= 1 or None (every available core)")
+        # imported here: diffuse.py imports this module
+        from acoustisim.propagation.diffuse import VISIBILITY_MODES
+
+        if not isinstance(self.diffuse_visibility, str) or self.diffuse_visibility not in VISIBILITY_MODES:
+            raise InputError(
+                f"solver.diffuse_visibility = {self.diffuse_visibility!r}: must be one of {', '.join(VISIBILITY_MODES)}"
+            )
 
 
 __all__ = ["MECHANISMS", "SolverConfig"]
