@@ -539,11 +539,13 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     # R in the physics convention exp(-i omega t) and the stationary-point phase in the
     # engineering one: convert the latter back before multiplying
     reflection[live.has_phase] = reflection[live.has_phase] * np.exp(-1j * live.phase[live.has_phase])
-    return _deduplicate_rows(_rows_from_chains(live, reflection, context.first_path_id))
+    keep = _first_of_duplicates(live)
+    return _rows_from_chains(live.select(keep), reflection[keep], context.first_path_id)
 
 
-def _deduplicate_rows(rows: NDArray[Any]) -> NDArray[Any]:
-    """Keep one row per (channel, ordered interaction points, set of surfaces).
+def _first_of_duplicates(chains: _Merged) -> NDArray[np.int64]:
+    """Indices (sorted) of the chains to keep: one per (channel, ordered interaction points, set
+    of surfaces), the first.
 
     Reflections on perpendicular planes commute: [wall, floor] and [floor, wall] have the same
     image, and generically only one order is a real path. Through the corner line itself (a
@@ -551,18 +553,31 @@ def _deduplicate_rows(rows: NDArray[Any]) -> NDArray[Any]:
     with coincident reflection points: they are one path, found twice (the image method is exact
     in a right-angle wedge, whose edge does not diffract). Reciprocal twins of a monostatic path
     ([wall-x0, wall-x1] and [wall-x1, wall-x0]) visit their points in opposite orders and stay.
+
+    The key is the one the rows carry (``object_ids`` and ``points_m``, i.e. the first
+    ``MAX_INTERACTIONS`` interactions; points rounded to 1 nm).
     """
-    if rows.size < 2:
-        return rows
-    points = np.nan_to_num(rows["points_m"], nan=0.0).reshape(rows.size, -1)
-    ids = np.sort(rows["object_ids"].astype(np.int64), axis=1)
-    key = np.column_stack([rows["channel"], rows["order"], ids, np.round(points / 1e-9)]).astype(np.int64)
-    # unique over whole rows as one opaque byte string each (np.unique(axis=0) does the same
-    # through a structured dtype, with more overhead); return_index gives first occurrences
-    key = np.ascontiguousarray(key)
-    _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
-                         return_index=True)
-    return rows[np.sort(first)]
+    n = chains.length.shape[0]
+    if n < 2:
+        return np.arange(n)
+    m = min(chains.surface.shape[1], MAX_INTERACTIONS)
+    ids = np.full((n, MAX_INTERACTIONS), -1, dtype=np.int64)
+    ids[:, :m] = chains.surface[:, :m]
+    ids.sort(axis=1)
+    points = np.zeros((n, MAX_INTERACTIONS, 3))
+    points[:, :m] = chains.vertices[:, 1:1 + m]
+    points[:, :m][np.arange(m) >= chains.order[:, None]] = 0.0
+    key = np.column_stack([chains.channel, chains.order, ids, np.round(points.reshape(n, -1) / 1e-9)]).astype(np.int64)
+    # one wrapping 64-bit hash per key row (odd multipliers), unique over the hashes; exact: every
+    # row must equal the first row of its hash, else (a collision) unique over the whole rows
+    multipliers = (np.arange(1, 2 * key.shape[1], 2, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15))
+    hashes = (key.view(np.uint64) * multipliers).sum(axis=1, dtype=np.uint64)
+    _, first, inverse = np.unique(hashes, return_index=True, return_inverse=True)
+    if not np.array_equal(key[first[inverse]], key):
+        key = np.ascontiguousarray(key)
+        _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
+                             return_index=True)
+    return np.sort(first)
 
 
 __all__ = ["direct_rows", "specular_rows"]
