@@ -785,3 +785,22 @@ def test_smooth_mesh_and_primitives_rows_equal_the_reference() -> None:
     for sonar in _random_poses(prepared, 4, seed=5):
         context = SolveContext.build(prepared.scene, sonar, prepared.raycaster)
         _assert_same_rows(specular_rows(context, prepared, 2), reference_specular_rows(context, prepared, 2))
+
+
+def test_first_distinct_rows_equals_numpy_unique_even_on_hash_collisions() -> None:
+    from acoustisim.propagation.specular import first_distinct_rows
+
+    rng = np.random.default_rng(11)
+    key = rng.integers(-3, 3, (500, 6))  # many duplicate rows
+    expected = np.sort(np.unique(key, axis=0, return_index=True)[1])
+    np.testing.assert_array_equal(first_distinct_rows(key), expected)
+    # two different rows with the same wrapping hash: the second column offsets the first's
+    # change (m0 + d1 m1 = 0 mod 2^64 with d1 = -m0 / m1, m1 odd hence invertible)
+    m0, m1 = (np.arange(1, 5, 2, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)).tolist()
+    d1 = (-m0 * pow(m1, -1, 2 ** 64)) % 2 ** 64
+    a = np.array([[5, 7]], dtype=np.int64)
+    b = a.view(np.uint64) + np.array([[1, d1]], dtype=np.uint64)
+    collide = np.concatenate([a, b.view(np.int64), a])
+    assert (collide.view(np.uint64) * np.array([m0, m1], dtype=np.uint64)).sum(axis=1, dtype=np.uint64)[0] == \
+        (collide.view(np.uint64) * np.array([m0, m1], dtype=np.uint64)).sum(axis=1, dtype=np.uint64)[1]
+    np.testing.assert_array_equal(first_distinct_rows(collide), [0, 1])

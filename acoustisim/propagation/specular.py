@@ -568,13 +568,21 @@ def _first_of_duplicates(chains: _Merged) -> NDArray[np.int64]:
     points[:, :m] = chains.vertices[:, 1:1 + m]
     points[:, :m][np.arange(m) >= chains.order[:, None]] = 0.0
     key = np.column_stack([chains.channel, chains.order, ids, np.round(points.reshape(n, -1) / 1e-9)]).astype(np.int64)
-    # one wrapping 64-bit hash per key row (odd multipliers), unique over the hashes; exact: every
-    # row must equal the first row of its hash, else (a collision) unique over the whole rows
-    multipliers = (np.arange(1, 2 * key.shape[1], 2, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15))
+    return first_distinct_rows(key)
+
+
+def first_distinct_rows(key: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Sorted indices of the first occurrence of each distinct row of ``key`` (n, c).
+
+    As ``np.unique(key, axis=0, return_index=True)`` (sorted), faster: one wrapping 64-bit hash
+    per row (odd multipliers), unique over the hashes; exact, as every row must equal the first
+    row of its hash, else (a collision) unique over the whole rows as byte strings.
+    """
+    key = np.ascontiguousarray(key, dtype=np.int64)
+    multipliers = np.arange(1, 2 * key.shape[1], 2, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)
     hashes = (key.view(np.uint64) * multipliers).sum(axis=1, dtype=np.uint64)
     _, first, inverse = np.unique(hashes, return_index=True, return_inverse=True)
     if not np.array_equal(key[first[inverse]], key):
-        key = np.ascontiguousarray(key)
         _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
                              return_index=True)
     return np.sort(first)
