@@ -1,4 +1,4 @@
-"""Planar mirrors and the image-source geometry, vectorised over candidate chains.
+"""Planar mirrors and the image-source geometry, over arrays of candidate chains.
 
 A *mirror* is a bounded planar polygon that reflects specularly: a tank boundary, a coplanar
 facet of a polyhedral object (prism, plate: trimesh ``facets``), or a flat cap of a cylinder.
@@ -7,7 +7,8 @@ facets would give the wrong spreading; see :mod:`acoustisim.propagation.curved`)
 
 :func:`unfold` mirrors a point across a sequence of planes (the images); :func:`backtrace`
 recovers the reflection points from the last image toward an end point and checks that each
-lies inside its polygon and that the path stays on the reflecting side of every mirror.
+lies inside its polygon and that the path stays on the reflecting side of every mirror (both
+compiled per-chain loops, :mod:`acoustisim.propagation.specular_kernels`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
 """Direct and specular paths: image sources on planar mirrors, specular points on curved objects.
 
-Chains, for every receiver at once (numpy over candidates, no loop over rays):
+Chains, for every receiver at once (numpy over candidates; the per-chain walks, the unfolding,
+back-tracing with its polygon tests, the curved specular points and the incidence angles, are
+compiled loops in :mod:`.specular_kernels`):
 
 * planar chains of 1..``max_order`` mirrors (image-source method, :mod:`.image_source`);
 * mixed chains: planar mirrors, then one curved object (sphere, cylinder side), then planar
@@ -15,8 +17,11 @@ Chains, for every receiver at once (numpy over candidates, no loop over rays):
 Paths through a right-angle corner line (tank corners, a post meeting the surface or the floor)
 are found in both reflection orders with coincident points and kept once.
 
-Every leg of every valid candidate is checked for occlusion in one batched Embree query; legs
-ending on a mirror or a curved object ignore that patch (see :mod:`.raycast`).
+The chains of every order and kind are then stacked into one padded array (:class:`_Merged`),
+so that what follows is one pass over all of them: every leg of every valid candidate is
+checked for occlusion in one batched Embree query (legs ending on a mirror or a curved object
+ignore that patch, see :mod:`.raycast`), duplicates are dropped, the reflection coefficients
+evaluated, the rows written.
 
 Gains (pressure factor relative to the source at 1 m): planar chains prod(R) / L with L the
 distance from the last image to the receiver; mixed chains prod(R) x the geometric-optics
