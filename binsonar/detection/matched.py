@@ -129,15 +129,24 @@ class MatchedPlan:
         """Relative power of the response versus distance in seconds."""
         return SidelobeModel(self.response_power, self.response_spacing_s)
 
-    def threshold_factor(self, pfa: float) -> float:
-        """|z|^2 / mean noise |z|^2 at which the record's maximum exceeds it with probability pfa.
+    def threshold_factor(self, pfa: float, searched_lags: int | None = None) -> float:
+        """|z|^2 / mean noise |z|^2 at which the searched maximum exceeds it with probability pfa.
 
         The envelope of complex Gaussian noise crosses r upward at the mean rate (Rice)
         2 sqrt(pi T) beta e^-T per second, with T = r^2 / mean |z|^2 and beta the RMS bandwidth
-        of the output spectrum; over a record of duration L, adding the chance e^-T of starting
+        of the output spectrum; over a searched duration L, adding the chance e^-T of starting
         above, pfa = e^-T (1 + 2 sqrt(pi T) beta L), solved for T by fixed-point iteration.
+
+        Parameters
+        ----------
+        pfa : float
+            False-alarm probability over the searched lags.
+        searched_lags : int, optional
+            Span of the searched lags (full-rate samples), e.g. of a search window; default:
+            every full-overlap lag of the record, ``n_samples - template_length``.
         """
-        duration = max(self.n_samples - self.template_length, 1) / self.sample_rate_hz
+        span = self.n_samples - self.template_length if searched_lags is None else int(searched_lags)
+        duration = max(span, 1) / self.sample_rate_hz
         c = 2.0 * math.sqrt(math.pi) * self.rms_bandwidth_hz * duration
         factor = -math.log(pfa)
         for _ in range(50):  # contraction: converges to 1e-12 in a few tens of steps
@@ -657,8 +666,8 @@ def detect_matched(
     t0_s : float
         Time of sample 0 (s).
     pfa : float
-        Design false-alarm probability per record: a row whose peak is below the threshold for
-        it reports no echo.
+        Design false-alarm probability over the searched lags (the search window, or the whole
+        record): a row whose peak is below the threshold for it reports no echo.
     search_window_s : (start_s, stop_s), optional
         Only TOFs in this window (s after the trigger), e.g. to skip the transmitter's direct
         cross-talk; default: every lag where the template lies inside the record.
@@ -682,11 +691,12 @@ def detect_matched(
     z = envelope(plan, spectrum)
     power = np.square(z.real, dtype=float) + np.square(z.imag, dtype=float)  # float64 even from float32 z
     noise = noise_mean_power(power, float(white_noise_power(plan, noise_floor_v)))
-    inside = cell_mask(plan, power.shape[1], lag_range(plan, t0_s, search_window_s))
+    lags = lag_range(plan, t0_s, search_window_s)
+    inside = cell_mask(plan, power.shape[1], lags)
     coarse = np.argmax(np.where(inside, power, -1.0), axis=1)
     row_index = np.arange(rows.shape[0])
     lag, peak = refine_peaks(plan, rows, spectrum, row_index, coarse * plan.decimation, dc=dc)
-    factor = plan.threshold_factor(pfa)
+    factor = plan.threshold_factor(pfa, lags[1] - lags[0])  # pfa over the searched lags only
     values = echo_values(plan, lag, peak, noise, factor, t0_s)
     out: list[list[tuple[float, float, float, float, float]]] = []
     for r in range(rows.shape[0]):
