@@ -32,10 +32,11 @@ accurate time-of-flight estimate can be determined." Here:
    candidates.
 3. Offset calibrated out and sub-sample peak. Lags are counted from sample 0 of the record
    (each stretch's start index is added back), and the template's own ``t0_s`` is subtracted
-   as for the full matched filter. The peak is refined exactly as the full filter refines its
-   own (``matched.refine``: z at the 2 R + 1 integer lags around it by direct dot products
-   with the analytic template, then the log-parabolic vertex), so the two give the same TOF,
-   to rounding, whenever they find the same echo.
+   as for the full matched filter. The peak is refined as the full filter refines its own
+   (``matched.refine_peaks``: z at the 2 R + 1 integer lags around it by direct dot products
+   with the analytic template, then ``matched.refine``'s log-parabolic vertex; here compiled,
+   ``local_kernels.local_peaks``, checked against those functions), so the two give the same
+   TOF, to rounding, whenever they find the same echo.
 
 Cost per channel: one pass over the samples (the block correlations, ~2 flops per sample),
 then work on a few candidates only: ``candidates`` short FFTs of ~3 template lengths and
@@ -71,12 +72,10 @@ from numpy.typing import NDArray
 from binsonar.detection.matched import (
     MatchedPlan,
     check_pfa,
-    dc_correlation,
+    dc_correlation,  # noqa: F401  (the DC folding's definition; tests import it from here)
     echo_values,
     lag_range,
-    lags_time_domain,
     plan_matched,
-    refine,
     white_noise_power,
 )
 from binsonar.detection.noise import noise_sigma
