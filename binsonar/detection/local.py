@@ -475,7 +475,8 @@ def detect_local_matched(
                               values, refined)
     lag, peak = refined[:, 0], refined[:, 1]
     noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
-    values_out = echo_values(matched, lag, peak, noise_mean, matched.threshold_factor(pfa), t0_s)
+    factor = matched.threshold_factor(pfa, lag_hi - lag_lo)  # pfa over the searched lags, as detect_matched
+    values_out = echo_values(matched, lag, peak, noise_mean, factor, t0_s)
     out: list[list[tuple[float, float, float, float, float]]] = []
     for row in range(n_rows):
         echo = tuple(float(v[row]) for v in values_out)
