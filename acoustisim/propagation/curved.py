@@ -32,7 +32,8 @@ from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.propagation.specular_kernels import circle_newton, primitive_specular_points
 
 _NEWTON_STEPS = 40
-"""Most Newton iterations on the circle (compiled, :func:`.specular_kernels.circle_newton`; stops once every step is below 1e-10 rad,
+"""Most Newton iterations on the circle (compiled, :func:`.specular_kernels.circle_newton`;
+stops once every step is below 1e-10 rad,
 leaving an error of order step^2, i.e. ~1e-20 rad, by quadratic convergence).
 From the bisector start it converges quadratically, in under 10 steps for visible points."""
 
