@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
@@ -164,16 +164,17 @@ def band_levels(rows: NDArray[Any], group: NDArray[np.intp], n_groups: int, cont
     return np.max(np.abs(total) * weights, axis=1)
 
 
-def directivity_envelope(lowest_hz: float, highest_hz: float, context: SolveContext
-                         ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
-    """A function giving, for angles (rad, any shape), an upper bound of |D(angle, f)| for every
-    f in [lowest_hz, highest_hz] (D the piston directivity, :func:`piston_directivity`).
+def directivity_envelope(highest_hz: float, context: SolveContext
+                         ) -> Callable[[NDArray[np.float64], ArrayLike], NDArray[np.float64]]:
+    """A function ``bound(angle_rad, frequency_hz)`` (broadcast) giving an upper bound of
+    |D(angle, f')| for every f' in [frequency_hz, highest_hz] (D the piston directivity,
+    :func:`piston_directivity`).
 
-    For x = k a sin(angle), max over the band of |2 J1(x) / x| <= sup over x' >= x_low of
-    |2 J1(x') / x'| (x_low at ``lowest_hz``): a non-increasing function of x_low, tabulated on
-    a grid of step h as the reverse running maximum, read at the grid point at or below x_low,
-    plus h / 4 (|d/dx 2 J1(x)/x| = |2 J2(x)/x| < 1/4, so no peak between grid points is
-    missed). 0 behind the piston.
+    For x = k a sin(angle), max over those f' of |2 J1(x') / x'| <= sup over x' >= x of
+    |2 J1(x') / x'| (x at ``frequency_hz``): a non-increasing function of x, tabulated on a
+    grid of step h as the reverse running maximum, read at the grid point at or below x, plus
+    h / 4 (|d/dx 2 J1(x)/x| = |2 J2(x)/x| < 1/4, so no peak between grid points is missed).
+    0 behind the piston.
     """
     from scipy.special import j1
 
@@ -183,10 +184,11 @@ def directivity_envelope(lowest_hz: float, highest_hz: float, context: SolveCont
     safe = np.where(grid > 0, grid, 1.0)
     magnitude = np.where(grid > 0, np.abs(2.0 * j1(safe) / safe), 1.0)
     envelope = np.minimum(np.maximum.accumulate(magnitude[::-1])[::-1] + 0.25 * grid[1], 1.0)
-    scale = 2.0 * np.pi * lowest_hz / c * a / grid[1]
 
-    def bound(angle_rad: NDArray[np.float64]) -> NDArray[np.float64]:
-        index = np.minimum((scale * np.sin(np.minimum(angle_rad, 0.5 * np.pi))).astype(np.intp), grid.size - 1)
+    def bound(angle_rad: NDArray[np.float64], frequency_hz: ArrayLike) -> NDArray[np.float64]:
+        scale = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float) / c * a / grid[1]
+        x = scale * np.sin(np.minimum(angle_rad, 0.5 * np.pi))
+        index = np.minimum(x.astype(np.intp), grid.size - 1)
         return np.where(angle_rad <= 0.5 * np.pi, envelope[index], 0.0)
 
     return bound
@@ -208,6 +210,8 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     columns, no Bessel function) and an upper bound (the sum of |g| times the directivity
     envelopes, :func:`directivity_envelope`, times the absorption at the band's lowest
     frequency; pulse weights <= 1); most arrivals fall clearly on one side of the threshold.
+    Single rows left undecided are evaluated one band frequency at a time, highest pulse
+    weight first, and leave as soon as they reach the threshold.
 
     Parameters
     ----------
@@ -235,11 +239,11 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     single = np.flatnonzero((kind != int(PathKind.EDGE)) & (kind != int(PathKind.DIRECT)))
     n_single = single.size
 
-    envelope = directivity_envelope(low, high, context)
+    envelope = directivity_envelope(high, context)
     # every row's upper bound, from the strided fields in place (cheaper than gathering them)
     upper_rows = np.abs(rows["geometric_gain"])
-    upper_rows *= envelope(rows["angle_tx_rad"])
-    upper_rows *= envelope(rows["angle_rx_rad"])
+    upper_rows *= envelope(rows["angle_tx_rad"], low)
+    upper_rows *= envelope(rows["angle_rx_rad"], low)
     upper_rows *= 10.0 ** (-alpha_min * rows["path_length_m"] / 20.0)
 
     # edge arrivals: groups of rows; the centre-frequency level is the coherent sum there
@@ -257,6 +261,31 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
                             np.bincount(group, centre_factor * np.sin(phase), n_groups))
     lower = np.concatenate([rows["amplitude"][single], centre_level]) * centre_weight
     upper = np.concatenate([upper_rows[single], np.bincount(group, upper_rows[edge], n_groups)])
+
+    alpha = np.asarray(context.scene.medium.absorption_db_per_m(frequencies), dtype=float)
+
+    c, a = context.sound_speed_m_s, context.piston_radius_m
+
+    def reaches(picked: NDArray[np.intp], threshold: float) -> NDArray[np.bool_]:
+        """Whether single rows ``picked`` reach ``threshold`` at some band frequency: the
+        :func:`band_levels` test, one frequency at a time (highest pulse weight first) over
+        the rows not yet above it."""
+        result = np.zeros(picked.size, dtype=bool)
+        remaining = np.arange(picked.size)
+        gain, angle_tx = rows["geometric_gain"][picked], rows["angle_tx_rad"][picked]
+        angle_rx, length = rows["angle_rx_rad"][picked], rows["path_length_m"][picked]
+        for j in np.argsort(-weights, kind="stable"):  # a few frequencies, each vectorised over rows
+            if remaining.size == 0:
+                break
+            f = frequencies[j]
+            # the same operations, in the same order, as band_levels
+            factor = (gain[remaining] * piston_directivity(angle_tx[remaining], f, a, c)
+                      * piston_directivity(angle_rx[remaining], f, a, c)
+                      * 10.0 ** (-alpha[j] * length[remaining] / 20.0))
+            above = np.abs(factor) * weights[j] >= threshold
+            result[remaining[above]] = True
+            remaining = remaining[~above]
+        return result
 
     def exact(arrivals: NDArray[np.intp]) -> NDArray[np.float64]:
         """Band levels of arrivals (indices into ``lower``: singles, then edge groups)."""
@@ -280,7 +309,10 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     threshold = strongest * 10.0 ** (floor_db / 20.0)
     verdict = lower >= threshold
     undecided = np.flatnonzero(~verdict & (upper >= threshold))
-    verdict[undecided] = exact(undecided) >= threshold
+    single_undecided = undecided[undecided < n_single]
+    verdict[single_undecided] = reaches(single[single_undecided], threshold)
+    groups_undecided = undecided[undecided >= n_single]
+    verdict[groups_undecided] = exact(groups_undecided) >= threshold
     keep[single] = verdict[:n_single]
     keep[edge] = verdict[n_single:][group]
     return keep
