@@ -470,7 +470,77 @@ def discretise_edges(
     return EdgeElements(sub_pair, lo, hi, mean_path)
 
 
-def _gauss_rule(points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+@dataclass(frozen=True)
+class PairConstants:
+    """Per-pair constants of the BTM quadrature (:func:`pair_constants`).
+
+    Attributes
+    ----------
+    nu, r_s, z_s, r_r, z_r : ndarray, shape (p,)
+        Wedge index and source and receiver coordinates (m).
+    nk : ndarray, shape (p,)
+        nu kappa of the apex model, nu eta ~ nu kappa |z - z*| (1/m).
+    ml_star : ndarray, shape (p,)
+        m l at the least-time point (m^2).
+    z_star : ndarray, shape (p,)
+        Least-time point on the edge line (m).
+    num, gap, coef, s_gap : ndarray, shape (p, 4)
+        Per term of beta: s_i sin(nu phi_i), 2 sin^2(nu phi_i / 2), the apex model integral's
+        coefficient and 2 |sin(nu phi_i / 2)|.
+    """
+
+    nu: NDArray[np.float64]
+    r_s: NDArray[np.float64]
+    z_s: NDArray[np.float64]
+    r_r: NDArray[np.float64]
+    z_r: NDArray[np.float64]
+    nk: NDArray[np.float64]
+    ml_star: NDArray[np.float64]
+    z_star: NDArray[np.float64]
+    num: NDArray[np.float64]
+    gap: NDArray[np.float64]
+    coef: NDArray[np.float64]
+    s_gap: NDArray[np.float64]
+
+
+def pair_constants(
+    nu: ArrayLike, r_s: ArrayLike, theta_s: ArrayLike, z_s: ArrayLike, r_r: ArrayLike, theta_r: ArrayLike,
+    z_r: ArrayLike, pressure_release: ArrayLike,
+) -> PairConstants:
+    """Per (edge, receiver) pair, what :func:`element_gains` needs besides the elements.
+
+    Parameters
+    ----------
+    nu, r_s, theta_s, z_s, r_r, theta_r, z_r, pressure_release : array_like, shape (p,)
+        Per pair: wedge index, source and receiver cylindrical coordinates (m, rad), boundary
+        condition.
+
+    Returns
+    -------
+    PairConstants
+    """
+    nu_p, rs_p, ts_p, zs_p, rr_p, tr_p, zr_p = (
+        np.atleast_1d(np.asarray(v, dtype=float)) for v in (nu, r_s, theta_s, z_s, r_r, theta_r, z_r)
+    )
+    soft_p = np.atleast_1d(np.asarray(pressure_release, dtype=bool))
+    half_p = 0.5 * nu_p[:, None] * wedge_phis(ts_p, tr_p)  # nu phi_i / 2, (p, 4)
+    sin_half_p = np.sin(half_p)
+    signs_p = btm_signs(soft_p)
+    num_p = signs_p * np.sin(2.0 * half_p)  # s_i sin(nu phi_i)
+    gap_p = 2.0 * sin_half_p**2  # 1 - cos(nu phi_i) >= 0
+    z_star_p, _ = least_time(rs_p, zs_p, rr_p, zr_p)
+    q2_p = ((zr_p - zs_p) / (rs_p + rr_p)) ** 2
+    nk_p = nu_p * (rs_p + rr_p) / (rs_p * rr_p * np.sqrt(1.0 + q2_p))  # nu eta ~ nu kappa |z - z*|
+    ml_star_p = rs_p * rr_p * (1.0 + q2_p)  # m l at the apex
+    # Int model dz' = sum_i s_i (2 / (nu kappa)) sgn(sin(nu phi/2)) cos(nu phi/2) atan(nu kappa z' / s);
+    # exactly on a boundary (sin(nu phi / 2) = 0 up to round-off) the term is 0: half the jump
+    sgn_p = np.where(np.abs(sin_half_p) > 1e-12, np.sign(sin_half_p), 0.0)
+    coef_p = signs_p * sgn_p * np.cos(half_p) * 2.0 / (nk_p[:, None] * ml_star_p[:, None])
+    s_gap_p = 2.0 * np.abs(sin_half_p)
+    return PairConstants(nu_p, rs_p, zs_p, rr_p, zr_p, nk_p, ml_star_p, z_star_p, num_p, gap_p, coef_p, s_gap_p)
+
+
+def gauss_rule(points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gauss-Legendre abscissae and weights on [-1, 1] (the module's two-point rule for 2)."""
     if points == 2:
         return _GAUSS_X, _GAUSS_W
@@ -479,7 +549,7 @@ def _gauss_rule(points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 
 def gauss_points(elements: EdgeElements, points: int = 2) -> NDArray[np.float64]:
     """The Gauss-Legendre points of each element along its edge (m), shape (n, points)."""
-    x, _ = _gauss_rule(points)
+    x, _ = gauss_rule(points)
     centre = 0.5 * (elements.z_start_m + elements.z_end_m)
     half = 0.5 * (elements.z_end_m - elements.z_start_m)
     return centre[:, None] + half[:, None] * x[None, :]
@@ -526,24 +596,11 @@ def element_gains(
         Signed gains; with ``per_point``, the points' gains (their sum is the element's).
     """
     # per pair: the angular factors of the four terms and the apex model's constants
-    nu_p, rs_p, ts_p, zs_p, rr_p, tr_p, zr_p = (
-        np.atleast_1d(np.asarray(v, dtype=float)) for v in (nu, r_s, theta_s, z_s, r_r, theta_r, z_r)
+    k = pair_constants(nu, r_s, theta_s, z_s, r_r, theta_r, z_r, pressure_release)
+    nu_p, rs_p, zs_p, rr_p, zr_p, nk_p, ml_star_p, z_star_p = (
+        k.nu, k.r_s, k.z_s, k.r_r, k.z_r, k.nk, k.ml_star, k.z_star
     )
-    soft_p = np.atleast_1d(np.asarray(pressure_release, dtype=bool))
-    half_p = 0.5 * nu_p[:, None] * wedge_phis(ts_p, tr_p)  # nu phi_i / 2, (p, 4)
-    sin_half_p = np.sin(half_p)
-    signs_p = btm_signs(soft_p)
-    num_p = signs_p * np.sin(2.0 * half_p)  # s_i sin(nu phi_i)
-    gap_p = 2.0 * sin_half_p**2  # 1 - cos(nu phi_i) >= 0
-    z_star_p, _ = least_time(rs_p, zs_p, rr_p, zr_p)
-    q2_p = ((zr_p - zs_p) / (rs_p + rr_p)) ** 2
-    nk_p = nu_p * (rs_p + rr_p) / (rs_p * rr_p * np.sqrt(1.0 + q2_p))  # nu eta ~ nu kappa |z - z*|
-    ml_star_p = rs_p * rr_p * (1.0 + q2_p)  # m l at the apex
-    # Int model dz' = sum_i s_i (2 / (nu kappa)) sgn(sin(nu phi/2)) cos(nu phi/2) atan(nu kappa z' / s);
-    # exactly on a boundary (sin(nu phi / 2) = 0 up to round-off) the term is 0: half the jump
-    sgn_p = np.where(np.abs(sin_half_p) > 1e-12, np.sign(sin_half_p), 0.0)
-    coef_p = signs_p * sgn_p * np.cos(half_p) * 2.0 / (nk_p[:, None] * ml_star_p[:, None])
-    s_gap_p = 2.0 * np.abs(sin_half_p)
+    num_p, gap_p, coef_p, s_gap_p = k.num, k.gap, k.coef, k.s_gap
 
     idx = elements.pair
     nu_, rs, zs, rr, zr = nu_p[idx], rs_p[idx], zs_p[idx], rr_p[idx], zr_p[idx]
@@ -558,7 +615,7 @@ def element_gains(
     z0, z1 = elements.z_start_m, elements.z_end_m
     half_len = 0.5 * (z1 - z0)
     centre = 0.5 * (z0 + z1)
-    gauss_x, gauss_w = _gauss_rule(points)
+    gauss_x, gauss_w = gauss_rule(points)
     exact_part = np.zeros((gauss_x.size, z0.size))  # w_g beta / (m l) at the Gauss points
     apex_part = np.zeros((gauss_x.size, z0.size))  # w_g (apex model) at the Gauss points
     for g, (x, w) in enumerate(zip(gauss_x, gauss_w)):  # the Gauss points
@@ -604,7 +661,10 @@ __all__ = [
     "discretise_edges",
     "element_gains",
     "gauss_points",
+    "gauss_rule",
     "infinite_wedge_impulse_response",
     "least_time",
+    "pair_constants",
+    "PairConstants",
     "wedge_phis",
 ]

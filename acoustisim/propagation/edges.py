@@ -54,11 +54,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.btm import EdgeElements, discretise_edges, element_gains, gauss_points
+from acoustisim.propagation.btm import EdgeElements, discretise_edges, element_gains, gauss_rule, pair_constants
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
-from acoustisim.propagation.paths import PathKind, empty_paths_array
+from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains
+from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 
 DELAY_STEPS_PER_PERIOD = 16
 """Element delay step = 1 / (DELAY_STEPS_PER_PERIOD f0)."""
@@ -238,44 +239,31 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
 
     args = (edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
     if config.edge_adaptive:
-        # two impulses per element, at its Gauss points (see element_gains)
-        gains2 = element_gains(elements, *args, per_point=True, points=GAUSS_POINTS)
-        pair2 = np.broadcast_to(elements.pair[:, None], gains2.shape)
-        z2 = gauss_points(elements, GAUSS_POINTS)
-        path2 = np.hypot(rs[pair2], z2 - zs[pair2]) + np.hypot(r_r[pair2], z2 - z_r[pair2])
-        gains, pair, z_point, path_length = (v.reshape(-1) for v in (gains2, pair2, z2, path2))
+        # two impulses per element, at its Gauss points (see element_gains, per_point=True)
+        k = pair_constants(*args)
+        gauss_x, gauss_w = gauss_rule(GAUSS_POINTS)
+        gains2, z2, path2 = gauss_point_gains(
+            elements.pair, elements.z_start_m, elements.z_end_m, k.nu, k.r_s, k.z_s, k.r_r, k.z_r, k.nk,
+            k.ml_star, k.z_star, k.num, k.gap, k.coef, k.s_gap, gauss_x, gauss_w,
+        )
+        pair = np.repeat(elements.pair, GAUSS_POINTS)
+        gains, z_point, path_length = gains2.reshape(-1), z2.reshape(-1), path2.reshape(-1)
     else:
         gains = element_gains(elements, *args)
         pair, z_point, path_length = elements.pair, elements.z_mid_m, elements.path_length_m
     if gains.size == 0:
         return empty_paths_array(0)
-    keep = np.abs(gains) > ELEMENT_FLOOR * np.max(np.abs(gains))
-    pair, gains, path_length, z_point = pair[keep], gains[keep], path_length[keep], z_point[keep]
-    if pair.size == 0:
+    keep = np.flatnonzero(np.abs(gains) > ELEMENT_FLOOR * np.max(np.abs(gains)))
+    if keep.size == 0:
         return empty_paths_array(0)
-    e = pair_edge[pair]
-    points = edges.start_m[e] + z_point[:, None] * edges.direction[e]
-    receivers = rx[pair_rx[pair]]
-    channel = pair_rx[pair]
-
-    rows = empty_paths_array(points.shape[0])
-    # ids numbered densely in (chain, channel) order: a rank through a table, no sort
-    chain_key = edges.chain[e] * n_rx + channel
-    present = np.zeros(int(chain_key.max()) + 1, dtype=np.int64)
-    present[chain_key] = 1
-    rows["path_id"] = context.first_path_id + (np.cumsum(present) - 1)[chain_key]
-    rows["channel"] = channel
-    rows["kind"] = int(PathKind.EDGE)
-    rows["order"] = 1
-    rows["path_length_m"] = path_length
-    rows["geometric_gain"] = gains
-    rows["phase_rad"] = 0.0
-    leg1 = points - tx
-    leg2 = receivers - points
-    rows["departure_dir"] = leg1 / np.sqrt(np.einsum("ij,ij->i", leg1, leg1))[:, None]
-    rows["arrival_dir"] = leg2 / np.sqrt(np.einsum("ij,ij->i", leg2, leg2))[:, None]
-    rows["object_ids"][:, 0] = edges.surface[e]
-    rows["points_m"][:, 0, :] = points
+    # zeroed rows; the kernel writes the mechanism's columns and the padding of empty_paths_array
+    rows = np.zeros(keep.size, dtype=PATH_DTYPE)
+    fill_edge_rows(
+        rows["path_id"], rows["channel"], rows["kind"], rows["order"], rows["path_length_m"],
+        rows["geometric_gain"], rows["departure_dir"], rows["arrival_dir"], rows["object_ids"], rows["points_m"],
+        keep, pair, gains, path_length, z_point, pair_edge, pair_rx, edges.chain, edges.surface,
+        edges.start_m, edges.direction, tx, rx, int(context.first_path_id), int(PathKind.EDGE),
+    )
     return rows
 
 
