@@ -6,9 +6,11 @@ at the Gauss points, the points themselves and their path lengths, the amplitude
 filling of the ``PATH_DTYPE`` rows are dozens of passes over temporary arrays. Here each
 element (each row) is one loop iteration:
 
-1. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
+1. :func:`visibility_segments`: the occlusion segments of every element's centre (one Embree
+   batch, :meth:`~acoustisim.propagation.raycast.SceneRaycaster.occluded`, between the kernels);
+2. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
    m + l, and their gains (the element's BTM integral split between them);
-2. :func:`fill_edge_rows`: the rows above the amplitude floor, with dense path ids per
+3. :func:`fill_edge_rows`: the rows above the amplitude floor, with dense path ids per
    (chain, channel), the points and the unit leg directions, and the padding conventions of
    :func:`~acoustisim.propagation.paths.empty_paths_array`.
 
@@ -81,7 +83,9 @@ def gauss_point_gains(
             z = centre + gauss_x[g] * half_len
             a = z - zs
             b = z - zr
-            ml = math.hypot(rs, a) * math.hypot(rr, b)
+            m = math.hypot(rs, a)
+            l_ = math.hypot(rr, b)
+            ml = m * l_
             rsr = rs * rr
             t = rs * b + rr * a
             c1 = max(t * t / ((ml + rsr - a * b) * rsr), 0.0)
@@ -100,8 +104,9 @@ def gauss_point_gains(
                 apex += num[p, i] / den if den > 0.0 else 0.0
             exact_part[g] = gauss_w[g] * exact / ml
             apex_sum += gauss_w[g] * apex / mls
-            zs_out[e, g] = centre + half_len * gauss_x[g]
-            paths[e, g] = math.hypot(rs, zs_out[e, g] - zs) + math.hypot(rr, zs_out[e, g] - zr)
+            # the point and its m + l: the same z, legs and hypot as the gain's (x h = h x exactly)
+            zs_out[e, g] = z
+            paths[e, g] = m + l_
         a0 = nk_ * (z0 - zst)
         a1 = nk_ * (z1 - zst)
         da = nk_ * (z1 - z0)
@@ -115,6 +120,64 @@ def gauss_point_gains(
         for g in range(n_g):
             gains[e, g] = scale * (exact_part[g] * half_len + correction)
     return gains, zs_out, paths
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def visibility_segments(
+    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
+    pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], start: NDArray[np.float64],
+    direction: NDArray[np.float64], offset: NDArray[np.float64], tx: NDArray[np.float64],
+    rx: NDArray[np.float64], own_leg_rx: NDArray[np.bool_],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """The occlusion segments of every element: its centre's probe to the transmitter, and to
+    its receiver where that is not the transmitter.
+
+    Parameters
+    ----------
+    pair : ndarray of int64, shape (n,)
+    z_start, z_end : ndarray, shape (n,)
+        Element ends along the edge (m).
+    pair_edge, pair_rx : ndarray of int64, shape (p,)
+    start, direction : ndarray, shape (edges, 3)
+        Each edge's start (m) and unit direction.
+    offset : ndarray, shape (edges, 3)
+        Each edge's probe offset (m): the probe is the element's centre plus it.
+    tx : ndarray, shape (3,)
+    rx : ndarray, shape (n_rx, 3)
+    own_leg_rx : ndarray of bool, shape (n_rx,)
+        Whether a receiver has its own leg (is not at the transmitter).
+
+    Returns
+    -------
+    origins, targets : ndarray, shape (n + k, 3)
+        The n probe -> transmitter segments, then the k probe -> receiver ones.
+    own_leg : ndarray of int64, shape (k,)
+        The elements of the k receiver legs, increasing.
+    """
+    n = pair.size
+    k = 0
+    for i in range(n):
+        if own_leg_rx[pair_rx[pair[i]]]:
+            k += 1
+    origins = np.empty((n + k, 3))
+    targets = np.empty((n + k, 3))
+    own_leg = np.empty(k, dtype=np.int64)
+    j = n
+    for i in range(n):
+        p = pair[i]
+        e = pair_edge[p]
+        z = 0.5 * (z_start[i] + z_end[i])
+        for c in range(3):
+            origins[i, c] = start[e, c] + z * direction[e, c] + offset[e, c]
+            targets[i, c] = tx[c]
+        ch = pair_rx[p]
+        if own_leg_rx[ch]:
+            for c in range(3):
+                origins[j, c] = origins[i, c]
+                targets[j, c] = rx[ch, c]
+            own_leg[j - n] = i
+            j += 1
+    return origins, targets, own_leg
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -199,4 +262,4 @@ def fill_edge_rows(
             rows_points[r, j, 2] = np.nan
 
 
-__all__ = ["fill_edge_rows", "gauss_point_gains"]
+__all__ = ["fill_edge_rows", "gauss_point_gains", "visibility_segments"]

@@ -58,7 +58,7 @@ from acoustisim.propagation.btm import EdgeElements, discretise_edges, element_g
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
-from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains
+from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains, visibility_segments
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 
 DELAY_STEPS_PER_PERIOD = 16
@@ -220,18 +220,15 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
     # visibility of each element's centre from the transmitter and from its receiver, one batch
     # (before the gains: hidden elements cost no quadrature)
-    e = pair_edge[elements.pair]
-    centres = edges.start_m[e] + elements.z_mid_m[:, None] * edges.direction[e]
     half = 0.5 * edges.wedge_angle_rad
     bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
-    probe = centres + VISIBILITY_OFFSET_M * bisector[e]
-    receivers = rx[pair_rx[elements.pair]]
-    n = probe.shape[0]
     # a receiver at the transmitter (the centre transducer) has the same leg: tested once
-    own_leg = np.flatnonzero(~np.all(rx == tx, axis=1)[pair_rx[elements.pair]])
-    blocked = context.raycaster.occluded(
-        np.concatenate([probe, probe[own_leg]]), np.concatenate([np.broadcast_to(tx, (n, 3)), receivers[own_leg]])
+    origins, targets, own_leg = visibility_segments(
+        elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m, edges.direction,
+        VISIBILITY_OFFSET_M * bisector, tx, rx, ~np.all(rx == tx, axis=1),
     )
+    n = elements.pair.size
+    blocked = context.raycaster.occluded(origins, targets)
     visible = ~blocked[:n]
     visible[own_leg] &= ~blocked[n:]
     elements = EdgeElements(elements.pair[visible], elements.z_start_m[visible], elements.z_end_m[visible],
