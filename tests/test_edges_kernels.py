@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.propagation import SolverConfig, btm, prepare
 from acoustisim.propagation import edges as edges_module
@@ -23,6 +24,172 @@ from scenes.builtin import builtin_scene
 C = 1482.38
 STEP_M = C / (16 * 500e3)
 RTOL = 1e-12  # see the module docstring
+
+
+# --- the numpy reference of before the kernels (verbatim but for the module prefixes) ---
+
+
+def _group_arange(counts: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(group index, index within group) for groups of the given sizes, flattened."""
+    group = np.repeat(np.arange(counts.size), counts)
+    starts = np.cumsum(counts) - counts
+    return group, np.arange(group.size) - starts[group]
+
+
+def _graded_offsets(span_steps, has, levels, grading, start_steps=None):
+    """The former expansion of the graded grid into (branch, offset) node arrays."""
+    nb = span_steps.size
+    first, count, dd = btm._graded_intervals(span_steps, has, levels, grading, start_steps)
+    interval, k = _group_arange(count.reshape(-1))
+    offset = (first.reshape(-1)[interval] + k) * np.tile(dd, nb)[interval]
+    return interval // dd.size, offset
+
+
+def _solve_on_spheroid(
+    path_m: NDArray[np.float64],
+    r_s: NDArray[np.float64],
+    z_s: NDArray[np.float64],
+    r_r: NDArray[np.float64],
+    z_r: NDArray[np.float64],
+    upper: NDArray[np.bool_],
+) -> NDArray[np.float64]:
+    """z on the edge line where m + l = ``path_m`` (upper or lower root).
+
+    Squaring ``2 D l = D^2 + l^2 - m^2`` (right side linear in z) gives a quadratic in z whose
+    two roots are both genuine because ``|m - l| <= |S - R| < D``.
+    """
+    d = path_m
+    # work relative to the apex-free midpoint to keep the coefficients small
+    mid = 0.5 * (z_s + z_r)
+    zs, zr = z_s - mid, z_r - mid
+    a1 = -2.0 * (zr - zs)
+    a0 = d * d + r_r * r_r - r_s * r_s + zr * zr - zs * zs
+    qa = 4.0 * d * d - a1 * a1
+    qb = -(8.0 * d * d * zr + 2.0 * a0 * a1)
+    qc = 4.0 * d * d * (r_r * r_r + zr * zr) - a0 * a0
+    disc = np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))
+    root = np.where(upper, (-qb + disc), (-qb - disc)) / (2.0 * qa)
+    return root + mid
+
+
+def numpy_discretise_edges(
+    length_m: ArrayLike,
+    r_s: ArrayLike,
+    z_s: ArrayLike,
+    r_r: ArrayLike,
+    z_r: ArrayLike,
+    path_step_m: float,
+    max_element_m: float,
+    max_elements: int | None = None,
+    *,
+    coarsening_levels: int = 0,
+    grading: int = 4,
+    cap_growth: float = 0.0,
+    onset_nodes: int = 1,
+    path_lengths: bool = True,
+    open_start: ArrayLike | None = None,
+    open_end: ArrayLike | None = None,
+) -> btm.EdgeElements:
+    """The numpy discretisation of before the kernel (see btm.discretise_edges)."""
+    if not (path_step_m > 0.0 and max_element_m > 0.0):
+        raise ValueError(f"path_step_m and max_element_m must be > 0, got {path_step_m!r}, {max_element_m!r}")
+    if coarsening_levels < 0 or grading < 1:
+        raise ValueError(f"coarsening_levels must be >= 0 and grading >= 1, got {coarsening_levels!r}, {grading!r}")
+    length, rs, zs, rr, zr = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (length_m, r_s, z_s, r_r, z_r))
+    p = length.size
+    z_star, _ = btm.least_time(rs, zs, rr, zr)
+    z_apex = np.clip(z_star, 0.0, length)
+
+    def path(z: NDArray[np.float64], idx: NDArray[np.int64]) -> NDArray[np.float64]:
+        return np.hypot(rs[idx], z - zs[idx]) + np.hypot(rr[idx], z - zr[idx])
+
+    pairs = np.arange(p)
+    # branch 0 runs from the apex down to z = 0, branch 1 from the apex up to z = L
+    b_pair = np.repeat(pairs, 2)
+    b_upper = np.tile(np.array([False, True]), p)
+    b_end = np.where(b_upper, length[b_pair], 0.0)
+    b_start = z_apex[b_pair]
+    d_start = path(b_start, b_pair)
+    d_end = path(b_end, b_pair)
+    span = np.maximum(d_end - d_start, 0.0)
+    has = np.abs(b_end - b_start) > 0.0
+    # onset nodes: btm.ONSET_FRACTION step, then (graded) doubling up to half a step
+    onsets = btm.ONSET_FRACTION * path_step_m * 2.0 ** np.arange(onset_nodes)
+    onsets = onsets[onsets < path_step_m]
+    if max_elements is not None:
+        # a lower bound on the element count before allocating: the graded nodes (at least
+        # span / (2^J step)), and the length cap
+        n_graded = np.where(has, np.ceil(span / (path_step_m * 2.0**coarsening_levels)), 0.0)
+        cap_count = np.ceil(np.abs(b_end - b_start) / max_element_m)
+        estimate = float(np.sum(np.maximum(n_graded, cap_count)))
+        if estimate > max_elements:
+            raise ValueError(f"the edges need at least {estimate:.3g} elements (limit {max_elements})")
+    # nodes of each branch: its start (offset 0), the onset node, the graded grid nodes below
+    # the span, and its end
+    # (a branch with a zero span, up to round-off, still gets its start node)
+    span_steps = np.where(has, np.maximum(span / path_step_m, 0.5), 0.0)
+    start_steps = None
+    joint_start = np.zeros(2 * p, dtype=bool)
+    if coarsening_levels > 0 and (open_start is not None or open_end is not None):
+        o_start = np.broadcast_to(np.asarray(False if open_start is None else open_start, dtype=bool), (p,))
+        o_end = np.broadcast_to(np.asarray(False if open_end is None else open_end, dtype=bool), (p,))
+        # branch 0 starts at z = L when the apex lies beyond L, branch 1 at z = 0 when the apex
+        # lies before 0. (Not refining towards a joint at a branch's end as well would save
+        # another 5 % of the thesis tank's rows, but it costs 7 dB of band-limited accuracy on
+        # its polygonal pipe rim, where neighbouring segments' integrands differ at the joint.)
+        joint_start = np.where(b_upper, ((z_star < 0.0) & o_start)[b_pair], ((z_star > length) & o_end)[b_pair])
+        _, d_line = btm.least_time(rs, zs, rr, zr)
+        start_steps = np.where(joint_start, (d_start - d_line[b_pair]) / path_step_m, 0.0)
+    grid_branch, grid_offset = _graded_offsets(span_steps, has, coarsening_levels, grading, start_steps)
+    # per branch, the onset nodes below its span, after its start (m = 0)
+    # (only the first where the branch starts at a joint: no singularity there)
+    wanted = (onsets[None, :] < span[:, None]) & (~joint_start[:, None] | (np.arange(onsets.size) == 0)[None, :])
+    onset_branch, i_onset = np.nonzero(has[:, None] & wanted)
+    onset_at = np.searchsorted(grid_branch, onset_branch) + 1
+    ends_at = np.searchsorted(grid_branch, np.flatnonzero(has), side="right")
+    # np.insert places equal indices in the given order: a branch's onset nodes before its end
+    node_branch = np.insert(grid_branch, np.r_[onset_at, ends_at], np.r_[onset_branch, np.flatnonzero(has)])
+    node_d_off = np.insert(grid_offset * path_step_m, np.r_[onset_at, ends_at], np.r_[onsets[i_onset], span[has]])
+    n_nodes = np.bincount(node_branch, minlength=2 * p)
+    _, k = _group_arange(n_nodes)
+    last = k == n_nodes[node_branch] - 1
+    node_d = d_start[node_branch] + node_d_off
+    bp = b_pair[node_branch]
+    node_z = _solve_on_spheroid(node_d, rs[bp], zs[bp], rr[bp], zr[bp], b_upper[node_branch])
+    node_z = np.where(k == 0, b_start[node_branch], np.where(last, b_end[node_branch], node_z))
+    # keep the roots on their own branch (round-off near the apex)
+    node_z = np.where(
+        b_upper[node_branch],
+        np.clip(node_z, b_start[node_branch], b_end[node_branch]),
+        np.clip(node_z, b_end[node_branch], b_start[node_branch]),
+    )
+    node_d = np.where(k == 0, d_start[node_branch], np.where(last, d_end[node_branch], node_d))
+    # elements between consecutive nodes of a branch
+    start_node = np.flatnonzero(~last)  # every node but a branch's last starts an element
+    e_branch = node_branch[start_node]
+    za, zb = node_z[start_node], node_z[start_node + 1]
+    da, db = node_d[start_node], node_d[start_node + 1]
+    # split long elements evenly; the cap grows with the distance from the apex
+    cap = max_element_m
+    if cap_growth > 0.0:
+        cap = max_element_m + cap_growth * np.minimum(np.abs(za - b_start[e_branch]), np.abs(zb - b_start[e_branch]))
+    n_sub = np.maximum(np.ceil(np.abs(zb - za) / cap).astype(np.int64), 1)
+    parent, j = _group_arange(n_sub)
+    frac0 = j / n_sub[parent]
+    frac1 = (j + 1) / n_sub[parent]
+    z0 = za[parent] + (zb[parent] - za[parent]) * frac0
+    z1 = za[parent] + (zb[parent] - za[parent]) * frac1
+    sub_pair = b_pair[e_branch[parent]]
+    split = n_sub[parent] > 1
+    keep = z1 != z0
+    lo, hi, sub_pair = np.minimum(z0, z1)[keep], np.maximum(z0, z1)[keep], sub_pair[keep]
+    if path_lengths:
+        d0 = np.where(split & (j > 0), path(z0, b_pair[e_branch[parent]]), da[parent])
+        d1 = np.where(split & (j < n_sub[parent] - 1), path(z1, b_pair[e_branch[parent]]), db[parent])
+        mean_path = (0.5 * (d0 + d1))[keep]
+    else:
+        mean_path = np.full(lo.size, np.nan)
+    return btm.EdgeElements(sub_pair, lo, hi, mean_path)
 
 
 def _numpy_points(elements, args):
@@ -162,3 +329,50 @@ def _reference_inputs(context, sharp):
                 start=edges.start_m, direction=edges.direction, tx=tx, rx=rx,
                 first_path_id=context.first_path_id)
     return {"args": args, "fill": fill}
+
+
+def _assert_same_elements(got, want):
+    np.testing.assert_array_equal(got.pair, want.pair)
+    for name in ("z_start_m", "z_end_m", "path_length_m"):
+        a, b = getattr(got, name), getattr(want, name)
+        np.testing.assert_allclose(a, b, rtol=RTOL, atol=0.0, equal_nan=True, err_msg=name)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {},  # the fine discretisation
+        {"coarsening_levels": 2, "grading": 4, "cap_growth": 0.1, "onset_nodes": 7, "path_lengths": False},
+        {"coarsening_levels": 3, "grading": 2, "onset_nodes": 7},
+        {"coarsening_levels": 2, "grading": 4, "cap_growth": 0.1, "onset_nodes": 7,
+         "open_start": [True, False, True, True, False], "open_end": [True, True, False, True, True]},
+    ],
+)
+def test_discretisation_kernel_matches_the_numpy_reference(options):
+    geometries = np.array([g[:7] for g in GEOMETRIES])
+    _, rs, _, zs, rr, _, zr = geometries.T
+    # lengths putting the apex inside, before 0 (zs, zr < 0 for none: shift) and beyond the end
+    length = np.array([3.0, 1.0, 1.2, 0.3, 0.05])
+    zs, zr = zs - np.array([0.0, 0.0, 0.0, 0.7, 0.0]), zr - np.array([0.0, 0.0, 0.0, 0.7, 0.0])
+    for cap in (5e-4, 5e-3):
+        got = btm.discretise_edges(length, rs, zs, rr, zr, STEP_M, cap, **options)
+        want = numpy_discretise_edges(length, rs, zs, rr, zr, STEP_M, cap, **options)
+        assert got.pair.size > 100
+        _assert_same_elements(got, want)
+
+
+def test_thesis_tank_discretisation_matches_the_numpy_reference(thesis_tank, monkeypatch):
+    context, sharp = thesis_tank
+    calls = []
+    original = edges_module.discretise_edges
+
+    def spy(*args, **kwargs):
+        calls.append((args, kwargs))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(edges_module, "discretise_edges", spy)
+    for adaptive in (True, False):
+        edges_module.edge_paths(context, SolverConfig(edge_adaptive=adaptive), sharp)
+    assert len(calls) == 2
+    for args, kwargs in calls:
+        _assert_same_elements(original(*args, **kwargs), numpy_discretise_edges(*args, **kwargs))

@@ -42,6 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from acoustisim.propagation.edge_kernels import branch_elements
+
 ONSET_FRACTION = 1.0 / 128.0
 """Length of the first element of each branch, as a fraction of the path-length step."""
 
@@ -193,33 +195,6 @@ def infinite_wedge_impulse_response(
     return np.where(after, -(c * nu / (2.0 * np.pi)) * b / (r_s * r_r * sinh_eta), 0.0)
 
 
-def _solve_on_spheroid(
-    path_m: NDArray[np.float64],
-    r_s: NDArray[np.float64],
-    z_s: NDArray[np.float64],
-    r_r: NDArray[np.float64],
-    z_r: NDArray[np.float64],
-    upper: NDArray[np.bool_],
-) -> NDArray[np.float64]:
-    """z on the edge line where m + l = ``path_m`` (upper or lower root).
-
-    Squaring ``2 D l = D^2 + l^2 - m^2`` (right side linear in z) gives a quadratic in z whose
-    two roots are both genuine because ``|m - l| <= |S - R| < D``.
-    """
-    d = path_m
-    # work relative to the apex-free midpoint to keep the coefficients small
-    mid = 0.5 * (z_s + z_r)
-    zs, zr = z_s - mid, z_r - mid
-    a1 = -2.0 * (zr - zs)
-    a0 = d * d + r_r * r_r - r_s * r_s + zr * zr - zs * zs
-    qa = 4.0 * d * d - a1 * a1
-    qb = -(8.0 * d * d * zr + 2.0 * a0 * a1)
-    qc = 4.0 * d * d * (r_r * r_r + zr * zr) - a0 * a0
-    disc = np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))
-    root = np.where(upper, (-qb + disc), (-qb - disc)) / (2.0 * qa)
-    return root + mid
-
-
 @dataclass(frozen=True)
 class EdgeElements:
     """Elements of discretised edges, one row each, for many (edge, receiver) pairs.
@@ -245,17 +220,10 @@ class EdgeElements:
         return 0.5 * (self.z_start_m + self.z_end_m)
 
 
-def _group_arange(counts: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """(group index, index within group) for groups of the given sizes, flattened."""
-    group = np.repeat(np.arange(counts.size), counts)
-    starts = np.cumsum(counts) - counts
-    return group, np.arange(group.size) - starts[group]
-
-
-def _graded_offsets(
+def _graded_intervals(
     span_steps: NDArray[np.float64], has: NDArray[np.bool_], levels: int, grading: int,
     start_steps: NDArray[np.float64] | None = None,
-) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """Interior node offsets of each branch, in units of the fine step, graded by level.
 
     A node m (an integer number of fine steps from the branch's start, 0 <= m < span) belongs
@@ -268,10 +236,14 @@ def _graded_offsets(
 
     Returns
     -------
-    branch : ndarray of int64, shape (k,)
-        Branch of each node, non-decreasing.
-    offset : ndarray, shape (k,)
-        Node offsets (fine steps), increasing within a branch; 0 (the start) included.
+    first : ndarray, shape (nb, q)
+        Per branch and interval (levels 0..J from the start, then J - 1..0 towards the end,
+        q = 2 J + 1): its first node, in units of the interval's spacing.
+    count : ndarray of int64, shape (nb, q)
+        Its number of nodes.
+    spacing : ndarray, shape (q,)
+        The intervals' node spacings (fine steps): node k of interval i of branch b is at
+        ``(first[b, i] + k) spacing[i]``.
     """
     nb = span_steps.size
     span = np.where(has, span_steps, 0.0)
@@ -298,9 +270,7 @@ def _graded_offsets(
     first = np.ceil(lo / dd)
     count = np.maximum(np.ceil(hi / dd) - first, 0.0).astype(np.int64)
     count[~has] = 0
-    interval, k = _group_arange(count.reshape(-1))
-    offset = (first.reshape(-1)[interval] + k) * np.tile(dd, nb)[interval]
-    return interval // dd.size, offset
+    return first, count, dd
 
 
 def discretise_edges(
@@ -340,7 +310,7 @@ def discretise_edges(
         0 (default): every element spans one ``path_step_m``. J > 0: elements are one step
         long within ``grading`` steps of a branch's ends (the onset singularity and the end
         step) and double every ``grading`` elements away from them, up to ``2^J`` steps, all
-        their boundaries on the uniform grid (see :func:`_graded_offsets`).
+        their boundaries on the uniform grid (see :func:`_graded_intervals`).
     grading : int, optional
         Elements per level of the graded discretisation (>= 1).
     onset_nodes : int, optional
@@ -418,55 +388,18 @@ def discretise_edges(
         joint_start = np.where(b_upper, ((z_star < 0.0) & o_start)[b_pair], ((z_star > length) & o_end)[b_pair])
         _, d_line = least_time(rs, zs, rr, zr)
         start_steps = np.where(joint_start, (d_start - d_line[b_pair]) / path_step_m, 0.0)
-    grid_branch, grid_offset = _graded_offsets(span_steps, has, coarsening_levels, grading, start_steps)
+    first, count, spacing = _graded_intervals(span_steps, has, coarsening_levels, grading, start_steps)
     # per branch, the onset nodes below its span, after its start (m = 0)
     # (only the first where the branch starts at a joint: no singularity there)
     wanted = (onsets[None, :] < span[:, None]) & (~joint_start[:, None] | (np.arange(onsets.size) == 0)[None, :])
-    onset_branch, i_onset = np.nonzero(has[:, None] & wanted)
-    onset_at = np.searchsorted(grid_branch, onset_branch) + 1
-    ends_at = np.searchsorted(grid_branch, np.flatnonzero(has), side="right")
-    # np.insert places equal indices in the given order: a branch's onset nodes before its end
-    node_branch = np.insert(grid_branch, np.r_[onset_at, ends_at], np.r_[onset_branch, np.flatnonzero(has)])
-    node_d_off = np.insert(grid_offset * path_step_m, np.r_[onset_at, ends_at], np.r_[onsets[i_onset], span[has]])
-    n_nodes = np.bincount(node_branch, minlength=2 * p)
-    _, k = _group_arange(n_nodes)
-    last = k == n_nodes[node_branch] - 1
-    node_d = d_start[node_branch] + node_d_off
-    bp = b_pair[node_branch]
-    node_z = _solve_on_spheroid(node_d, rs[bp], zs[bp], rr[bp], zr[bp], b_upper[node_branch])
-    node_z = np.where(k == 0, b_start[node_branch], np.where(last, b_end[node_branch], node_z))
-    # keep the roots on their own branch (round-off near the apex)
-    node_z = np.where(
-        b_upper[node_branch],
-        np.clip(node_z, b_start[node_branch], b_end[node_branch]),
-        np.clip(node_z, b_end[node_branch], b_start[node_branch]),
+    # the nodes of each branch (its start, the onset nodes, the graded grid below the span and
+    # its end, roots on the spheroids m + l = const kept on their own branch) and the elements
+    # between consecutive nodes, split evenly where longer than the cap (growing with the
+    # distance from the apex): one compiled loop per branch
+    sub_pair, lo, hi, mean_path = branch_elements(
+        rs, zs, rr, zr, b_start, b_end, d_start, d_end, span, has, np.ascontiguousarray(first), count, spacing,
+        onsets, has[:, None] & wanted, float(path_step_m), float(max_element_m), float(cap_growth), bool(path_lengths),
     )
-    node_d = np.where(k == 0, d_start[node_branch], np.where(last, d_end[node_branch], node_d))
-    # elements between consecutive nodes of a branch
-    start_node = np.flatnonzero(~last)  # every node but a branch's last starts an element
-    e_branch = node_branch[start_node]
-    za, zb = node_z[start_node], node_z[start_node + 1]
-    da, db = node_d[start_node], node_d[start_node + 1]
-    # split long elements evenly; the cap grows with the distance from the apex
-    cap = max_element_m
-    if cap_growth > 0.0:
-        cap = max_element_m + cap_growth * np.minimum(np.abs(za - b_start[e_branch]), np.abs(zb - b_start[e_branch]))
-    n_sub = np.maximum(np.ceil(np.abs(zb - za) / cap).astype(np.int64), 1)
-    parent, j = _group_arange(n_sub)
-    frac0 = j / n_sub[parent]
-    frac1 = (j + 1) / n_sub[parent]
-    z0 = za[parent] + (zb[parent] - za[parent]) * frac0
-    z1 = za[parent] + (zb[parent] - za[parent]) * frac1
-    sub_pair = b_pair[e_branch[parent]]
-    split = n_sub[parent] > 1
-    keep = z1 != z0
-    lo, hi, sub_pair = np.minimum(z0, z1)[keep], np.maximum(z0, z1)[keep], sub_pair[keep]
-    if path_lengths:
-        d0 = np.where(split & (j > 0), path(z0, b_pair[e_branch[parent]]), da[parent])
-        d1 = np.where(split & (j < n_sub[parent] - 1), path(z1, b_pair[e_branch[parent]]), db[parent])
-        mean_path = (0.5 * (d0 + d1))[keep]
-    else:
-        mean_path = np.full(lo.size, np.nan)
     return EdgeElements(sub_pair, lo, hi, mean_path)
 
 

@@ -6,6 +6,8 @@ at the Gauss points, the points themselves and their path lengths, the amplitude
 filling of the ``PATH_DTYPE`` rows are dozens of passes over temporary arrays. Here each
 element (each row) is one loop iteration:
 
+0. :func:`branch_elements`: the graded nodes of each branch (roots on the spheroids m + l =
+   const) and the elements between them, split to the length cap;
 1. :func:`visibility_segments`: the occlusion segments of every element's centre (one Embree
    batch, :meth:`~acoustisim.propagation.raycast.SceneRaycaster.occluded`, between the kernels);
 2. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
@@ -31,6 +33,172 @@ import math
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _path(z: float, rs: float, zs: float, rr: float, zr: float) -> float:
+    return math.hypot(rs, z - zs) + math.hypot(rr, z - zr)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _on_spheroid(d: float, r_s: float, z_s: float, r_r: float, z_r: float, upper: bool) -> float:
+    """:func:`~acoustisim.propagation.btm._solve_on_spheroid` of one node."""
+    mid = 0.5 * (z_s + z_r)
+    zs, zr = z_s - mid, z_r - mid
+    a1 = -2.0 * (zr - zs)
+    a0 = d * d + r_r * r_r - r_s * r_s + zr * zr - zs * zs
+    qa = 4.0 * d * d - a1 * a1
+    qb = -(8.0 * d * d * zr + 2.0 * a0 * a1)
+    qc = 4.0 * d * d * (r_r * r_r + zr * zr) - a0 * a0
+    disc = math.sqrt(max(qb * qb - 4.0 * qa * qc, 0.0))
+    root = ((-qb + disc) if upper else (-qb - disc)) / (2.0 * qa)
+    return root + mid
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def branch_elements(
+    r_s: NDArray[np.float64], z_s: NDArray[np.float64], r_r: NDArray[np.float64], z_r: NDArray[np.float64],
+    b_start: NDArray[np.float64], b_end: NDArray[np.float64], d_start: NDArray[np.float64],
+    d_end: NDArray[np.float64], span: NDArray[np.float64], has: NDArray[np.bool_],
+    grid_first: NDArray[np.float64], grid_count: NDArray[np.int64], grid_step: NDArray[np.float64],
+    onsets: NDArray[np.float64], onset_wanted: NDArray[np.bool_], path_step_m: float, max_element_m: float,
+    cap_growth: float, path_lengths: bool,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The elements of every branch, from its graded nodes (the loops of
+    :func:`~acoustisim.propagation.btm.discretise_edges`).
+
+    Branch b belongs to pair b // 2 and is upper (z increasing from the apex) when b is odd.
+
+    Parameters
+    ----------
+    r_s, z_s, r_r, z_r : ndarray, shape (p,)
+        Source and receiver coordinates per pair (m).
+    b_start, b_end, d_start, d_end, span : ndarray, shape (2 p,)
+        Per branch: start (the apex) and end along the edge (m), their path lengths m + l and
+        the branch's path-length span (m).
+    has : ndarray of bool, shape (2 p,)
+        Whether the branch has a non-zero length.
+    grid_first, grid_count : ndarray, shape (2 p, q)
+        Per branch and interval of the graded grid: its first node (in units of the
+        interval's spacing) and its node count.
+    grid_step : ndarray, shape (q,)
+        Each interval's spacing (fine steps).
+    onsets : ndarray, shape (o,)
+        Onset node offsets (m of path length).
+    onset_wanted : ndarray of bool, shape (2 p, o)
+        Which onset nodes each branch gets.
+    path_step_m, max_element_m, cap_growth : float
+        See :func:`~acoustisim.propagation.btm.discretise_edges`.
+    path_lengths : bool
+        False: NaN path lengths.
+
+    Returns
+    -------
+    pair : ndarray of int64, shape (n,)
+    z_start, z_end, path_length : ndarray, shape (n,)
+        As :class:`~acoustisim.propagation.btm.EdgeElements`.
+    """
+    nb = has.size
+    q = grid_step.size
+    n_on = onsets.size
+    # nodes of every branch: grid offset 0, the onset nodes, the rest of the grid, the end
+    n_nodes = np.zeros(nb, dtype=np.int64)
+    for b in range(nb):
+        if has[b]:
+            c = 1
+            for i in range(q):
+                c += grid_count[b, i]
+            for o in range(n_on):
+                if onset_wanted[b, o]:
+                    c += 1
+            n_nodes[b] = c
+    total = 0
+    for b in range(nb):
+        total += n_nodes[b]
+    node_z = np.empty(total)
+    node_d = np.empty(total)
+    node_off = np.empty(total)
+    at = 0
+    for b in range(nb):
+        if not has[b]:
+            continue
+        pr = b // 2
+        upper = b % 2 == 1
+        first_at = at
+        placed_grid = 0
+        for i in range(q):
+            for kk in range(grid_count[b, i]):
+                node_off[at] = (grid_first[b, i] + kk) * grid_step[i] * path_step_m
+                at += 1
+                placed_grid += 1
+                if placed_grid == 1:
+                    for o in range(n_on):
+                        if onset_wanted[b, o]:
+                            node_off[at] = onsets[o]
+                            at += 1
+        if placed_grid == 0:  # (no grid node: cannot happen for a branch with a length)
+            for o in range(n_on):
+                if onset_wanted[b, o]:
+                    node_off[at] = onsets[o]
+                    at += 1
+        node_off[at] = span[b]
+        at += 1
+        last_at = at - 1
+        lo_z = b_start[b] if upper else b_end[b]
+        hi_z = b_end[b] if upper else b_start[b]
+        for m in range(first_at, at):
+            d = d_start[b] + node_off[m]
+            z = _on_spheroid(d, r_s[pr], z_s[pr], r_r[pr], z_r[pr], upper)
+            if m == first_at:
+                z = b_start[b]
+            elif m == last_at:
+                z = b_end[b]
+            node_z[m] = min(max(z, lo_z), hi_z)
+            if m == first_at:
+                d = d_start[b]
+            elif m == last_at:
+                d = d_end[b]
+            node_d[m] = d
+    # elements between consecutive nodes, split to the (growing) length cap: at most the sum
+    # of the splits (zero-length pieces are dropped)
+    n_sub = np.ones(max(total - 1, 0), dtype=np.int64)
+    bound = 0
+    at = 0
+    for b in range(nb):
+        for m in range(at, at + n_nodes[b] - 1):
+            za, zb = node_z[m], node_z[m + 1]
+            cap = max_element_m
+            if cap_growth > 0.0:
+                cap = max_element_m + cap_growth * min(abs(za - b_start[b]), abs(zb - b_start[b]))
+            n_sub[m] = max(np.int64(math.ceil(abs(zb - za) / cap)), 1)
+            bound += n_sub[m]
+        at += n_nodes[b]
+    pair = np.empty(bound, dtype=np.int64)
+    lo = np.empty(bound)
+    hi = np.empty(bound)
+    mean_path = np.full(bound, np.nan)
+    i = 0
+    at = 0
+    for b in range(nb):
+        pr = b // 2
+        for m in range(at, at + n_nodes[b] - 1):
+            za, zb = node_z[m], node_z[m + 1]
+            n_m = n_sub[m]
+            for j in range(n_m):
+                z0 = za + (zb - za) * (j / n_m)
+                z1 = za + (zb - za) * ((j + 1) / n_m)
+                if z1 == z0:
+                    continue
+                pair[i] = pr
+                lo[i] = min(z0, z1)
+                hi[i] = max(z0, z1)
+                if path_lengths:
+                    d0 = _path(z0, r_s[pr], z_s[pr], r_r[pr], z_r[pr]) if n_m > 1 and j > 0 else node_d[m]
+                    d1 = _path(z1, r_s[pr], z_s[pr], r_r[pr], z_r[pr]) if n_m > 1 and j < n_m - 1 else node_d[m + 1]
+                    mean_path[i] = 0.5 * (d0 + d1)
+                i += 1
+        at += n_nodes[b]
+    return pair[:i].copy(), lo[:i].copy(), hi[:i].copy(), mean_path[:i].copy()
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -262,4 +430,4 @@ def fill_edge_rows(
             rows_points[r, j, 2] = np.nan
 
 
-__all__ = ["fill_edge_rows", "gauss_point_gains", "visibility_segments"]
+__all__ = ["branch_elements", "fill_edge_rows", "gauss_point_gains", "visibility_segments"]
