@@ -21,7 +21,8 @@ equal *path-length* increments (an exact root of a quadratic: the nodes are wher
 meets the prolate spheroids m + l = const), so that neighbouring elements differ in delay by
 one step, whatever their length; long elements are further split to a maximum length. The
 first element of each branch is made very short (1/128 of a step), so that the earliest
-element's delay is the least time to within a nanosecond.
+element's delay is the least time to within a nanosecond. The per-branch loops (nodes, roots,
+splitting) are compiled (:func:`acoustisim.propagation.edge_kernels.branch_elements`).
 
 Integration (:func:`element_gains`): two-point Gauss-Legendre per element, after
 subtracting, for each of the four terms of beta, its apex approximation, which is integrated

@@ -1,29 +1,32 @@
 """Compiled per-element loops of edge diffraction (numba, cached on disk, GIL released).
 
 :func:`acoustisim.propagation.edges.edge_paths` turns some 8 000 visible edge elements of a
-pose into 16 000 rows; in numpy, the quadrature of :func:`~acoustisim.propagation.btm.element_gains`
-at the Gauss points, the points themselves and their path lengths, the amplitude floor and the
-filling of the ``PATH_DTYPE`` rows are dozens of passes over temporary arrays. Here each
-element (each row) is one loop iteration:
+pose into 16 000 rows; in numpy, the graded discretisation, the quadrature of
+:func:`~acoustisim.propagation.btm.element_gains` at the Gauss points, the points and their
+path lengths, the amplitude floor and the filling of the ``PATH_DTYPE`` rows were dozens of
+passes over temporary arrays. Here each branch, element or row is one loop iteration:
 
-0. :func:`branch_elements`: the graded nodes of each branch (roots on the spheroids m + l =
-   const) and the elements between them, split to the length cap;
-1. :func:`visibility_segments`: the occlusion segments of every element's centre (one Embree
-   batch, :meth:`~acoustisim.propagation.raycast.SceneRaycaster.occluded`, between the kernels);
-2. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
+1. :func:`branch_elements` (called by :func:`~acoustisim.propagation.btm.discretise_edges`):
+   the graded nodes of each branch (roots on the spheroids m + l = const) and the elements
+   between them, split to the length cap;
+2. :func:`visibility_segments`: the occlusion segments of every element's centre (one Embree
+   batch, :meth:`~acoustisim.propagation.raycast.RayCaster.occluded`, between the kernels);
+3. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
    m + l, and their gains (the element's BTM integral split between them);
-3. :func:`fill_edge_rows`: the rows above the amplitude floor, with dense path ids per
+4. :func:`fill_edge_rows`: the rows above the amplitude floor, with dense path ids per
    (chain, channel), the points and the unit leg directions, and the padding conventions of
    :func:`~acoustisim.propagation.paths.empty_paths_array`.
 
-The per-pair constants (the angular factors of the four beta terms, the apex model's
-constants) stay in numpy (:func:`~acoustisim.propagation.btm.pair_constants`, a few hundred
-pairs). The arithmetic is :func:`~acoustisim.propagation.btm.element_gains`' term for term and
-in the same order (the four terms summed 0 + t0 + t1 + t2 + t3, squares as products), so the
-gains agree with the numpy reference to round-off of the elementary functions (libm here,
-numpy's own SIMD loops there): ``tests/test_edges_kernels.py`` holds them to 1e-12 relative.
-No ``fastmath`` (it would reassociate sums). ``cache=True`` stores the compiled code beside
-this file: the first call in a fresh checkout compiles for a few seconds.
+The per-branch and per-pair constants (the graded grid's intervals, the angular factors of the
+four beta terms, the apex model's constants) stay in numpy (a few hundred pairs). The
+arithmetic is the former numpy code's term for term and in the same order (the four terms
+summed 0 + t0 + t1 + t2 + t3, squares as products), so the elements are bit-identical to the
+numpy reference and the gains agree with it to round-off of the elementary functions (libm
+here, numpy's own SIMD loops there): ``tests/test_edges_kernels.py`` keeps the numpy code and
+holds every row to 1e-12 relative (on the thesis tank: gains within 1.1e-15, directions within
+an ulp, everything else byte-identical). No
+``fastmath`` (it would reassociate sums). ``cache=True`` stores the compiled code beside this
+file: the first call in a fresh checkout compiles for a few seconds.
 """
 
 from __future__ import annotations

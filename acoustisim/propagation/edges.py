@@ -44,6 +44,10 @@ Edges left out, each for a physical reason:
 
 Elements whose gain is below 1e-6 of the strongest element (-120 dB, far below a 12-bit
 ADC's 72 dB) are dropped.
+
+The per-element work (discretisation, visibility segments, Gauss-point gains, rows) runs in the
+compiled loops of :mod:`acoustisim.propagation.edge_kernels`; the visibility stays one Embree
+batch.
 """
 
 from __future__ import annotations
