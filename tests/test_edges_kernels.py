@@ -232,11 +232,11 @@ def _numpy_rows(pair, gains, path_length, z_point, pair_edge, pair_rx, chain, su
     return rows
 
 
-def _kernel(elements, args):
+def _kernel(elements, args, whole=False):
     k = btm.pair_constants(*args)
     x, w = btm.gauss_rule(2)
     return gauss_point_gains(elements.pair, elements.z_start_m, elements.z_end_m, k.nu, k.r_s, k.z_s, k.r_r,
-                             k.z_r, k.nk, k.ml_star, k.z_star, k.num, k.gap, k.coef, k.s_gap, x, w)
+                             k.z_r, k.nk, k.ml_star, k.z_star, k.num, k.gap, k.coef, k.s_gap, x, w, whole)
 
 
 GEOMETRIES = [
@@ -268,6 +268,10 @@ def test_gauss_point_kernel_matches_numpy_element_gains(graded):
     # the points' gains sum to the element's integral (the un-split numpy quadrature)
     whole = btm.element_gains(elements, *args)
     np.testing.assert_allclose(compiled[0].sum(axis=1), whole, rtol=1e-9, atol=1e-12 * np.max(np.abs(whole)))
+    # and one gain per element (the fine discretisation's rows) is the numpy quadrature's
+    one = _kernel(elements, args, whole=True)
+    assert one[0].shape == (elements.pair.size, 1) and one[1].shape == (elements.pair.size, 0)
+    np.testing.assert_allclose(one[0][:, 0], whole, rtol=RTOL, atol=RTOL * np.max(np.abs(whole)))
 
 
 @pytest.fixture(scope="module")
@@ -376,3 +380,21 @@ def test_thesis_tank_discretisation_matches_the_numpy_reference(thesis_tank, mon
     assert len(calls) == 2
     for args, kwargs in calls:
         _assert_same_elements(original(*args, **kwargs), numpy_discretise_edges(*args, **kwargs))
+
+
+def test_thesis_tank_fine_gains_match_the_numpy_reference(thesis_tank, monkeypatch):
+    context, sharp = thesis_tank
+    captured = {}
+    original = edges_module.gauss_point_gains
+
+    def spy(pair, z0, z1, *rest):
+        captured["elements"] = btm.EdgeElements(pair, z0, z1, np.full(pair.size, np.nan))
+        captured["result"] = original(pair, z0, z1, *rest)
+        return captured["result"]
+
+    monkeypatch.setattr(edges_module, "gauss_point_gains", spy)
+    edges_module.edge_paths(context, SolverConfig(edge_adaptive=False), sharp)
+    want = btm.element_gains(captured["elements"], *_reference_inputs(context, sharp)["args"])
+    got = captured["result"][0][:, 0]
+    assert want.size > 10_000
+    np.testing.assert_allclose(got, want, rtol=RTOL, atol=RTOL * np.max(np.abs(want)))

@@ -210,9 +210,9 @@ def gauss_point_gains(
     nu: NDArray[np.float64], r_s: NDArray[np.float64], z_s: NDArray[np.float64], r_r: NDArray[np.float64],
     z_r: NDArray[np.float64], nk: NDArray[np.float64], ml_star: NDArray[np.float64], z_star: NDArray[np.float64],
     num: NDArray[np.float64], gap: NDArray[np.float64], coef: NDArray[np.float64], s_gap: NDArray[np.float64],
-    gauss_x: NDArray[np.float64], gauss_w: NDArray[np.float64],
+    gauss_x: NDArray[np.float64], gauss_w: NDArray[np.float64], whole: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Gains, points and path lengths of every element's Gauss points.
+    """Gains, points and path lengths of every element's Gauss points (or each element's gain).
 
     Parameters
     ----------
@@ -228,6 +228,9 @@ def gauss_point_gains(
         coefficient and 2 |sin(nu phi_i / 2)|.
     gauss_x, gauss_w : ndarray, shape (g,)
         Gauss-Legendre abscissae and weights on [-1, 1].
+    whole : bool, optional
+        True: one gain per element (:func:`~acoustisim.propagation.btm.element_gains` without
+        ``per_point``), shape (n, 1), and no points (``z`` and ``path_length`` of shape (n, 0)).
 
     Returns
     -------
@@ -238,9 +241,9 @@ def gauss_point_gains(
     """
     n = pair.size
     n_g = gauss_x.size
-    gains = np.empty((n, n_g))
-    zs_out = np.empty((n, n_g))
-    paths = np.empty((n, n_g))
+    gains = np.empty((n, 1 if whole else n_g))
+    zs_out = np.empty((n, 0 if whole else n_g))
+    paths = np.empty((n, 0 if whole else n_g))
     exact_part = np.empty(n_g)
     for e in range(n):
         p = pair[e]
@@ -275,9 +278,10 @@ def gauss_point_gains(
                 apex += num[p, i] / den if den > 0.0 else 0.0
             exact_part[g] = gauss_w[g] * exact / ml
             apex_sum += gauss_w[g] * apex / mls
-            # the point and its m + l: the same z, legs and hypot as the gain's (x h = h x exactly)
-            zs_out[e, g] = z
-            paths[e, g] = m + l_
+            if not whole:
+                # the point and its m + l: the same z, legs and hypot as the gain's (x h = h x exactly)
+                zs_out[e, g] = z
+                paths[e, g] = m + l_
         a0 = nk_ * (z0 - zst)
         a1 = nk_ * (z1 - zst)
         da = nk_ * (z1 - z0)
@@ -287,6 +291,12 @@ def gauss_point_gains(
             s = s_gap[p, i]
             model_integral += coef[p, i] * math.atan2(da * s, s * s + prod)
         scale = -(nu_ / (4.0 * np.pi))
+        if whole:
+            exact_sum = 0.0
+            for g in range(n_g):
+                exact_sum += exact_part[g]
+            gains[e, 0] = scale * ((exact_sum - apex_sum) * half_len + model_integral)
+            continue
         correction = (model_integral - apex_sum * half_len) / n_g
         for g in range(n_g):
             gains[e, g] = scale * (exact_part[g] * half_len + correction)

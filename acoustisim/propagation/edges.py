@@ -58,7 +58,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.btm import EdgeElements, discretise_edges, element_gains, gauss_rule, pair_constants
+from acoustisim.propagation.btm import EdgeElements, discretise_edges, gauss_rule, pair_constants
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
@@ -238,19 +238,18 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     elements = EdgeElements(elements.pair[visible], elements.z_start_m[visible], elements.z_end_m[visible],
                             elements.path_length_m[visible])
 
-    args = (edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
+    # per element: two impulses at its Gauss points (graded, see element_gains with per_point)
+    # or one at its centre (fine)
+    k = pair_constants(edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
+    gauss_x, gauss_w = gauss_rule(GAUSS_POINTS)
+    gains2, z2, path2 = gauss_point_gains(
+        elements.pair, elements.z_start_m, elements.z_end_m, k.nu, k.r_s, k.z_s, k.r_r, k.z_r, k.nk,
+        k.ml_star, k.z_star, k.num, k.gap, k.coef, k.s_gap, gauss_x, gauss_w, not config.edge_adaptive,
+    )
+    gains = gains2.reshape(-1)
     if config.edge_adaptive:
-        # two impulses per element, at its Gauss points (see element_gains, per_point=True)
-        k = pair_constants(*args)
-        gauss_x, gauss_w = gauss_rule(GAUSS_POINTS)
-        gains2, z2, path2 = gauss_point_gains(
-            elements.pair, elements.z_start_m, elements.z_end_m, k.nu, k.r_s, k.z_s, k.r_r, k.z_r, k.nk,
-            k.ml_star, k.z_star, k.num, k.gap, k.coef, k.s_gap, gauss_x, gauss_w,
-        )
-        pair = np.repeat(elements.pair, GAUSS_POINTS)
-        gains, z_point, path_length = gains2.reshape(-1), z2.reshape(-1), path2.reshape(-1)
+        pair, z_point, path_length = np.repeat(elements.pair, GAUSS_POINTS), z2.reshape(-1), path2.reshape(-1)
     else:
-        gains = element_gains(elements, *args)
         pair, z_point, path_length = elements.pair, elements.z_mid_m, elements.path_length_m
     if gains.size == 0:
         return empty_paths_array(0)
