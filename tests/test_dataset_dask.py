@@ -97,7 +97,7 @@ def test_sigkill_mid_run_then_resume_equals_an_uninterrupted_run(client, referen
     spec_file.write_text(SPEC)
     out = tmp_path / "killed.zarr"
     command = [sys.executable, "-m", "acoustisim.cli.main", "dataset", "generate", str(spec_file), "--out", str(out),
-               "--scheduler", client.scheduler.address, "--no-progress"]
+               "--workers", "2", "--no-progress"]
     process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     n_done = 0
     deadline = time.monotonic() + 120.0
@@ -112,8 +112,19 @@ def test_sigkill_mid_run_then_resume_equals_an_uninterrupted_run(client, referen
         os.killpg(process.pid, signal.SIGKILL)
         process.wait()
     assert process.returncode == -signal.SIGKILL, process.stderr.read().decode()
+    # The command runs its own LocalCluster in its process group, so the kill takes the workers
+    # too (a worker writes its chunk's data, then checksum, then completion flag, each
+    # atomically). Count only once no flag has changed for 3 s (a task takes ~0.5 s here), so a
+    # worker still dying cannot change the store after it was counted.
     killed = DatasetStore(out)
-    n_killed = int(killed.complete_mask().sum())
+    n_killed, stable_since, settle_deadline = -1, time.monotonic(), time.monotonic() + 60.0
+    while time.monotonic() < settle_deadline:
+        n_now = int(killed.complete_mask().sum())
+        if n_now != n_killed:
+            n_killed, stable_since = n_now, time.monotonic()
+        elif time.monotonic() - stable_since >= 3.0:
+            break
+        time.sleep(0.2)
     assert 1 <= n_killed < 16, "the kill must land mid-run"
 
     report = generate(loads_spec(SPEC), out, client=client, progress=False)

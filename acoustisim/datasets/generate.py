@@ -205,7 +205,10 @@ def simulate_sample(spec: DatasetSpec, sample: SampleDescription) -> tuple[Any, 
     from acoustisim.simulation import simulate
 
     scene = build_scene(spec, sample)
-    config = SolverConfig(**dict(spec.solver), seed=sample.simulation_seed % (2**31))
+    # Samples run in parallel on the Dask workers, so each solve traces its diffuse rays on one
+    # thread (rows do not depend on the thread count); a spec's [solver] threads overrides it.
+    solver_options = {"threads": 1, **dict(spec.solver)}
+    config = SolverConfig(**solver_options, seed=sample.simulation_seed % (2**31))
     with warnings.catch_warnings():
         # "record too short for N arrivals": expected in a dataset; those arrivals stay in the truth.
         warnings.simplefilter("ignore", UserWarning)
