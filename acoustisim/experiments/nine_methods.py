@@ -263,10 +263,10 @@ def run(config: ExperimentConfig) -> ExperimentReport:
         f"{summary['seed-4']['correct']}/{summary['seed-4']['estimates']} (seed-4) and "
         f"{summary['seed-8']['correct']}/{summary['seed-8']['estimates']} (seed-8).")
     report.add_section(
-        "The rates are those of the whole record: each method's noise floor is estimated over the whole record, and "
-        "the matched filters' detection threshold is set for a false-alarm probability of 1e-3 over the whole "
-        "record's duration (binsonar's `MatchedPlan.threshold_factor`), not the search window's, so it is higher "
-        "than on a record cut to the gate and the weakest (farthest) echoes can fall below it and count as missed. "
+        "The rates are those of the whole record: each method's noise floor is estimated over the whole record "
+        "(which holds the tank's other echoes and reverberation), and the matched filters' detection threshold "
+        "holds a false-alarm probability of 1e-3 over the searched lags (binsonar's "
+        "`MatchedPlan.threshold_factor`); the weakest (farthest) echoes can fall below it and count as missed. "
         "In the note below, \"range gate\" is the search window: the record is not cut here, so the prism's rear "
         "edges are in the record but outside the search.")
     from acoustisim.experiments.sweep import PHYSICS_NOTE
