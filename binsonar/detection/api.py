@@ -282,7 +282,13 @@ def _prepare(
     if base != "threshold":
         if template is None:
             raise RecordingError(f"method {method!r} needs a template")
-        if base in ("matched", "ca-cfar", "os-cfar"):
+        if base == "matched":
+            from binsonar.detection.matched import plan_matched
+
+            # The decimated envelope by overlap-save (short cache-sized FFTs): no record-size
+            # spectrum, nor the response's properties (CFAR's side lobes), to plan.
+            plan = plan_matched(template, n_samples, sample_rate_hz, full=False, overlap_save=True)
+        elif base in ("ca-cfar", "os-cfar"):
             from binsonar.detection.matched import plan_matched
 
             plan = plan_matched(template, n_samples, sample_rate_hz)

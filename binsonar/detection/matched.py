@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
 from binsonar.detection.noise import row_median
+from binsonar.detection.overlap_save import BlockEnvelopePlan, block_envelope, plan_blocks
 from binsonar.detection.peaks import SidelobeModel, log_parabolic_offset
 from binsonar.recording import RecordingError, Template
 
@@ -110,11 +111,16 @@ class MatchedPlan:
     analytic_parts: NDArray[np.float64] | None = field(default=None, repr=False)
     """Real and imaginary parts of ``analytic_template_conj`` as columns, shape (m_a, 2)
     (the matrix the direct correlations multiply by; None: made on use)."""
+    blocks: "BlockEnvelopePlan | None" = field(default=None, repr=False)
+    """Overlap-save plan of the decimated envelope (``overlap_save``; ``plan_matched(...,
+    overlap_save=True)``): ``detect_matched`` then computes the envelope block by block, and
+    ``decimation`` / ``n_valid`` refer to its grid. None: from the record-size spectrum."""
 
     @property
     def decimation(self) -> float:
-        """Full-rate samples per decimated envelope sample."""
-        return self.n_fft / self.n_env
+        """Full-rate samples per decimated envelope sample (of the blocks' envelope when the
+        plan has one)."""
+        return self.blocks.decimation if self.blocks is not None else self.n_fft / self.n_env
 
     @property
     def n_valid(self) -> int:
@@ -157,16 +163,21 @@ class MatchedPlan:
         return factor
 
 
-def _band_edge_bin(samples: NDArray[np.float64], n_fft: int) -> int:
-    """Number of rfft bins (of size n_fft) below which all but BAND_ENERGY_TAIL of the energy lies."""
+def band_edge_cycles(samples: NDArray[np.float64]) -> float:
+    """f_hi / fs: the frequency (cycles per sample) below which all but BAND_ENERGY_TAIL of the
+    template's energy lies (on an rfft grid of at least 8 template lengths)."""
     import scipy.fft as sfft
 
     n_small = sfft.next_fast_len(max(8 * samples.size, 4096), real=True)
     power = np.abs(sfft.rfft(samples, n_small)) ** 2
     tail = np.cumsum(power[::-1])[::-1] / power.sum()  # tail[k]: energy fraction at bins >= k
     k_small = int(np.argmax(tail < BAND_ENERGY_TAIL)) if np.any(tail < BAND_ENERGY_TAIL) else power.size
-    f_hi = k_small / n_small  # cycles per sample
-    return int(min(n_fft // 2 + 1, math.ceil(f_hi * n_fft) + 2))
+    return k_small / n_small
+
+
+def _band_edge_bin(samples: NDArray[np.float64], n_fft: int) -> int:
+    """Number of rfft bins (of size n_fft) below which all but BAND_ENERGY_TAIL of the energy lies."""
+    return int(min(n_fft // 2 + 1, math.ceil(band_edge_cycles(samples) * n_fft) + 2))
 
 
 def _analytic_template(samples: NDArray[np.float64]) -> tuple[NDArray[np.complex128], int]:
@@ -223,6 +234,7 @@ def plan_matched(
     noise_psd: "Callable[[NDArray[np.float64]], NDArray[np.float64]] | None" = None,
     *,
     full: bool = True,
+    overlap_save: bool = False,
 ) -> MatchedPlan:
     """Precompute the matched filter for a template and record length.
 
@@ -239,6 +251,11 @@ def plan_matched(
     full : bool
         False skips the record-size spectrum and the response's properties (correlation time,
         FWHM, side lobes: NaN): enough for the local matched filter.
+    overlap_save : bool
+        Plan the decimated envelope block by block (``overlap_save.plan_blocks``, plain filter
+        only) instead of from the record-size spectrum, which is then not computed (``k_hi``
+        0, ``weights`` empty, whatever ``full`` says): what ``detect_matched`` needs, at a
+        fraction of the cost. ``full`` still sets whether the response's properties are made.
     """
     import scipy.fft as sfft
 
@@ -269,7 +286,12 @@ def plan_matched(
         centroid = (freqs_small * filtered_small).sum() / filtered_small.sum()
         beta = float(np.sqrt(((freqs_small - centroid) ** 2 * filtered_small).sum() / filtered_small.sum()))
     n_fft = fast_fft_size(n_samples + m - 1)
-    if full:
+    blocks = None
+    if overlap_save:
+        if noise_psd is not None:
+            raise ValueError("plan_matched: overlap_save is for the plain (white-noise) matched filter only")
+        blocks = plan_blocks(s, n_samples, band_edge_cycles(s), offset, analytic_conj.size)
+    if full and not overlap_save:
         k_hi = _band_edge_bin(s, n_fft)
         n_env = sfft.next_fast_len(k_hi)
         if noise_psd is None:
@@ -310,6 +332,7 @@ def plan_matched(
         correlation_time_s=correlation_time_s,
         mainlobe_fwhm_s=float(fwhm_s),
         analytic_parts=np.ascontiguousarray(np.stack([analytic_conj.real, analytic_conj.imag], axis=1)),
+        blocks=blocks,
     )
 
 
@@ -350,6 +373,9 @@ def filtered_spectrum(
     """
     import scipy.fft as sfft
 
+    if plan.k_hi == 0:
+        raise ValueError("filtered_spectrum: the plan has no record-size spectrum (plan_matched with full=True and "
+                         "overlap_save=False)")
     if single:
         n_rows, n = rows.shape
         buffer = np.empty((n_rows, plan.n_fft), dtype=np.float32)
@@ -389,7 +415,9 @@ def white_noise_power(plan: MatchedPlan, sigma_v: float | NDArray[np.float64]) -
     ``peak_response``, the value used when the plan holds no weights (local matched filter).
     """
     sigma2 = np.square(np.asarray(sigma_v, dtype=float))
-    if plan.weights.size:
+    if plan.blocks is not None:
+        gain = plan.blocks.noise_gain
+    elif plan.weights.size:
         gain = float(np.sum(np.abs(plan.weights) ** 2)) / plan.n_fft
     else:
         gain = 2.0 * plan.peak_response
@@ -675,7 +703,9 @@ def detect_matched(
         Least input noise standard deviation (V), the ADC's quantisation noise: the noise
         floor of |z|^2 is never below its ``white_noise_power``.
     single : bool
-        The record's FFT in float32 (``filtered_spectrum``; the TOF refinement stays float64).
+        The record's FFT in float32 (``filtered_spectrum``, or the blocks' FFTs of
+        ``overlap_save.block_envelope`` when the plan has ``blocks``); the TOF refinement stays
+        float64.
     dc_v : ndarray, shape (n_rows,), optional
         DC offset of each row still in ``rows`` (``Signals.dc_v``): removed in the FFT's input
         copy and subtracted from the direct correlations (``dc_correlation``), so the result is
@@ -687,8 +717,12 @@ def detect_matched(
     """
     pfa = check_pfa(pfa)
     dc = None if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
-    spectrum = filtered_spectrum(plan, rows, single=single, dc=dc)
-    z = envelope(plan, spectrum)
+    if plan.blocks is not None:  # overlap-save: no record-size spectrum (refinement in the time domain)
+        spectrum = None
+        z = block_envelope(plan.blocks, rows, dc, single)
+    else:
+        spectrum = filtered_spectrum(plan, rows, single=single, dc=dc)
+        z = envelope(plan, spectrum)
     power = np.square(z.real, dtype=float) + np.square(z.imag, dtype=float)  # float64 even from float32 z
     noise = noise_mean_power(power, float(white_noise_power(plan, noise_floor_v)))
     lags = lag_range(plan, t0_s, search_window_s)
