@@ -46,7 +46,7 @@ source solver's business.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.convex_occlusion import ConvexPlanes
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation import diffuse_kernels as kernels
 from acoustisim.propagation.paths import PathKind, PATH_DTYPE, empty_paths_array
@@ -302,16 +303,34 @@ class ObjectScreen:
         For a surface that is a convex object, its row in ``lo``, ``hi``; else -1. A leg from
         a point on a convex body towards a receiver in front of the face cannot re-enter the
         body, so that box is skipped for it.
+    wedges : ndarray, shape (n_rx, k, 6)
+        :func:`receiver_wedges` of the boxes: a leg outside a box's wedge does not cross it
+        (tested before the box itself, at a few multiplications).
+    planes : ConvexPlanes
+        Face planes of the rows of ``lo``, ``hi`` (row 0, the union, has none): a leg crossing
+        the box of an object with planes is decided exactly by them
+        (:mod:`~acoustisim.propagation.convex_occlusion`), without Embree; only legs crossing
+        the box of an object without planes (non-convex, or more than
+        :data:`SCREEN_MAX_BOXES` objects) are left to Embree.
     """
 
     receivers: NDArray[np.float64]
     lo: NDArray[np.float64] | None
     hi: NDArray[np.float64] | None
     own_box: NDArray[np.int64]
+    wedges: NDArray[np.float64] | None = None
+    planes: ConvexPlanes = field(default_factory=lambda: ConvexPlanes(np.zeros(1, dtype=np.int64), np.zeros((0, 3)),
+                                                                      np.zeros(0)))
 
     @classmethod
-    def create(cls, scene: Any, receivers_m: NDArray[np.float64]) -> "ObjectScreen":
-        """The screen of ``scene``'s objects for the receivers ``receivers_m`` (n_rx, 3)."""
+    def create(cls, scene: Any, receivers_m: NDArray[np.float64],
+               planes: ConvexPlanes | None = None) -> "ObjectScreen":
+        """The screen of ``scene``'s objects for the receivers ``receivers_m`` (n_rx, 3).
+
+        ``planes``: the convex objects' face planes
+        (:attr:`~acoustisim.propagation.raycast.RayCaster.convex_planes`, one row per object);
+        None: every leg crossing an object's box is left to Embree.
+        """
         receivers = np.ascontiguousarray(receivers_m, dtype=float)
         own_box = np.full(len(scene.boundaries) + len(scene.objects), -1, dtype=np.int64)
         if scene.tank is not None and not np.all(scene.tank.contains(receivers)):
@@ -324,12 +343,19 @@ class ObjectScreen:
         union_lo, union_hi = lo.min(axis=0, keepdims=True), hi.max(axis=0, keepdims=True)
         if len(scene.objects) > SCREEN_MAX_BOXES:
             return cls(receivers, union_lo, union_hi, own_box)
+        with_planes = np.zeros(len(scene.objects), dtype=bool) if planes is None else planes.convex
         for k, obj in enumerate(scene.objects):
             # an analytic primitive (sphere, cylinder) is convex; a small mesh is checked
-            convex = obj.primitive is not None or (len(obj.mesh.faces) <= SCREEN_CONVEXITY_FACES and obj.mesh.is_convex)
+            convex = (obj.primitive is not None or bool(with_planes[k])
+                      or (len(obj.mesh.faces) <= SCREEN_CONVEXITY_FACES and obj.mesh.is_convex))
             if convex:
                 own_box[len(scene.boundaries) + k] = k + 1
-        return cls(receivers, np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi]), own_box)
+        if planes is None:
+            rows = ConvexPlanes(np.zeros(len(scene.objects) + 2, dtype=np.int64), np.zeros((0, 3)), np.zeros(0))
+        else:  # prepend the union's empty row
+            rows = ConvexPlanes(np.concatenate([[0], planes.start]).astype(np.int64), planes.normal, planes.offset)
+        lo, hi = np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi])
+        return cls(receivers, lo, hi, own_box, receiver_wedges(lo, hi, receivers), rows)
 
     def near(self, points_m: NDArray[np.float64], receiver: int | None = None,
              surface: NDArray[np.int64] | None = None) -> NDArray[np.bool_]:
@@ -351,14 +377,66 @@ class ObjectScreen:
             near |= leg
         return near
 
-    def kernel_arguments(self) -> tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
-        """(mode, lo, hi, own_box) for :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`:
-        mode 0 when no leg can be blocked, 1 to screen with the boxes, 2 when every leg may be."""
-        if self.lo is None:
-            return 2, np.zeros((1, 3)), np.zeros((1, 3)), self.own_box
-        if self.lo.shape[0] == 0:
-            return 0, np.zeros((1, 3)), np.zeros((1, 3)), self.own_box
-        return 1, self.lo, self.hi, self.own_box
+    def kernel_arguments(self) -> tuple[Any, ...]:
+        """(mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset) for
+        :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`: mode 0 when no leg can
+        be blocked, 1 to screen with the boxes and decide with the convex objects' planes, 2
+        when every leg may be blocked (Embree tests each)."""
+        p = self.planes
+        if self.lo is None or self.lo.shape[0] == 0:
+            none = np.zeros((1, 3))
+            return (2 if self.lo is None else 0, none, none, self.own_box, np.zeros((1, 1, 6)),
+                    np.zeros(2, dtype=np.int64), none, np.zeros(1))
+        start = p.start if p.start.size == self.lo.shape[0] + 1 else np.zeros(self.lo.shape[0] + 1, dtype=np.int64)
+        normal = p.normal if p.normal.shape[0] else np.zeros((1, 3))
+        offset = p.offset if p.offset.shape[0] else np.zeros(1)
+        wedges = self.wedges if self.wedges is not None else receiver_wedges(self.lo, self.hi, self.receivers)
+        return 1, self.lo, self.hi, self.own_box, wedges, start, normal, offset
+
+
+def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
+                    receivers: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The wedge of directions in which each receiver sees each box, in the projection along
+    the box's longest side: a cheap necessary condition for a leg to cross the box.
+
+    A segment from a receiver q to a point p crosses a box only if its projection crosses the
+    box's projected rectangle, hence only if p - q, projected, lies in the wedge spanned from q
+    by the rectangle's corners (its conic hull, narrower than a half-plane when q lies outside
+    the rectangle). For a tall thin post seen from the side the wedge is a few degrees wide.
+
+    Parameters
+    ----------
+    lo, hi : ndarray, shape (k, 3)
+        Boxes (m).
+    receivers : ndarray, shape (n_rx, 3)
+
+    Returns
+    -------
+    ndarray, shape (n_rx, k, 6)
+        Per receiver and box: the wedge's right and left edges (R_u, R_v, L_u, L_v) in the
+        projected coordinates (u, v) = ((a + 1) % 3, (a + 2) % 3), a flag (1: no wedge, q lies
+        within 1e-9 m of the projected rectangle, every leg goes to the slab test) and the axis
+        a. A direction d (projected) lies in the wedge iff ``R x d >= 0`` and ``d x L >= 0``.
+    """
+    k = lo.shape[0]
+    out = np.zeros((receivers.shape[0], k, 6))
+    for b in range(k):
+        axis = int(np.argmax(hi[b] - lo[b]))
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        corners = np.array([[lo[b, u], lo[b, v]], [hi[b, u], lo[b, v]], [hi[b, u], hi[b, v]], [lo[b, u], hi[b, v]]])
+        out[:, b, 5] = axis
+        for j, q in enumerate(receivers):
+            rel = corners - q[[u, v]]
+            inside = (lo[b, u] - 1e-9 <= q[u] <= hi[b, u] + 1e-9) and (lo[b, v] - 1e-9 <= q[v] <= hi[b, v] + 1e-9)
+            if inside:
+                out[j, b, 4] = 1.0
+                continue
+            centre = rel.mean(axis=0)
+            # signed angle of each corner from the centre direction (all within +-90 degrees)
+            angle = np.arctan2(centre[0] * rel[:, 1] - centre[1] * rel[:, 0], rel @ centre)
+            right, left = rel[np.argmin(angle)], rel[np.argmax(angle)]
+            out[j, b, 0:4] = right[0], right[1], left[0], left[1]
+    return out
 
 
 SCREEN_MARGIN_M = 1e-4
@@ -404,6 +482,11 @@ class DiffuseEvents:
         arg X (rad).
     arrival_dir : ndarray, shape (n, 3)
         Unit direction hit -> receiver.
+    embree_legs : int
+        Legs hit -> receiver the tracer sent to Embree's occlusion query (crossing the box of
+        an object without face planes, or all legs when a receiver is outside the water).
+    convex_legs : int
+        Legs decided exactly by the face planes of the convex objects whose boxes they cross.
     """
 
     points_m: NDArray[np.float64]
@@ -417,6 +500,8 @@ class DiffuseEvents:
     gain: NDArray[np.float64]
     phase_rad: NDArray[np.float64]
     arrival_dir: NDArray[np.float64]
+    embree_legs: int = 0
+    convex_legs: int = 0
 
 
 CHUNK_RAYS = 1 << 14
@@ -475,7 +560,7 @@ class _Tracer:
     transmitter: NDArray[np.float64]
     frame: tuple[NDArray[np.float64], ...]
     receivers: NDArray[np.float64]
-    screen: tuple[int, NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]
+    screen: tuple[Any, ...]
     tested: NDArray[np.bool_]
     shared: bool
     seed_hash: np.uint64
@@ -513,6 +598,7 @@ class _ChunkEvents:
     bounce: NDArray[np.int64]
     departure: NDArray[np.float64]
     pending: tuple[_Pending, ...]
+    legs: tuple[int, int] = (0, 0)
 
     @property
     def receptions(self) -> int:
@@ -551,6 +637,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
     pending: list[_Pending] = []
     next_event = 0
+    legs = [0, 0]  # sent to Embree, decided by the convex objects' planes
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
         if bounce:
@@ -579,12 +666,15 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         r2, cos_r2 = np.empty(pairs), np.empty(pairs)
         leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
-        mode, lo, hi, own_box = tracer.screen
-        n_legs = kernels.next_event_pairs(
-            points, normal, surface, n_hits, rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, shift,
-            DEFAULT_EPS_M,
+        mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset = tracer.screen
+        n_legs, n_exact = kernels.next_event_pairs(
+            points, normal, surface, n_hits, rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges,
+            plane_start,
+            plane_normal, plane_offset, shift, DEFAULT_EPS_M,
             state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
         )
+        legs[0] += n_legs
+        legs[1] += n_exact
         blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
         count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
         pending.append(_Pending(n_hits, state, r2, cos_r2, points, amplitude, hit_travelled, phase, next_event, count))
@@ -614,6 +704,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     return _ChunkEvents(
         points=_join(ev["points"], axis=1), surface=_join(ev["surface"]), parent=_join(ev["parent"]),
         bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), pending=tuple(pending),
+        legs=(legs[0], legs[1]),
     )
 
 
@@ -658,7 +749,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         transmitter=tx,
         frame=(*_basis(boresight), boresight),
         receivers=np.ascontiguousarray(rx),
-        screen=ObjectScreen.create(scene, rx).kernel_arguments(),
+        screen=ObjectScreen.create(scene, rx, raycaster.convex_planes).kernel_arguments(),
         tested=tested,
         shared=visibility == "centre",
         seed_hash=_seed_hash(int(config.seed)),
@@ -723,7 +814,8 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
             )
 
     run_in_order(place, range(len(chunks)), workers)
-    return DiffuseEvents(points, surface, parent, bounce, departure, event, channel, length, gain, phase, arrival)
+    return DiffuseEvents(points, surface, parent, bounce, departure, event, channel, length, gain, phase, arrival,
+                         sum(c.legs[0] for c in chunks), sum(c.legs[1] for c in chunks))
 
 
 _PACK_ROWS = 1 << 15

@@ -33,6 +33,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.convex_occlusion import segment_crosses_convex
+
 GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 MIX1 = np.uint64(0xBF58476D1CE4E5B9)
 MIX2 = np.uint64(0x94D049BB133111EB)
@@ -255,15 +257,54 @@ def near_points(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _slab(px: float, py: float, pz: float, ix: float, iy: float, iz: float, lx: float, ly: float, lz: float,
+          hx: float, hy: float, hz: float) -> bool:
+    """Whether the segment p + s t, 0 <= t <= 1, meets the box [l, h], given the inverses
+    ``ix, iy, iz`` = 1 / s of the segment's components (+-inf for a 0: then the slab's bounds
+    give +-inf, or NaN when p lies on the slab's face, which the comparisons ignore, a
+    grazing contact). Scalar arguments only: array arguments would cost reference-count
+    updates at every call."""
+    t1 = (lx - px) * ix
+    t2 = (hx - px) * ix
+    enter = min(t1, t2)
+    leave = max(t1, t2)
+    t1 = (ly - py) * iy
+    t2 = (hy - py) * iy
+    enter = max(enter, min(t1, t2))
+    leave = min(leave, max(t1, t2))
+    t1 = (lz - pz) * iz
+    t2 = (hz - pz) * iz
+    enter = max(enter, min(t1, t2))
+    leave = min(leave, max(t1, t2))
+    return max(enter, 0.0) <= min(leave, 1.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _in_wedge(axis: float, ru: float, rv: float, lu: float, lv: float, ex: float, ey: float, ez: float) -> bool:
+    """Whether the direction e (receiver -> point), projected along ``axis``, lies in the
+    wedge of right and left edges (ru, rv), (lu, lv) (a row of
+    :func:`~acoustisim.propagation.diffuse.receiver_wedges`)."""
+    if axis == 0.0:
+        du, dv = ey, ez
+    elif axis == 1.0:
+        du, dv = ez, ex
+    else:
+        du, dv = ex, ey
+    return ru * dv - rv * du >= 0.0 and du * lv - dv * lu >= 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def next_event_pairs(
     points: NDArray[np.float64], normal: NDArray[np.float64], surface: NDArray[np.int64], h: int,
     receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
-    hi: NDArray[np.float64], own_box: NDArray[np.int64], shift: NDArray[np.float64], eps: float,
+    hi: NDArray[np.float64], own_box: NDArray[np.int64], wedges: NDArray[np.float64], plane_start: NDArray[np.int64],
+    plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64], shift: NDArray[np.float64], eps: float,
     state: NDArray[np.int8],
     r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
-) -> int:
-    """Geometry of every (hit, receiver) pair and the legs Embree must test.
+) -> tuple[int, int]:
+    """Geometry of every (hit, receiver) pair, exact occlusion by the convex objects, and the
+    legs Embree must test.
 
     Parameters
     ----------
@@ -277,14 +318,31 @@ def next_event_pairs(
         Receivers whose legs are tested for occlusion.
     screen : int
         0: no leg can be blocked (no objects); 1: screen each leg with the boxes ``lo``, ``hi``
-        (k, 3); 2: every leg may be blocked.
+        (k, 3) and decide it with the face planes of the convex objects (see below); 2: every
+        leg may be blocked (Embree tests it).
+    own_box : ndarray of int64, shape (n_surfaces,)
+        The box row skipped for a point on each surface (-1: none).
+    wedges : ndarray, shape (n_rx, k, 6)
+        Each receiver's wedges of the boxes
+        (:func:`~acoustisim.propagation.diffuse.receiver_wedges`).
+    plane_start, plane_normal, plane_offset
+        Face planes of the box rows (row b's are ``plane_start[b]:plane_start[b + 1]``, see
+        :class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes`).
+
+    With one box only (the union of too many objects to screen one by one), a leg crossing it
+    goes to Embree. Otherwise each object's box (rows 1:, skipping the convex object the point
+    lies on: a leg towards a receiver in front of the face cannot re-enter it) is tested: the
+    leg's direction against the box's wedge seen from the receiver, then the slab test; a leg
+    crossing the box of an object with face planes is decided exactly on the leg shrunk by
+    ``eps`` at both ends (:func:`~acoustisim.propagation.convex_occlusion.segment_crosses_convex`);
+    one crossing the box of any other object, unless a convex one blocks it, goes to Embree.
     shift : ndarray, shape (3,)
         Subtracted from the leg starts (Embree's frame).
     eps : float
         Each leg is shrunk by ``eps`` (m) at both ends; shorter than 2 eps: never blocked.
     state, r2, cos_r2 : outputs, shape (>= h n_rx,), point-major
-        Per pair: 0 (receiver behind the face), 1 (clear), 2 (leg queued); the leg length
-        (m); r2 sin(g_s) (m).
+        Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
+        2 (leg queued for Embree); the leg length (m); r2 sin(g_s) (m).
     leg_start, leg_unit : outputs of float32, shape (>= h n_rx, 3)
     leg_length : output of float32, shape (>= h n_rx,)
     leg_pair : output of int64, shape (>= h n_rx,)
@@ -292,14 +350,18 @@ def next_event_pairs(
 
     Returns
     -------
-    int
-        The number of queued legs.
+    (int, int)
+        The number of legs queued for Embree, and of legs decided by the convex objects' face
+        planes (crossing a convex object's box, no other).
     """
     n_rx = receivers.shape[0]
+    n_boxes = lo.shape[0]
     n_legs = 0
+    n_exact = 0
     for i in range(h):
         px, py, pz = points[0, i], points[1, i], points[2, i]
         nx, ny, nz = normal[0, i], normal[1, i], normal[2, i]
+        own = own_box[surface[i]]
         for j in range(n_rx):
             pair = i * n_rx + j
             qx, qy, qz = receivers[j, 0], receivers[j, 1], receivers[j, 2]
@@ -314,8 +376,39 @@ def next_event_pairs(
             state[pair] = 1
             if not tested[j] or screen == 0 or not length > 2.0 * eps:
                 continue
-            if screen == 1 and not _near(px, py, pz, own_box[surface[i]], qx, qy, qz, lo, hi):
-                continue
+            if screen == 1:
+                # 0: clear (no box crossed); 1: blocked by a convex object; 2: Embree must test
+                # it; 3: clear, found so by the planes of the convex objects whose boxes it crosses
+                verdict = 0
+                if n_boxes == 1:  # the union of too many objects only
+                    if _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[0, 0], lo[0, 1], lo[0, 2], hi[0, 0],
+                             hi[0, 1], hi[0, 2]):  # +-inf for a zero component
+                        verdict = 2
+                for b in range(1, n_boxes):
+                    if b == own:
+                        continue
+                    if wedges[j, b, 4] == 0.0 and not _in_wedge(wedges[j, b, 5], wedges[j, b, 0], wedges[j, b, 1],
+                                                                  wedges[j, b, 2], wedges[j, b, 3], -dx, -dy, -dz):
+                        continue
+                    if not _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[b, 0], lo[b, 1], lo[b, 2], hi[b, 0],
+                                 hi[b, 1], hi[b, 2]):
+                        continue
+                    first, last = plane_start[b], plane_start[b + 1]
+                    if first == last:
+                        verdict = 2
+                    elif segment_crosses_convex(px, py, pz, dx / length, dy / length, dz / length, eps,
+                                                length - eps, plane_normal, plane_offset, first, last):
+                        verdict = 1
+                        break
+                    elif verdict == 0:
+                        verdict = 3
+                if verdict == 0:
+                    continue
+                if verdict != 2:  # decided by the convex objects' planes
+                    n_exact += 1
+                    if verdict == 1:
+                        state[pair] = 0
+                    continue
             state[pair] = 2
             inverse = 1.0 / length
             ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
@@ -326,7 +419,7 @@ def next_event_pairs(
             leg_length[n_legs] = length - 2.0 * eps
             leg_pair[n_legs] = pair
             n_legs += 1
-    return n_legs
+    return n_legs, n_exact
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

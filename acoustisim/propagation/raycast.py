@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
+from acoustisim.propagation.convex_occlusion import ConvexPlanes, convex_object_planes
 from acoustisim.scene import Scene
 
 DEFAULT_EPS_M = 1e-4
@@ -120,6 +121,9 @@ class RayCaster:
     surface_names : tuple of str
     plane_offset : ndarray, shape (n_triangles,)
         ``face_normals . v0`` of each triangle (m): its plane is ``{x : n . x = plane_offset}``.
+    convex_planes : ConvexPlanes
+        The unique face planes of each convex object (none for the others), for exact
+        occlusion tests without Embree (:mod:`~acoustisim.propagation.convex_occlusion`).
     """
 
     vertices: NDArray[np.float64] = field(repr=False)
@@ -133,6 +137,8 @@ class RayCaster:
     _shift: NDArray[np.float64] = field(repr=False)
     _embree: Any = field(repr=False)
     _buffers: tuple[Any, ...] = field(repr=False)
+    convex_planes: ConvexPlanes = field(repr=False, default_factory=lambda: ConvexPlanes(
+        np.zeros(1, dtype=np.int64), np.zeros((0, 3)), np.zeros(0)))
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "RayCaster":
@@ -203,18 +209,23 @@ class RayCaster:
             return np.concatenate(blocks) if blocks else np.zeros(shape, dtype=dtype)
 
         face_normals = stack(normal_blocks, (0, 3), float)
+        surface_index = stack(surface_blocks, (0,), np.int64)
+        plane_offset = np.einsum("ij,ij->i", face_normals, vertices[faces[:, 0]]) if not empty else np.zeros(0)
+        n_boundaries = len(scene.boundaries)
         return cls(
             vertices=vertices,
             faces=faces,
             face_normals=face_normals,
-            surface_index=stack(surface_blocks, (0,), np.int64),
+            surface_index=surface_index,
             patch_index=stack(patch_blocks, (0,), np.int64),
             patch_surface=stack(patch_surface, (0,), np.int64),
             surface_names=scene.surface_names,
-            plane_offset=np.einsum("ij,ij->i", face_normals, vertices[faces[:, 0]]) if not empty else np.zeros(0),
+            plane_offset=plane_offset,
             _shift=shift,
             _embree=embree,
             _buffers=(vertices32, faces32),
+            convex_planes=convex_object_planes(vertices, faces, face_normals, plane_offset, surface_index,
+                                               range(n_boundaries, n_boundaries + len(scene.objects))),
         )
 
     @property
