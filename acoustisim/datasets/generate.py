@@ -7,7 +7,8 @@ Order of work
 2. The store is created, or, if it exists, checked to come from the same spec; chunks whose
    samples are all recorded complete are skipped (resume).
 3. One task per missing chunk of samples (``spec.samples_per_chunk``, see
-   :mod:`~acoustisim.datasets.store`): build and simulate each of its samples, then write the
+   :mod:`~acoustisim.datasets.store`): draw its samples again from their seeds (a task's
+   arguments are its sample range, not the samples), build and simulate each, then write the
    chunk of every data array, then its checksums, then its completion flags (each chunk
    file atomically). The workers write their own chunks: the driver only schedules tasks and
    counts their results, so it is no serial bottleneck. Tasks run on a
@@ -17,8 +18,9 @@ Order of work
 4. A run killed at any moment leaves no sample flagged complete that is not fully written;
    running the same command again redoes the unfinished chunks only, identically.
 
-At most ``2 x workers`` tasks (one chunk each) are in flight, so memory stays flat however
-many samples.
+At most ``2 x workers`` tasks (one chunk each) are in flight, each future is released once its
+result is counted, and what the scheduler logs per task is a few hundred bytes, so memory stays
+flat however many samples (``benchmarks/bench_dataset.py --memory N --tiny``).
 """
 
 from __future__ import annotations
@@ -266,6 +268,19 @@ def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: Chun
                        time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
 
 
+def make_chunk_range(spec: DatasetSpec, start: int, stop: int, writer: ChunkWriter, vocab: Vocabularies) -> ChunkResult:
+    """The Dask task: draw samples ``start`` to ``stop - 1`` again from their own seeds (the
+    same as the driver's plan, by construction) and run :func:`make_chunk` on them.
+
+    The task's arguments are then two integers besides the scattered spec, writer and
+    vocabularies: nothing per sample goes through the scheduler. (Shipping the drawn samples
+    instead, ~10 kB per chunk, grows the driver: the scheduler keeps the last 1000 batches
+    sent to each worker, ``distributed.admin.low-level-log-length``, and every such batch then
+    holds a chunk's samples.) Drawing costs well under 1 ms a sample.
+    """
+    return make_chunk(spec, plan_samples(spec, range(start, stop)), writer, vocab)
+
+
 def store_shape(spec: DatasetSpec) -> StoreShape:
     """Array sizes of a spec's store."""
     from scenes.builders import default_sonar
@@ -367,28 +382,39 @@ class _Tally:
             self.bar.update(n)
 
 
-def _run_in_process(spec: DatasetSpec, chunks: list[list[SampleDescription]], writer: ChunkWriter,
+def _run_in_process(spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
                     vocab: Vocabularies, tally: _Tally) -> None:
-    for chunk in chunks:
-        tally.add(make_chunk(spec, chunk, writer, vocab), "in-process")
+    for start, stop in chunks:
+        tally.add(make_chunk_range(spec, start, stop, writer, vocab), "in-process")
 
 
-def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[list[SampleDescription]], writer: ChunkWriter,
+def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
                    vocab: Vocabularies, tally: _Tally, n_workers: int) -> None:
+    """Run the tasks of ``chunks`` (``(start, stop)`` sample ranges), at most ``2 x n_workers``
+    in flight; each future is released as soon as it has finished and its result is counted.
+
+    The scheduler then holds at most ``2 x n_workers`` tasks, and everything it logs per task
+    (transitions, messages to the workers, one event per submit: all bounded deques of
+    ``distributed.admin.low-level-log-length`` entries) is a few hundred bytes: the driver's
+    memory does not grow with the number of samples.
+    """
     from distributed import as_completed
 
-    spec_f, writer_f, vocab_f = client.scatter([spec, writer, vocab], broadcast=True)
+    # hash=False: keys unique to this run, so that the release of a previous run's scattered
+    # copies (same content, same hashed key) cannot race with this run's scatter.
+    spec_f, writer_f, vocab_f = client.scatter([spec, writer, vocab], broadcast=True, hash=False)
     window = 2 * max(n_workers, 1)  # one task running and one queued per worker
     queue = iter(chunks)
     futures = as_completed()
-    index_of: dict[str, list[int]] = {}
+    range_of: dict[str, tuple[int, int]] = {}
 
     def submit_next() -> None:
         chunk = next(queue, None)
         if chunk is not None:
-            future = client.submit(make_chunk, spec_f, chunk, writer_f, vocab_f, pure=False,
-                                   key=f"dataset-chunk-{chunk[0].index}-{time.monotonic_ns()}")
-            index_of[future.key] = [sample.index for sample in chunk]
+            start, stop = chunk
+            future = client.submit(make_chunk_range, spec_f, start, stop, writer_f, vocab_f, pure=False,
+                                   key=f"dataset-chunk-{start}-{time.monotonic_ns()}")
+            range_of[future.key] = chunk
             futures.add(future)
 
     def collect(finished: list[Any]) -> None:
@@ -406,10 +432,11 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[list[SampleDescr
         for future in futures:  # as_completed: yields finished futures without fetching results
             if future.status != "finished":
                 exc = future.exception()
-                done = index_of.get(future.key) or []
-                raise RuntimeError(f"task of samples {done[0]}-{done[-1]} failed: {type(exc).__name__}: {exc} "
+                start, stop = range_of.get(future.key, (0, 0))
+                raise RuntimeError(f"task of samples {start}-{stop - 1} failed: {type(exc).__name__}: {exc} "
                                    "(chunks completed so far are recorded; rerun to resume)") from exc
-            tally.bar.update(len(index_of.pop(future.key, ())))
+            start, stop = range_of.pop(future.key, (0, 0))
+            tally.bar.update(stop - start)
             finished.append(future)
             submit_next()
             if len(finished) >= GATHER_BATCH:
@@ -418,6 +445,8 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[list[SampleDescr
     finally:
         for future in list(futures.futures):
             future.cancel()
+        for future in (spec_f, writer_f, vocab_f):
+            future.release()
 
 
 def warm_up_worker() -> None:
@@ -447,6 +476,11 @@ LOCAL_CLUSTER_CONFIG = {
     # The workers' statistical profiler (dashboard only) samples every thread's stack every
     # 10 ms: idle worker CPU 3.3 % -> 0.3 % of a core without it (measured, consecutive runs).
     "distributed.worker.profile.enabled": False,
+    # Developer logs (the scheduler's transitions and events, the last batches each stream
+    # sent) keep 1000 entries each by default; a batch to a worker holds its tasks. 100 is
+    # plenty to debug with and keeps them small (driver growth measured with the default:
+    # ~3 MiB per 1000 samples until they fill, at ~8000 samples of 4-sample chunks).
+    "distributed.admin.low-level-log-length": 100,
 }
 
 
@@ -499,11 +533,11 @@ def generate(
     t_start = time.perf_counter()
     if workers is not None and workers < 0:
         raise InputError(f"--workers = {workers}: must be >= 0")
-    samples = plan_samples(spec)  # raises SpecError before any work
+    plan_samples(spec)  # raises SpecError before any work (each task draws its samples again)
     vocab = vocabularies(spec)
     store = open_or_create(spec, out, vocab)
-    chunks = [samples[a:b] for a, b in store.chunks_to_do()]
-    n_todo = sum(len(chunk) for chunk in chunks)
+    chunks = store.chunks_to_do()
+    n_todo = sum(stop - start for start, stop in chunks)
     writer = store.writer()
 
     own_cluster = None
@@ -523,8 +557,11 @@ def generate(
             else:
                 import os
 
+                import dask
+
                 own_cluster = _local_cluster(workers or os.cpu_count() or 1)
-                own_client = Client(own_cluster)
+                with dask.config.set(LOCAL_CLUSTER_CONFIG):  # the client's own logs too
+                    own_client = Client(own_cluster)
                 mode = "local-cluster"
             client = own_client
         elif client is not None:
@@ -560,7 +597,7 @@ def generate(
     return GenerateReport(
         path=str(out),
         n_samples=spec.n_samples,
-        n_skipped=len(samples) - n_todo,
+        n_skipped=spec.n_samples - n_todo,
         n_generated=tally.n_samples,
         n_complete=n_complete,
         elapsed_s=elapsed,
@@ -576,4 +613,5 @@ def generate(
     )
 
 
-__all__ = ["ChunkResult", "GenerateReport", "SpecError", "code_version", "generate", "make_chunk", "simulate_sample"]
+__all__ = ["ChunkResult", "GenerateReport", "SpecError", "code_version", "generate", "make_chunk", "make_chunk_range",
+           "simulate_sample"]
