@@ -6,7 +6,9 @@ import json
 import subprocess
 import sys
 
-HEAVY = ("acoustisim", "scenes", "scipy", "h5py", "pywt", "matplotlib")
+# numba too: the detection kernels (local matched, threshold, the matched filter's overlap-save
+# gather) import it when a method runs, never at import.
+HEAVY = ("acoustisim", "scenes", "scipy", "h5py", "pywt", "matplotlib", "numba")
 
 
 def _loaded_after(statement: str) -> list[str]:

@@ -72,6 +72,40 @@ def first_crossings(
     return found
 
 
+def crossing_measures(
+    rows: NDArray[np.float64], found: NDArray[np.intp], offset: NDArray[np.float64], window: int
+) -> NDArray[np.float64]:
+    """What the detector measures at each row's crossing (the reference of the compiled
+    ``threshold_kernels.crossings``).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    found : ndarray of int, shape (n_rows,)
+        Crossing sample of each row (``first_crossings``; -1: none).
+    offset : ndarray, shape (n_rows,)
+        DC offset of each row.
+    window : int
+        Samples measured from the crossing on (indices clipped to the row).
+
+    Returns
+    -------
+    ndarray, shape (n_rows, 4)
+        |x - offset| before the crossing (at it for sample 0) and at it, the largest |x - offset|
+        and the sum of (x - offset)^2 over the window; NaN where there is no crossing.
+    """
+    n_rows, n = rows.shape
+    out = np.full((n_rows, 4), np.nan)
+    hit = np.flatnonzero(found >= 0)
+    i = found[hit]
+    out[hit, 0] = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
+    out[hit, 1] = np.abs(rows[hit, i] - offset[hit])
+    segment = rows[hit[:, np.newaxis], np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)] - offset[hit, np.newaxis]
+    out[hit, 2] = np.abs(segment).max(axis=1)
+    out[hit, 3] = (segment ** 2).sum(axis=1)
+    return out
+
+
 def crossing_time_offset(template: Template, amplitude_v: float, level_v: float) -> float:
     """Crossing time minus reference instant (s) of the noise-free template scaled so that its
     peak |sample| is ``amplitude_v``, for a threshold ``level_v``: the calibrated offset."""
@@ -175,22 +209,23 @@ def detect_threshold(
         stop = min(n, int(math.floor((stop_s - t0_s) * fs)) + 1) if math.isfinite(stop_s) else n
         if stop - first < 2:
             raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
-    found = first_crossings(rows[:, first:stop], level, offset)
-    found = np.where(found >= 0, found + first, -1)
+    from binsonar.detection.threshold_kernels import crossings
+
+    # ``first_crossings`` and ``crossing_measures``, compiled: each searched sample read once,
+    # up to the crossing (tests/test_detection_threshold_kernels.py).
+    rows = np.ascontiguousarray(rows, dtype=float)
+    found = np.empty(n_rows, dtype=np.int64)
+    measures = np.empty((n_rows, 4))
+    crossings(rows, np.ascontiguousarray(level, dtype=float), offset, first, stop, window, found, measures)
     out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
     hit = np.flatnonzero(found >= 0)
     if hit.size == 0:
         return out
     i = found[hit]
-    before = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
-    after = np.abs(rows[hit, i] - offset[hit])
+    before, after, amplitude, total = measures[hit].T
     frac = np.where(i > 0, _fraction(before, after, level[hit]), 0.0)
     crossing = t0_s + (i - 1 + frac) / fs
     tof = crossing - offset_s
-    index = np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)
-    segment = rows[hit[:, np.newaxis], index] - offset[hit, np.newaxis]
-    amplitude = np.abs(segment).max(axis=1)
-    total = (segment ** 2).sum(axis=1)
     # A noise-free record has (almost) no noise floor: cap the SNR at 200 dB.
     noise_var = np.maximum(sigma[hit] ** 2, 1e-20 * total)
     snr = np.maximum((total - window * sigma[hit] ** 2) / noise_var, 1e-3)

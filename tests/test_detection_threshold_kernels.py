@@ -1,0 +1,45 @@
+"""The threshold detector's compiled loop (``threshold_kernels``) against its numpy definition
+(``threshold.first_crossings`` and ``threshold.crossing_measures``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from binsonar.detection.threshold import crossing_measures, first_crossings
+from binsonar.detection.threshold_kernels import CHUNK, crossings
+
+
+def _case(seed: int, n: int = 5000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # Rows of noise with offsets, one level per row; crossings placed at chunk edges, at sample
+    # 0, at the last sample, inside a chunk, and a row that never crosses.
+    rng = np.random.default_rng(seed)
+    offset = np.array([0.0, 0.5, -2.0, 1e-3, 3.0, 0.0])
+    rows = rng.standard_normal((6, n)) * 0.1 + offset[:, np.newaxis]
+    level = np.full(6, 1.0)
+    rows[0, 3 * CHUNK] = offset[0] + 1.0  # exactly at the level (>=), on a chunk's first sample
+    rows[1, 0] = offset[1] - 1.5  # below the offset: |x - offset| counts
+    rows[2, n - 1] = offset[2] + 1.2  # the last sample (a window past the end repeats it)
+    rows[3, 777] = offset[3] + 1.0 + 1e-12
+    rows[3, 4000] = offset[3] + 5.0  # a later, larger one must not win
+    rows[4, 2 * CHUNK - 1] = offset[4] - 1.0  # a chunk's last sample
+    return rows, level, offset
+
+
+@pytest.mark.parametrize("first, stop", [(0, 5000), (10, 4990), (700, 800), (0, 1)])
+def test_compiled_crossings_equal_the_numpy_definition(first, stop):
+    rows, level, offset = _case(1)
+    found = np.empty(6, dtype=np.int64)
+    measures = np.empty((6, 4))
+    crossings(rows, level, offset, first, stop, 201, found, measures)
+    reference = first_crossings(rows[:, first:stop], level, offset)
+    reference = np.where(reference >= 0, reference + first, -1)
+    assert np.array_equal(found, reference)
+    if first == 0 and stop == 5000:  # the planted crossings are found where they are
+        assert found.tolist() == [3 * CHUNK, 0, 4999, 777, 2 * CHUNK - 1, -1]
+    # Same samples, so the same values; the energy is summed in another order (1e-12 relative).
+    expected = crossing_measures(rows, reference, offset, 201)
+    assert np.array_equal(np.isnan(measures), np.isnan(expected))
+    ok = ~np.isnan(expected)
+    assert np.array_equal(measures[:, :3][ok[:, :3]], expected[:, :3][ok[:, :3]])
+    assert np.allclose(measures[:, 3][ok[:, 3]], expected[:, 3][ok[:, 3]], rtol=1e-12, atol=0.0)
