@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -462,17 +463,17 @@ class DiffuseEvents:
     ----------
     points_m : ndarray, shape (m, 3)
         Hit point of each event (tank frame, m).
-    surface : ndarray of int64, shape (m,)
+    surface : ndarray of int32, shape (m,)
         Index into ``scene.surface_names`` of the surface hit.
-    parent : ndarray of int64, shape (m,)
+    parent : ndarray of int32, shape (m,)
         The previous event of the same ray (-1 for a first hit).
-    bounce : ndarray of int64, shape (m,)
+    bounce : ndarray of int32, shape (m,)
         Scattering order (1 = first hit).
     departure_dir : ndarray, shape (m, 3)
         Unit direction in which the event's ray left the transmitter.
-    event : ndarray of int64, shape (n,)
+    event : ndarray of int32, shape (n,)
         Event of each reception.
-    channel : ndarray of int64, shape (n,)
+    channel : ndarray of int8 (int32 beyond 127 receivers), shape (n,)
         Receiver of each reception.
     path_length_m : ndarray, shape (n,)
         Transmitter -> ... -> hit -> receiver (m).
@@ -480,8 +481,8 @@ class DiffuseEvents:
         |X| sqrt(mu sin(g_s) dOmega_eff) / r2 (relative to the source's pressure at 1 m), >= 0.
     phase_rad : ndarray, shape (n,)
         arg X (rad).
-    arrival_dir : ndarray, shape (n, 3)
-        Unit direction hit -> receiver.
+    receivers_m : ndarray, shape (n_rx, 3)
+        The receivers (m).
     embree_legs : int
         Legs hit -> receiver the tracer sent to Embree's occlusion query (crossing the box of
         an object without face planes, or all legs when a receiver is outside the water).
@@ -499,9 +500,17 @@ class DiffuseEvents:
     path_length_m: NDArray[np.float64]
     gain: NDArray[np.float64]
     phase_rad: NDArray[np.float64]
-    arrival_dir: NDArray[np.float64]
+    receivers_m: NDArray[np.float64]
     embree_legs: int = 0
     convex_legs: int = 0
+
+    @cached_property
+    def arrival_dir(self) -> NDArray[np.float64]:
+        """Unit direction hit -> receiver of each reception, shape (n, 3) (derived on demand:
+        the tracer does not store 24 bytes per reception that the row packing recomputes)."""
+        out = np.empty((self.event.size, 3))
+        kernels.arrival_directions(self.points_m, self.event, self.channel, self.receivers_m, out)
+        return out
 
 
 CHUNK_RAYS = 1 << 14
@@ -796,10 +805,10 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
     reception_start = np.cumsum([0] + n_receptions)
     m, n = int(event_start[-1]), int(reception_start[-1])
     points, departure = np.empty((m, 3)), np.empty((m, 3))
-    surface, parent, bounce = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
-    event, channel = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-    length, gain, phase, arrival = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
+    surface, parent, bounce = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
     rx = np.ascontiguousarray(context.receivers_m, dtype=float)
+    event, channel = np.empty(n, dtype=np.int32), np.empty(n, dtype=np.int8 if rx.shape[0] < 128 else np.int32)
+    length, gain, phase = np.empty(n), np.empty(n), np.empty(n)
 
     def place(index: int) -> None:
         """Write chunk ``index``'s events and receptions at their final place."""
@@ -810,11 +819,11 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         for p in chunk.pending:  # the bounces
             start = kernels.write_receptions(
                 p.n_hits, rx.shape[0], p.state, p.r2, p.cos_r2, p.points, rx, p.amplitude, p.travelled, p.phase,
-                first + p.first_event, start, event, channel, length, gain, phase, arrival,
+                first + p.first_event, start, event, channel, length, gain, phase,
             )
 
     run_in_order(place, range(len(chunks)), workers)
-    return DiffuseEvents(points, surface, parent, bounce, departure, event, channel, length, gain, phase, arrival,
+    return DiffuseEvents(points, surface, parent, bounce, departure, event, channel, length, gain, phase, rx,
                          sum(c.legs[0] for c in chunks), sum(c.legs[1] for c in chunks))
 
 
@@ -857,7 +866,7 @@ def diffuse_paths(context: SolveContext, config: SolverConfig, *, threads: int |
 
     def pack(a: int) -> None:
         kernels.pack_rows(rows, a, min(a + _PACK_ROWS, n), first, int(PathKind.DIFFUSE), e.event, e.channel,
-                          e.path_length_m, e.gain, e.phase_rad, e.arrival_dir, e.points_m, e.surface, e.parent,
+                          e.path_length_m, e.gain, e.phase_rad, e.receivers_m, e.points_m, e.surface, e.parent,
                           e.bounce, e.departure_dir)
 
     run_in_order(pack, range(0, n, _PACK_ROWS), resolve_threads(threads))

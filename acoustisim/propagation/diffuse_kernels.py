@@ -454,8 +454,8 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
 @njit(cache=True, nogil=True, error_model="numpy")
 def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int64],
                  parent: NDArray[np.int64], bounce: NDArray[np.int64], first: int, out_points: NDArray[np.float64],
-                 out_departure: NDArray[np.float64], out_surface: NDArray[np.int64], out_parent: NDArray[np.int64],
-                 out_bounce: NDArray[np.int64]) -> None:
+                 out_departure: NDArray[np.float64], out_surface: NDArray[np.int32], out_parent: NDArray[np.int32],
+                 out_bounce: NDArray[np.int32]) -> None:
     """Copy one chunk's events (vectors as components (3, m), chunk-local parents) into the
     tracer's output from row ``first`` on (vectors as rows (M, 3), global parents)."""
     for i in range(surface.size):
@@ -473,14 +473,15 @@ def write_receptions(
     h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
     points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
     travelled: NDArray[np.float64], phase: NDArray[np.float64], first_event: int, start: int,
-    event: NDArray[np.int64], channel: NDArray[np.int64], length: NDArray[np.float64], gain: NDArray[np.float64],
-    out_phase: NDArray[np.float64], arrival: NDArray[np.float64],
+    event: NDArray[np.int32], channel: NDArray[np.int8], length: NDArray[np.float64], gain: NDArray[np.float64],
+    out_phase: NDArray[np.float64],
 ) -> int:
     """The pairs in view (state > 0), point-major, as receptions written from index ``start``.
 
     Each gives event ``first_event + point``, its channel, the path length (travelled + r2, m),
-    the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega)),
-    the speckle phase and the unit arrival direction (row of ``arrival``, shape (N, 3)).
+    the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega))
+    and the speckle phase (the arrival direction is derived when needed, see
+    :func:`arrival_directions`).
 
     Returns
     -------
@@ -499,20 +500,35 @@ def write_receptions(
             length[k] = travelled[i] + r
             gain[k] = amplitude[i] * math.sqrt(cos_r2[pair] / (r * r * r))
             out_phase[k] = phase[i]
-            inverse = 1.0 / r
-            arrival[k, 0] = (receivers[j, 0] - points[0, i]) * inverse
-            arrival[k, 1] = (receivers[j, 1] - points[1, i]) * inverse
-            arrival[k, 2] = (receivers[j, 2] - points[2, i]) * inverse
             k += 1
     return k
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _arrival(px: float, py: float, pz: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:
+    """The unit direction p -> q, computed as the tracer computes the leg's length."""
+    dx, dy, dz = qx - px, qy - py, qz - pz
+    inverse = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
+    return dx * inverse, dy * inverse, dz * inverse
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def arrival_directions(points: NDArray[np.float64], event: NDArray[np.int32], channel: NDArray[np.int8],
+                       receivers: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    """Unit directions (n, 3) scattering point -> receiver of the receptions (n,), from the
+    events' points (m, 3) and the receivers (n_rx, 3), into ``out``."""
+    for k in range(event.size):
+        e, j = event[k], channel[k]
+        out[k, 0], out[k, 1], out[k, 2] = _arrival(points[e, 0], points[e, 1], points[e, 2], receivers[j, 0],
+                                                   receivers[j, 1], receivers[j, 2])
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def pack_rows(
-    rows: NDArray, start: int, stop: int, first_path_id: int, kind: int, event: NDArray[np.int64],
-    channel: NDArray[np.int64], length: NDArray[np.float64], gain: NDArray[np.float64], phase: NDArray[np.float64],
-    arrival: NDArray[np.float64], points: NDArray[np.float64], surface: NDArray[np.int64],
-    parent: NDArray[np.int64], bounce: NDArray[np.int64], departure: NDArray[np.float64],
+    rows: NDArray, start: int, stop: int, first_path_id: int, kind: int, event: NDArray[np.int32],
+    channel: NDArray[np.int8], length: NDArray[np.float64], gain: NDArray[np.float64], phase: NDArray[np.float64],
+    receivers: NDArray[np.float64], points: NDArray[np.float64], surface: NDArray[np.int32],
+    parent: NDArray[np.int32], bounce: NDArray[np.int32], departure: NDArray[np.float64],
 ) -> None:
     """Write receptions ``start:stop`` as rows of the arrivals table (``paths.PATH_DTYPE``).
 
@@ -528,19 +544,21 @@ def pack_rows(
     ----------
     rows : structured ndarray of PATH_DTYPE, shape (>= stop,)
     event, channel, length, gain, phase : ndarray, shape (n,)
-    arrival : ndarray, shape (n, 3)
         The receptions (:class:`~acoustisim.propagation.diffuse.DiffuseEvents`).
+    receivers : ndarray, shape (n_rx, 3)
+        For the arrival directions (as :func:`arrival_directions` computes them).
     points, departure : ndarray, shape (m, 3)
-    surface, parent, bounce : ndarray of int64, shape (m,)
+    surface, parent, bounce : ndarray of int32, shape (m,)
         The scattering events.
     """
     slots = rows[0].object_ids.size if rows.size else 0
     for i in range(start, stop):
         row = rows[i]
         e = event[i]
+        j = channel[i]
         order = bounce[e]
         row.path_id = first_path_id + e
-        row.channel = channel[i]
+        row.channel = j
         row.kind = kind
         row.order = order
         row.delay_s = 0.0
@@ -553,9 +571,11 @@ def pack_rows(
         row.directivity_rx = 0.0
         row.absorption_db = 0.0
         row.amplitude = 0.0
+        ax, ay, az = _arrival(points[e, 0], points[e, 1], points[e, 2], receivers[j, 0], receivers[j, 1],
+                              receivers[j, 2])
+        row.arrival_dir[0], row.arrival_dir[1], row.arrival_dir[2] = ax, ay, az
         for k in range(3):
             row.departure_dir[k] = departure[e, k]
-            row.arrival_dir[k] = arrival[i, k]
         for slot in range(slots):
             row.object_ids[slot] = -1
             for k in range(3):
@@ -571,6 +591,7 @@ def pack_rows(
 
 
 __all__ = [
+    "arrival_directions",
     "pack_rows",
     "place_events",
     "clear_blocked", "near_points", "next_event_pairs", "scatter_hits", "speckle_into", "splitmix64",
