@@ -1,0 +1,124 @@
+"""The solve's result from the mechanisms' row arrays: columns, order and floor, in two buffers.
+
+:func:`assemble_rows` turns the ``PATH_DTYPE`` arrays of the mechanisms (direct, specular,
+edge, diffuse, in that order) into the sorted, floored rows :func:`acoustisim.propagation.solve`
+returns. A deterministic pose has some 16 000 rows of 243 bytes (4 MB), a default solve with
+diffuse rays 60 000 (14 MB): each fresh buffer of that size costs its copy and, more, a page
+fault per 4 kB page (the allocator returns such buffers to the system when they are freed),
+so the steps work in place where they can:
+
+1. :func:`~acoustisim.propagation.columns.complete_columns` fills the derived columns of each
+   part in place (it is row by row: the same values as on the joined array);
+2. the rows are ordered by channel, then delay, then their place in the mechanisms' order (the
+   order a stable sort of the joined parts gives), and each part's records are copied straight
+   to their sorted places in the one result buffer (:func:`scatter_records`);
+3. the amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`) judges the sorted
+   rows; the kept ones are moved to the front in place (:func:`compact_records`) and the
+   buffer is shrunk (``ndarray.resize``: the allocator's realloc, no copy of the kept rows).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.floor import floor_mask
+from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
+
+
+@njit(cache=True, nogil=True)
+def scatter_records(source: NDArray[np.uint8], destination: NDArray[np.int64], out: NDArray[np.uint8]) -> None:
+    """``out[destination[i]] = source[i]`` for every record i (rows of raw bytes).
+
+    Parameters
+    ----------
+    source : ndarray of uint8, shape (n, itemsize)
+    destination : ndarray of int64, shape (n,)
+    out : ndarray of uint8, shape (m, itemsize)
+    """
+    width = source.shape[1]
+    for i in range(source.shape[0]):
+        d = destination[i]
+        for b in range(width):
+            out[d, b] = source[i, b]
+
+
+@njit(cache=True, nogil=True)
+def compact_records(records: NDArray[np.uint8], kept: NDArray[np.int64]) -> None:
+    """Move records ``kept`` (increasing) to the front of ``records``, in order, in place.
+
+    Parameters
+    ----------
+    records : ndarray of uint8, shape (n, itemsize)
+    kept : ndarray of int64, shape (k,)
+        Strictly increasing, so ``kept[r] >= r``: each record is read before it is overwritten.
+    """
+    width = records.shape[1]
+    for r in range(kept.size):
+        i = kept[r]
+        if i != r:
+            for b in range(width):
+                records[r, b] = records[i, b]
+
+
+def _bytes(rows: NDArray[Any]) -> NDArray[np.uint8]:
+    """A C-contiguous PATH_DTYPE array's records as rows of raw bytes (a view)."""
+    return rows.view(np.uint8).reshape(rows.size, PATH_DTYPE.itemsize)
+
+
+def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db: float | None,
+                  band_hz: tuple[float, float] | None = None) -> NDArray[Any]:
+    """The solve's rows from the mechanisms' parts: derived columns, sorted, floored.
+
+    Parameters
+    ----------
+    parts : sequence of structured ndarray of PATH_DTYPE
+        The mechanisms' rows, in the mechanisms' order; their derived columns are filled in
+        place.
+    context : SolveContext
+    floor_db : float or None
+        ``SolverConfig.amplitude_floor_db``.
+    band_hz : (float, float) or None
+        ``SolverConfig.amplitude_floor_band_hz``.
+
+    Returns
+    -------
+    structured ndarray of PATH_DTYPE, shape (k,)
+        A new, C-contiguous array owning its data (for :meth:`Paths.adopt`): every part's rows
+        that pass the floor, sorted by channel, then delay, then their order in ``parts``
+        (the rows of ``np.concatenate(parts)`` sorted stably by channel and delay).
+    """
+    parts = [np.ascontiguousarray(part, dtype=PATH_DTYPE) for part in parts]
+    parts = [part for part in parts if part.size]
+    if not parts:
+        return empty_paths_array(0)
+    for part in parts:
+        complete_columns(part, context)
+    delay = np.concatenate([part["delay_s"] for part in parts])
+    channel = np.concatenate([part["channel"] for part in parts])
+    order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
+    destination = np.empty(order.size, dtype=np.int64)
+    destination[order] = np.arange(order.size)
+    rows = np.empty(order.size, dtype=PATH_DTYPE)
+    out = _bytes(rows)
+    start = 0
+    for part in parts:
+        scatter_records(_bytes(part), destination[start:start + part.size], out)
+        start += part.size
+    del out
+    keep = floor_mask(rows, floor_db, context, band_hz)
+    if not keep.all():
+        kept = np.flatnonzero(keep).astype(np.int64)
+        compact_records(_bytes(rows), kept)
+        # shrink in place (realloc): no view of ``rows`` is alive here
+        rows.resize(kept.size, refcheck=False)
+    return rows
+
+
+__all__ = ["assemble_rows", "compact_records", "scatter_records"]

@@ -1,0 +1,261 @@
+"""The amplitude floor: which arrivals are strong enough to keep, judged across the pulse band.
+
+The rule (:func:`band_levels`): an arrival (a row, or the rows of an edge diffraction sharing
+``path_id`` and channel) has as level its strongest pulse-weighted level over a few band
+frequencies (:func:`floor_frequencies`); it is dropped when that is below
+``SolverConfig.amplitude_floor_db`` relative to the strongest non-direct arrival. Direct paths
+are always kept. :func:`floor_mask` applies the rule, deciding most arrivals from bounds
+computed in the compiled passes of :mod:`acoustisim.propagation.floor_kernels` and evaluating
+the rule itself (in numpy) only on the few the bounds leave open.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation.floor_kernels import (
+    arrival_bounds,
+    directivity_table,
+    angle_envelope,
+    interpolation_error,
+    table_levels,
+)
+from acoustisim.propagation.paths import PathKind
+from acoustisim.sonar import SonarHead
+
+FLOOR_BAND_DB = -20.0
+"""Default judging band of the amplitude floor: where the pulse spectrum is within this of its
+peak (dB)."""
+
+FLOOR_BAND_FREQUENCIES = 7
+"""Frequencies, evenly spread over the band (plus the centre frequency), at which the floor
+judges an arrival's level."""
+
+
+def pulse_band_hz(sonar: SonarHead, level_db: float = FLOOR_BAND_DB) -> tuple[float, float]:
+    """(lowest, highest) frequency (Hz) where the sonar's pulse spectrum |Q(f)| is within
+    ``level_db`` of its peak, on a grid of step f0 / 1000 over (0, 4 f0] (the seed's 5 us Gaussian
+    pulse at 500 kHz: about 141-859 kHz at -20 dB)."""
+    f0 = float(sonar.centre_frequency_hz)
+    grid = np.linspace(0.0, 4.0 * f0, 4001)[1:]
+    magnitude = np.abs(sonar.pulse.spectrum(grid))
+    inside = np.flatnonzero(magnitude >= magnitude.max() * 10.0 ** (level_db / 20.0))
+    return float(grid[inside[0]]), float(grid[inside[-1]])
+
+
+def floor_frequencies(context: SolveContext, band_hz: tuple[float, float] | None
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The frequencies (Hz, shape (m,)) at which the amplitude floor judges levels, and the
+    pulse's relative spectrum |Q(f)| / max |Q| at them (shape (m,)).
+
+    :data:`FLOOR_BAND_FREQUENCIES` evenly spaced over ``band_hz`` (None: :func:`pulse_band_hz`)
+    plus the centre frequency.
+    """
+    low, high = pulse_band_hz(context.sonar) if band_hz is None else band_hz
+    frequencies = np.unique(np.r_[np.linspace(low, high, FLOOR_BAND_FREQUENCIES), context.centre_frequency_hz])
+    magnitude = np.abs(context.sonar.pulse.spectrum(frequencies))
+    peak = max(float(magnitude.max()), float(np.abs(context.sonar.pulse.spectrum(context.centre_frequency_hz))))
+    return frequencies, magnitude / peak if peak > 0 else np.ones_like(magnitude)
+
+
+def band_levels(rows: NDArray[Any], group: NDArray[np.intp], n_groups: int, context: SolveContext,
+                frequencies_hz: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each arrival's strongest level across the band: max over f of
+    w(f) |sum over its rows of g D_tx(f) D_rx(f) 10^(-alpha(f) L / 20) exp(j (phase - 2 pi f dtau))|
+    (dtau: delay relative to any one row of the arrival).
+
+    Parameters
+    ----------
+    rows : structured ndarray of PATH_DTYPE, shape (n,)
+        With the derived angles filled (:func:`complete_columns`).
+    group : ndarray of int, shape (n,)
+        The arrival (0 .. n_groups - 1) of each row: edge elements of one (path_id, channel)
+        add up coherently, with their delays dtau relative to the group's first row.
+    n_groups : int
+    context : SolveContext
+    frequencies_hz, weights : ndarray, shape (m,)
+        From :func:`floor_frequencies`.
+
+    Returns
+    -------
+    ndarray, shape (n_groups,)
+        Levels (Pa per Pa at 1 m, the ``amplitude`` column's unit, weighted by the pulse's
+        relative spectrum).
+    """
+    if rows.size == 0:
+        return np.zeros(n_groups)
+    c, a = context.sound_speed_m_s, context.piston_radius_m
+    f = frequencies_hz[None, :]
+    alpha = np.asarray(context.scene.medium.absorption_db_per_m(frequencies_hz), dtype=float)[None, :]
+    factor = (rows["geometric_gain"][:, None] * piston_directivity(rows["angle_tx_rad"][:, None], f, a, c)
+              * piston_directivity(rows["angle_rx_rad"][:, None], f, a, c)
+              * 10.0 ** (-alpha * rows["path_length_m"][:, None] / 20.0))
+    if n_groups == rows.size and np.array_equal(group, np.arange(n_groups)):
+        return np.max(np.abs(factor) * weights, axis=1)
+    # delays relative to one row of each group (the magnitude does not depend on which)
+    reference = np.empty(n_groups)
+    reference[group[::-1]] = rows["delay_s"][::-1]
+    phase = rows["phase_rad"][:, None] - 2.0 * np.pi * f * (rows["delay_s"] - reference[group])[:, None]
+    total = np.empty((n_groups, frequencies_hz.size), dtype=complex)
+    for j in range(frequencies_hz.size):  # a few band frequencies, each a vectorised sum over rows
+        total[:, j] = np.bincount(group, factor[:, j] * np.cos(phase[:, j]), n_groups) + 1j * np.bincount(
+            group, factor[:, j] * np.sin(phase[:, j]), n_groups)
+    return np.max(np.abs(total) * weights, axis=1)
+
+
+def directivity_envelope(highest_hz: float, context: SolveContext
+                         ) -> Callable[[NDArray[np.float64], ArrayLike], NDArray[np.float64]]:
+    """A function ``bound(angle_rad, frequency_hz)`` (broadcast) giving an upper bound of
+    |D(angle, f')| for every f' in [frequency_hz, highest_hz] (D the piston directivity,
+    :func:`piston_directivity`).
+
+    For x = k a sin(angle), max over those f' of |2 J1(x') / x'| <= sup over x' >= x of
+    |2 J1(x') / x'| (x at ``frequency_hz``): a non-increasing function of x, tabulated on a
+    grid of step h as the reverse running maximum, read at the grid point at or below x, plus
+    h / 4 (|d/dx 2 J1(x)/x| = |2 J2(x)/x| < 1/4, so no peak between grid points is missed).
+    0 behind the piston.
+    """
+    from scipy.special import j1
+
+    c, a = context.sound_speed_m_s, context.piston_radius_m
+    x_max = 2.0 * np.pi * highest_hz / c * a
+    grid = np.linspace(0.0, x_max, 4097)
+    safe = np.where(grid > 0, grid, 1.0)
+    magnitude = np.where(grid > 0, np.abs(2.0 * j1(safe) / safe), 1.0)
+    envelope = np.minimum(np.maximum.accumulate(magnitude[::-1])[::-1] + 0.25 * grid[1], 1.0)
+
+    def bound(angle_rad: NDArray[np.float64], frequency_hz: ArrayLike) -> NDArray[np.float64]:
+        scale = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float) / c * a / grid[1]
+        x = scale * np.sin(np.minimum(angle_rad, 0.5 * np.pi))
+        index = np.minimum(x.astype(np.intp), grid.size - 1)
+        return np.where(angle_rad <= 0.5 * np.pi, envelope[index], 0.0)
+
+    return bound
+
+
+def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext,
+               band_hz: tuple[float, float] | None = None) -> NDArray[np.bool_]:
+    """Which rows survive the amplitude floor (whole arrivals are kept or dropped).
+
+    An arrival (a row, or the rows of an edge diffraction sharing ``path_id`` and channel) is
+    dropped when its strongest level across the band (:func:`band_levels`) is below
+    ``floor_db`` relative to the strongest such level of any non-direct arrival; direct paths
+    are always kept. Judging across the band, not at the centre frequency alone, keeps an
+    echo that sits near the pistons' first null at f0 (about 11 deg off axis for the seed's
+    19 mm, 500 kHz pistons) but is strong at the band's lower frequencies.
+
+    The band levels are computed only where needed, in three tiers:
+
+    1. every arrival's level lies between its level at the centre frequency (one of the band
+       frequencies; from the ``amplitude``-side columns, no Bessel function) and an upper
+       bound (the sum of |g| times the directivity envelopes, times the absorption at the
+       band's least-absorbed frequency; pulse weights <= 1)
+       (:func:`~acoustisim.propagation.floor_kernels.arrival_bounds`);
+    2. arrivals these leave open get an interval of width about 1e-5 of their terms around
+       the level, with 2 J1(x)/x interpolated from a table with a proven error bound
+       (:func:`~acoustisim.propagation.floor_kernels.table_levels`);
+    3. arrivals still open (within that of the threshold, or competing for the strongest)
+       are evaluated by :func:`band_levels`.
+
+    Each bound contains the level numpy computes (the rounding of both is covered by
+    :data:`~acoustisim.propagation.floor_kernels.ROUNDING_SLACK`), so the kept rows are those
+    of :func:`band_levels` applied to every arrival (``tests/test_propagation_floor.py``).
+
+    Parameters
+    ----------
+    rows : structured ndarray of PATH_DTYPE, shape (n,)
+        With the derived columns filled.
+    floor_db : float or None
+        None keeps every row.
+    context : SolveContext
+    band_hz : (float, float) or None
+        ``SolverConfig.amplitude_floor_band_hz``.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    keep = np.ones(rows.size, dtype=bool)
+    if floor_db is None or rows.size == 0:
+        return keep
+    frequencies, weights = floor_frequencies(context, band_hz)
+    c, a = context.sound_speed_m_s, context.piston_radius_m
+    centre_weight = float(weights[np.searchsorted(frequencies, context.centre_frequency_hz)])
+    alpha = np.asarray(context.scene.medium.absorption_db_per_m(frequencies), dtype=float)
+    # k a at each frequency, formed as piston_directivity forms x / sin(angle)
+    scales = 2.0 * np.pi * frequencies / float(c) * float(a)
+    table, step = directivity_table(float(scales.max()))
+    envelope = angle_envelope(table, step, float(scales[0]) / step)  # from the lowest frequency up
+
+    gain, angle_tx, angle_rx = rows["geometric_gain"], rows["angle_tx_rad"], rows["angle_rx_rad"]
+    length, delay, phase = rows["path_length_m"], rows["delay_s"], rows["phase_rad"]
+    single_rows, group_start, group_rows, lower, upper = arrival_bounds(
+        rows["kind"], rows["path_id"], rows["channel"], gain, angle_tx, angle_rx, length, delay, phase,
+        rows["amplitude"], rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"], envelope,
+        float(alpha.min()), centre_weight, 2.0 * np.pi * context.centre_frequency_hz,
+        int(PathKind.DIRECT), int(PathKind.EDGE),
+    )
+    n_single = single_rows.size
+    # frequencies increasing (floor_frequencies sorts them); singles visit them highest pulse
+    # weight first (early exits); edge groups step the phase factor across evenly spaced ones
+    visit = np.argsort(-weights, kind="stable").astype(np.int64)
+    steps = np.diff(frequencies)
+    step_hz = float(steps.max(initial=0.0))
+    chained = np.r_[False, np.abs(steps - step_hz) <= 1e-9 * step_hz]
+    per_frequency = (scales, weights, alpha, 2.0 * np.pi * frequencies, visit, chained, 2.0 * np.pi * step_hz)
+    error = interpolation_error(step)
+
+    def intervals(arrivals: NDArray[np.intp], threshold: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return table_levels(arrivals.astype(np.int64), single_rows, group_start, group_rows, gain, angle_tx, angle_rx,
+                            length, delay, phase, *per_frequency, table, 1.0 / step, error, threshold)
+
+    def exact(arrivals: NDArray[np.intp]) -> NDArray[np.float64]:
+        """Band levels of arrivals (singles 0 .. n_single - 1, then edge groups) by the rule."""
+        levels = np.empty(arrivals.size)
+        is_single = arrivals < n_single
+        picked = single_rows[arrivals[is_single]]
+        levels[is_single] = band_levels(np.take(rows, picked), np.arange(picked.size), picked.size, context,
+                                        frequencies, weights)
+        chosen = arrivals[~is_single] - n_single
+        if chosen.size:
+            sizes = group_start[chosen + 1] - group_start[chosen]
+            members = np.concatenate([group_rows[group_start[g]:group_start[g + 1]] for g in chosen])
+            levels[~is_single] = band_levels(np.take(rows, members), np.repeat(np.arange(chosen.size), sizes),
+                                             chosen.size, context, frequencies, weights)
+        return levels
+
+    # the strongest level: only arrivals that may exceed every lower bound compete
+    # (single rows first: their intervals are cheap and may raise the known level above the
+    # edge groups' bounds)
+    known = float(lower.max(initial=0.0))
+    contenders = np.flatnonzero(upper >= known)
+    finalists = []
+    for part in (contenders[contenders < n_single], contenders[contenders >= n_single]):
+        part = part[upper[part] >= known]
+        low, high = intervals(part, np.inf)
+        known = max(known, float(low.max(initial=0.0)))
+        finalists.append(part[high >= known])
+    finalists = np.concatenate(finalists)
+    finalists = finalists[upper[finalists] >= known]
+    strongest = max(known, float(exact(finalists).max(initial=0.0)))
+    threshold = strongest * 10.0 ** (floor_db / 20.0)
+
+    verdict = lower >= threshold
+    undecided = np.flatnonzero(~verdict & (upper >= threshold))
+    low, high = intervals(undecided, threshold)
+    verdict[undecided[low >= threshold]] = True
+    still_open = undecided[(low < threshold) & (high >= threshold)]
+    verdict[still_open] = exact(still_open) >= threshold
+    keep[single_rows] = verdict[:n_single]
+    keep[group_rows] = np.repeat(verdict[n_single:], np.diff(group_start))
+    return keep
+
+
+__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "directivity_envelope", "floor_frequencies",
+           "floor_mask", "pulse_band_hz"]

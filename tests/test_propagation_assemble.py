@@ -1,0 +1,88 @@
+"""assemble_rows gives the rows of the plain recipe: join the parts, fill the derived columns,
+apply the floor, sort stably by channel and delay."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from acoustisim.propagation import SolverConfig, prepare
+from acoustisim.propagation.assemble import assemble_rows, compact_records, scatter_records
+from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.diffuse import diffuse_paths
+from acoustisim.propagation.edges import edge_paths
+from acoustisim.propagation.floor import floor_mask
+from acoustisim.propagation.paths import PATH_DTYPE, PathKind
+from acoustisim.propagation.specular import direct_rows, specular_rows
+from scenes.builtin import builtin_scene
+
+
+@pytest.fixture(scope="module")
+def parts() -> tuple[SolveContext, list[np.ndarray]]:
+    """The thesis tank's mechanism parts (direct, specular to order 2, edges, 2000 diffuse rays)."""
+    prepared = prepare(builtin_scene("thesis-tank"))
+    context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
+    config = SolverConfig(max_order=2, diffuse_rays=2000, threads=1)
+    out = []
+    next_id = 0
+    for make in (lambda c: direct_rows(c), lambda c: specular_rows(c, prepared, 2),
+                 lambda c: edge_paths(c, config, prepared.sharp_edges), lambda c: diffuse_paths(c, config, threads=1)):
+        rows = make(context.with_first_path_id(next_id))
+        out.append(rows)
+        next_id = int(rows["path_id"].max()) + 1
+    return context, out
+
+
+def _reference(parts: list[np.ndarray], context: SolveContext, floor_db: float | None) -> np.ndarray:
+    rows = complete_columns(np.concatenate([part.copy() for part in parts]), context)
+    rows = rows[floor_mask(rows, floor_db, context)]
+    return rows[np.lexsort((rows["delay_s"], rows["channel"]))]
+
+
+@pytest.mark.parametrize("floor_db", [None, -40.0, -80.0])
+def test_assembled_rows_are_the_plain_recipe_byte_for_byte(parts, floor_db):
+    context, pieces = parts
+    expected = _reference(pieces, context, floor_db)
+    got = assemble_rows([part.copy() for part in pieces], context, floor_db)
+    assert got.flags.c_contiguous and got.flags.owndata and got.base is None
+    assert got.dtype == PATH_DTYPE and got.size == expected.size
+    assert got.tobytes() == expected.tobytes()
+    if floor_db is not None:
+        assert got.size < sum(part.size for part in pieces)
+    kinds = set(np.unique(got["kind"]).tolist())
+    assert {int(PathKind.SPECULAR), int(PathKind.EDGE), int(PathKind.DIFFUSE)} <= kinds
+
+
+def test_ties_keep_the_parts_order(parts):
+    """Rows with equal channel and delay come out in the parts' order (a stable sort)."""
+    context, pieces = parts
+    first = pieces[1][:5].copy()
+    second = first.copy()
+    second["path_id"] += 1000
+    got = assemble_rows([first, second], context, None)
+    expected = _reference([first, second], context, None)
+    assert got.tobytes() == expected.tobytes()
+    assert np.any(np.diff(got["path_id"]) != 0)
+
+
+def test_empty_parts():
+    prepared = prepare(builtin_scene("thesis-tank"))
+    context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
+    empty = np.zeros(0, dtype=PATH_DTYPE)
+    assert assemble_rows([], context, -80.0).size == 0
+    assert assemble_rows([empty, empty], context, None).size == 0
+
+
+def test_record_kernels():
+    rng = np.random.default_rng(1)
+    source = rng.integers(0, 255, (6, 5), dtype=np.uint8)
+    out = np.zeros((6, 5), dtype=np.uint8)
+    destination = np.array([3, 0, 5, 1, 4, 2], dtype=np.int64)
+    scatter_records(source, destination, out)
+    np.testing.assert_array_equal(out[destination], source)
+    records = source.copy()
+    kept = np.array([1, 2, 4], dtype=np.int64)
+    compact_records(records, kept)
+    np.testing.assert_array_equal(records[:3], source[kept])
+    np.testing.assert_array_equal(records[3:], source[3:])  # untouched beyond the kept ones
