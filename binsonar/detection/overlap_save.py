@@ -91,21 +91,17 @@ class BlockEnvelopePlan:
         return self.block / self.n_env
 
 
-def _fast_sizes(low: int, high: int) -> list[int]:
-    """Sizes 2^a 3^b 5^c in [low, high] (pocketfft's fast lengths), increasing."""
-    sizes = []
-    p2 = 1
-    while p2 <= high:
-        p3 = p2
-        while p3 <= high:
-            p5 = p3
-            while p5 <= high:
-                if p5 >= low:
-                    sizes.append(p5)
-                p5 *= 5
-            p3 *= 3
-        p2 *= 2
-    return sorted(sizes)
+def _fast_sizes(low: int, count: int) -> list[int]:
+    """The ``count`` smallest of pocketfft's fast complex FFT lengths (``scipy.fft.next_fast_len``)
+    >= low, increasing."""
+    import scipy.fft as sfft
+
+    sizes: list[int] = []
+    size = sfft.next_fast_len(max(int(low), 1))
+    while len(sizes) < count:
+        sizes.append(int(size))
+        size = sfft.next_fast_len(size + 1)
+    return sizes
 
 
 def _cost(block: int, n_env: int, n_blocks: int) -> float:
@@ -161,7 +157,7 @@ def plan_blocks(
         if forced is None and block < 2 * span and block != BLOCK_SIZES[-1]:
             continue  # mostly overlap: a longer block is cheaper
         k_hi = int(min(block // 2 + 1, math.ceil(band_edge_cycles * block) + 2))
-        for n_env in _fast_sizes(k_hi, 2 * k_hi + 16):
+        for n_env in _fast_sizes(k_hi, 8):  # a few sizes just above the band
             step = block // math.gcd(block, n_env)  # hops that are a whole number of decimated samples
             hop = ((block - span + 1) // step) * step
             if hop <= 0:
