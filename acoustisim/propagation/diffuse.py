@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.convex_occlusion import ConvexPlanes
+from acoustisim.propagation.convex_occlusion import CONVEX_MAX_FACES, ConvexPlanes
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation import diffuse_kernels as kernels
 from acoustisim.propagation.paths import PathKind, PATH_DTYPE, empty_paths_array
@@ -195,14 +195,14 @@ class _LobeTable:
     ----------
     edges : ndarray, shape (_COS_CELLS + 1,)
         Cell edges in cos(theta), from the axis (1) backwards (-1).
-    guide : ndarray of int64, shape (_GUIDE_BINS,)
+    guide : ndarray of int32, shape (_GUIDE_BINS,)
         The cell of each equiprobable bin.
     lobe_pdf : ndarray, shape (_COS_CELLS,)
         The lobe pdf (per steradian) of a direction in each cell.
     """
 
     edges: NDArray[np.float64]
-    guide: NDArray[np.int64]
+    guide: NDArray[np.int32]
     lobe_pdf: NDArray[np.float64]
 
     @classmethod
@@ -210,15 +210,18 @@ class _LobeTable:
         """The table for ``context``'s piston radius, centre frequency and sound speed."""
         edges = np.linspace(1.0, -1.0, _COS_CELLS + 1)  # cos(theta) from the axis backwards
         centres = np.arccos(0.5 * (edges[1:] + edges[:-1]))
-        power = piston_directivity(centres, context.centre_frequency_hz, context.piston_radius_m,
-                                   context.sound_speed_m_s) ** 2
         # the lobe density covers the forward hemisphere only (2 J1(x)/x, x = k a sin(theta), is
         # symmetric about 90 degrees, a baffled piston radiates nothing behind); the back is
         # left to the uniform share
-        power = np.where(centres < 0.5 * np.pi, power, 0.0)
+        forward = centres < 0.5 * np.pi
+        power = np.zeros(_COS_CELLS)
+        power[forward] = piston_directivity(centres[forward], context.centre_frequency_hz, context.piston_radius_m,
+                                            context.sound_speed_m_s) ** 2
         mass = np.cumsum(power)
-        quantiles = (np.arange(_GUIDE_BINS) + 0.5) * (mass[-1] / _GUIDE_BINS)
-        guide = np.minimum(np.searchsorted(mass, quantiles, side="right"), _COS_CELLS - 1)
+        # bin i goes to the first cell whose cumulative mass exceeds (i + 1/2) / _GUIDE_BINS of
+        # the total (searchsorted(mass, quantiles, side="right"), as one linear merge)
+        guide = np.empty(_GUIDE_BINS, dtype=np.int32)  # 256 KiB: gathered once per lobe ray
+        kernels.guide_table(mass, guide)
         share = np.bincount(guide, minlength=_COS_CELLS) / _GUIDE_BINS
         lobe_pdf = share / (2.0 * np.pi * (2.0 / _COS_CELLS))  # per steradian, per cell
         return cls(edges, guide, lobe_pdf)
@@ -242,11 +245,16 @@ class _LobeTable:
         """
         n_uniform = self.uniform_count(n)
         u = rng.random((2, n))
-        cos_phi, sin_phi = _unit_circle(u[1])
+        # the azimuth's cosine and sine in float32, rescaled to unit length in the kernel (as
+        # _unit_circle does)
+        phi32 = u[1].astype(np.float32)
+        phi32 *= np.float32(2.0 * np.pi)
+        cos32 = np.cos(phi32)
+        sin32 = np.sin(phi32, out=phi32)
         directions, directions32, solid_angle = np.empty((3, n)), np.empty((n, 3), dtype=np.float32), np.empty(n)
         n_u, n_l = totals
         e1, e2, axis = frame
-        kernels.transmit_directions(u[0], cos_phi, sin_phi, n_uniform, self.guide, self.edges, self.lobe_pdf,
+        kernels.transmit_directions(u[0], cos32, sin32, n_uniform, self.guide, self.edges, self.lobe_pdf,
                                     n_u / (4.0 * np.pi), float(n_l), e1, e2, axis, directions, directions32,
                                     solid_angle)
         return directions, directions32, solid_angle
@@ -347,8 +355,10 @@ class ObjectScreen:
         with_planes = np.zeros(len(scene.objects), dtype=bool) if planes is None else planes.convex
         for k, obj in enumerate(scene.objects):
             # an analytic primitive (sphere, cylinder) is convex; a small mesh is checked
+            faces = len(obj.mesh.faces)
+            examined = planes is not None and faces <= CONVEX_MAX_FACES  # and found convex or not
             convex = (obj.primitive is not None or bool(with_planes[k])
-                      or (len(obj.mesh.faces) <= SCREEN_CONVEXITY_FACES and obj.mesh.is_convex))
+                      or (not examined and faces <= SCREEN_CONVEXITY_FACES and obj.mesh.is_convex))
             if convex:
                 own_box[len(scene.boundaries) + k] = k + 1
         if planes is None:
@@ -419,24 +429,29 @@ def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
         within 1e-9 m of the projected rectangle, every leg goes to the slab test) and the axis
         a. A direction d (projected) lies in the wedge iff ``R x d >= 0`` and ``d x L >= 0``.
     """
-    k = lo.shape[0]
-    out = np.zeros((receivers.shape[0], k, 6))
-    for b in range(k):
-        axis = int(np.argmax(hi[b] - lo[b]))
-        u, v = (axis + 1) % 3, (axis + 2) % 3
-        corners = np.array([[lo[b, u], lo[b, v]], [hi[b, u], lo[b, v]], [hi[b, u], hi[b, v]], [lo[b, u], hi[b, v]]])
-        out[:, b, 5] = axis
-        for j, q in enumerate(receivers):
-            rel = corners - q[[u, v]]
-            inside = (lo[b, u] - 1e-9 <= q[u] <= hi[b, u] + 1e-9) and (lo[b, v] - 1e-9 <= q[v] <= hi[b, v] + 1e-9)
-            if inside:
-                out[j, b, 4] = 1.0
-                continue
-            centre = rel.mean(axis=0)
-            # signed angle of each corner from the centre direction (all within +-90 degrees)
-            angle = np.arctan2(centre[0] * rel[:, 1] - centre[1] * rel[:, 0], rel @ centre)
-            right, left = rel[np.argmin(angle)], rel[np.argmax(angle)]
-            out[j, b, 0:4] = right[0], right[1], left[0], left[1]
+    k, n_rx = lo.shape[0], receivers.shape[0]
+    out = np.zeros((n_rx, k, 6))
+    if k == 0:
+        return out
+    rows = np.arange(k)
+    axis = np.argmax(hi - lo, axis=1)
+    u, v = (axis + 1) % 3, (axis + 2) % 3
+    lu, lv, hu, hv = lo[rows, u], lo[rows, v], hi[rows, u], hi[rows, v]
+    corners = np.stack([np.stack([lu, lv], -1), np.stack([hu, lv], -1), np.stack([hu, hv], -1),
+                        np.stack([lu, hv], -1)], axis=1)  # (k, 4, 2)
+    q = np.stack([receivers[:, u], receivers[:, v]], axis=-1)  # (n_rx, k, 2)
+    rel = corners[None] - q[:, :, None, :]  # (n_rx, k, 4, 2)
+    inside = ((lu - 1e-9 <= q[..., 0]) & (q[..., 0] <= hu + 1e-9) & (lv - 1e-9 <= q[..., 1])
+              & (q[..., 1] <= hv + 1e-9))
+    centre = rel.mean(axis=2, keepdims=True)
+    # signed angle of each corner from the centre direction (all within +-90 degrees when q is
+    # outside the rectangle)
+    angle = np.arctan2(centre[..., 0] * rel[..., 1] - centre[..., 1] * rel[..., 0], np.sum(rel * centre, axis=-1))
+    right = np.take_along_axis(rel, np.argmin(angle, axis=2)[..., None, None], axis=2)[:, :, 0]
+    left = np.take_along_axis(rel, np.argmax(angle, axis=2)[..., None, None], axis=2)[:, :, 0]
+    out[..., 0:2], out[..., 2:4] = right, left
+    out[..., 4] = inside
+    out[..., 5] = axis
     return out
 
 
@@ -543,6 +558,9 @@ class _Tracer:
         Unit normals as components.
     surface : ndarray of int64, shape (n_triangles,)
     transmitter : ndarray, shape (3,)
+    origins32 : ndarray of float32, shape (CHUNK_RAYS, 3)
+        The transmitter minus the ray caster's shift, repeated: Embree's origins of a chunk's
+        first rays.
     frame : tuple of ndarray, shape (3,)
         (e1, e2, boresight): the transmitter's orthonormal frame.
     receivers : ndarray, shape (n_rx, 3)
@@ -567,6 +585,7 @@ class _Tracer:
     normal: NDArray[np.float64]
     surface: NDArray[np.int64]
     transmitter: NDArray[np.float64]
+    origins32: NDArray[np.float32]
     frame: tuple[NDArray[np.float64], ...]
     receivers: NDArray[np.float64]
     screen: tuple[Any, ...]
@@ -651,7 +670,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         m = directions.shape[1]
         if bounce:
             directions32 = _float32_rows(directions, None, m)
-        triangle = raycaster.first_hit_triangles32(_float32_rows(origins, shift, m), directions32)
+        origins32 = tracer.origins32[:m] if bounce == 0 else _float32_rows(origins, shift, m)
+        triangle = raycaster.first_hit_triangles32(origins32, directions32)
         points, normal, hit_departure = (np.empty((3, m)) for _ in range(3))
         hit_weight, amplitude, hit_travelled, mu, phase = (np.empty(m) for _ in range(5))
         hit_parent, surface = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
@@ -756,6 +776,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         normal=np.ascontiguousarray(raycaster.face_normals.T),
         surface=raycaster.surface_index,
         transmitter=tx,
+        origins32=_float32_rows(tx[:, None], raycaster.shift_m, min(n_rays, CHUNK_RAYS)),
         frame=(*_basis(boresight), boresight),
         receivers=np.ascontiguousarray(rx),
         screen=ObjectScreen.create(scene, rx, raycaster.convex_planes).kernel_arguments(),

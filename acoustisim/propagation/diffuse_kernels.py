@@ -86,9 +86,25 @@ def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int32]) -> None:
+    """The equiprobable bins of a tabulated density: bin i (of ``guide.size``) gets the first
+    cell whose cumulative ``mass`` (non-decreasing) exceeds (i + 1/2) mass[-1] / guide.size
+    (at most the last cell), as ``numpy.searchsorted(mass, quantiles, side="right")`` would,
+    in one linear merge of the sorted quantiles with the cells."""
+    n_cells = mass.size
+    step = mass[n_cells - 1] / guide.size
+    cell = 0
+    for i in range(guide.size):
+        quantile = (i + 0.5) * step
+        while cell < n_cells and mass[cell] <= quantile:
+            cell += 1
+        guide[i] = min(cell, n_cells - 1)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def transmit_directions(
-    u: NDArray[np.float64], cos_phi: NDArray[np.float64], sin_phi: NDArray[np.float64], n_uniform: int,
-    guide: NDArray[np.int64], edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float,
+    u: NDArray[np.float64], cos_phi: NDArray[np.float32], sin_phi: NDArray[np.float32], n_uniform: int,
+    guide: NDArray[np.int32], edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float,
     lobe_count: float, e1: NDArray[np.float64], e2: NDArray[np.float64], axis: NDArray[np.float64],
     directions: NDArray[np.float64], directions32: NDArray[np.float32], solid_angle: NDArray[np.float64],
 ) -> None:
@@ -100,8 +116,9 @@ def transmit_directions(
         Uniform numbers in [0, 1): cos(theta) = 1 - 2u for the first ``n_uniform`` rays; for
         the others the integer part of u len(guide) picks a guide bin, hence a cell of
         ``edges`` (cos(theta), descending), and the fractional part the place in the cell.
-    cos_phi, sin_phi : ndarray, shape (n,)
-        The unit azimuth vector of each ray.
+    cos_phi, sin_phi : ndarray of float32, shape (n,)
+        The azimuth's cosine and sine of each ray, in float32: rescaled here to unit length in
+        float64 (``diffuse._unit_circle``'s arithmetic).
     guide, edges, lobe_pdf
         As in :class:`~acoustisim.propagation.diffuse._LobeTable`.
     uniform_density, lobe_count : float
@@ -126,8 +143,10 @@ def transmit_directions(
             cell = guide[b]
             cos_t = edges[cell] - (x - b) * width
         sin_t = math.sqrt(max(1.0 - cos_t * cos_t, 0.0))
-        a = sin_t * cos_phi[i]
-        c = sin_t * sin_phi[i]
+        cp, sp = np.float64(cos_phi[i]), np.float64(sin_phi[i])
+        scale = math.sqrt(cp * cp + sp * sp)
+        a = sin_t * (cp / scale)
+        c = sin_t * (sp / scale)
         for k in range(3):
             d = a * e1[k] + c * e2[k] + cos_t * axis[k]
             directions[k, i] = d
@@ -592,6 +611,7 @@ def pack_rows(
 
 __all__ = [
     "arrival_directions",
+    "guide_table",
     "pack_rows",
     "place_events",
     "clear_blocked", "near_points", "next_event_pairs", "scatter_hits", "speckle_into", "splitmix64",
