@@ -52,6 +52,7 @@ batch.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -64,6 +65,7 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
 from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains, visibility_segments
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
+from acoustisim.scene import Scene
 
 DELAY_STEPS_PER_PERIOD = 16
 """Element delay step = 1 / (DELAY_STEPS_PER_PERIOD f0)."""
@@ -100,13 +102,15 @@ _MIN_DISTANCE_M = 1e-6
 _ON_PLANE_M = 1e-6
 
 
-def diffracting_edges(edges: SharpEdges, context: SolveContext) -> SharpEdges:
-    """The edges that diffract (see the module docstring for what is left out)."""
+def diffracting_edges(edges: SharpEdges, context: SolveContext | Scene) -> SharpEdges:
+    """The edges that diffract (see the module docstring for what is left out), of the scene
+    (or the solve context's scene)."""
+    scene = context.scene if isinstance(context, SolveContext) else context
     nu = edges.nu
     integer_nu = np.abs(nu - np.round(nu)) < 1e-9
     embedded = np.zeros(len(edges), dtype=bool)
-    n_boundaries = len(context.scene.boundaries)
-    for boundary in context.scene.boundaries:  # a loop over the six tank planes
+    n_boundaries = len(scene.boundaries)
+    for boundary in scene.boundaries:  # a loop over the six tank planes
         p = np.asarray(boundary.plane.point_m, dtype=float)
         n = np.asarray(boundary.plane.normal, dtype=float)
         on = (np.abs((edges.start_m - p) @ n) < _ON_PLANE_M) & (np.abs((edges.end_m - p) @ n) < _ON_PLANE_M)
@@ -114,8 +118,28 @@ def diffracting_edges(edges: SharpEdges, context: SolveContext) -> SharpEdges:
     return edges.select(~integer_nu & ~embedded & (edges.length_m > 0.0))
 
 
+def _endpoint_partners(edges: SharpEdges) -> NDArray[np.int64]:
+    """For each endpoint of ``edges`` ([starts; ends], shape (2 n,)), the other edge of its
+    chain sharing that exact point (shared vertices are bit-identical), or -1."""
+    n = len(edges)
+    # endpoints [starts; ends], keyed by chain and position
+    points = np.concatenate([edges.start_m, edges.end_m])
+    keys = np.concatenate([np.tile(edges.chain, 2)[:, None].astype(float), points], axis=1)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    order = np.argsort(inverse, kind="stable")
+    partner = np.full(2 * n, -1, dtype=np.int64)
+    shared = counts[inverse[order]] == 2
+    # endpoints of a group of two are consecutive in ``order``: pair them up
+    first = order[shared][0::2]
+    second = order[shared][1::2]
+    partner[first], partner[second] = second % n, first % n
+    return partner
+
+
 def _open_ends(
-    edges: SharpEdges, pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], included: NDArray[np.bool_]
+    edges: SharpEdges, pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], included: NDArray[np.bool_],
+    partner: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """For each (edge, receiver) pair, whether its edge continues past its start (its end) into
     another edge of its chain whose pair with that receiver is also included: a joint of a
@@ -129,24 +153,16 @@ def _open_ends(
         The pairs' edges and receivers.
     included : ndarray of bool, shape (n, n_rx)
         Which (edge, receiver) pairs are diffracted at all.
+    partner : ndarray of int64, shape (2 n,), optional
+        :func:`_endpoint_partners` of ``edges`` (computed when None).
 
     Returns
     -------
     open_start, open_end : ndarray of bool, shape (p,)
     """
     n = len(edges)
-    # endpoints [starts; ends], keyed by chain and position (shared vertices are bit-identical)
-    points = np.concatenate([edges.start_m, edges.end_m])
-    keys = np.concatenate([np.tile(edges.chain, 2)[:, None].astype(float), points], axis=1)
-    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.reshape(-1)
-    order = np.argsort(inverse, kind="stable")
-    partner = np.full(2 * n, -1)
-    shared = counts[inverse[order]] == 2
-    # endpoints of a group of two are consecutive in ``order``: pair them up
-    first = order[shared][0::2]
-    second = order[shared][1::2]
-    partner[first], partner[second] = second % n, first % n
+    if partner is None:
+        partner = _endpoint_partners(edges)
     open_start = np.zeros(pair_edge.size, dtype=bool)
     open_end = np.zeros(pair_edge.size, dtype=bool)
     for out, side in ((open_start, 0), (open_end, 1)):
@@ -155,7 +171,44 @@ def _open_ends(
     return open_start, open_end
 
 
-def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | None = None) -> NDArray[Any]:
+@dataclass(frozen=True, eq=False)
+class DiffractingEdges:
+    """The per-scene part of edge diffraction, built once per prepared scene
+    (:attr:`~acoustisim.propagation.prepared.PreparedScene.diffracting_edges`) and reused by
+    every pose.
+
+    Attributes
+    ----------
+    edges : SharpEdges
+        The edges that diffract (:func:`diffracting_edges`), n of them.
+    length_m : ndarray, shape (n,)
+        Their lengths (m).
+    nu : ndarray, shape (n,)
+        Their wedge indices pi / theta_w.
+    partner : ndarray of int64, shape (2 n,)
+        :func:`_endpoint_partners`: the chain joints.
+    probe_offset_m : ndarray, shape (n, 3)
+        :data:`VISIBILITY_OFFSET_M` along each wedge's bisector (m): the visibility probes'
+        offset from the edge into the water.
+    """
+
+    edges: SharpEdges
+    length_m: NDArray[np.float64] = field(repr=False)
+    nu: NDArray[np.float64] = field(repr=False)
+    partner: NDArray[np.int64] = field(repr=False)
+    probe_offset_m: NDArray[np.float64] = field(repr=False)
+
+    @classmethod
+    def build(cls, sharp: SharpEdges, scene: Scene) -> "DiffractingEdges":
+        """From a scene's sharp edges (:func:`~acoustisim.propagation.edge_extraction.sharp_edges`)."""
+        edges = diffracting_edges(sharp, scene)
+        half = 0.5 * edges.wedge_angle_rad
+        bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
+        return cls(edges, edges.length_m, edges.nu, _endpoint_partners(edges), VISIBILITY_OFFSET_M * bisector)
+
+
+def edge_paths(context: SolveContext, config: SolverConfig,
+               edges: DiffractingEdges | SharpEdges | None = None) -> NDArray[Any]:
     """Edge-diffraction rows for one sonar pose.
 
     Parameters
@@ -163,9 +216,10 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     context : SolveContext
     config : SolverConfig
         ``edge_segment_m`` caps the element length.
-    edges : SharpEdges, optional
-        The scene's sharp edges (extracted from ``context`` when None; pass them to reuse the
-        extraction across poses).
+    edges : DiffractingEdges or SharpEdges, optional
+        The scene's diffracting edges (:attr:`PreparedScene.diffracting_edges
+        <acoustisim.propagation.prepared.PreparedScene.diffracting_edges>`, reused across
+        poses), or its sharp edges, or None (extracted from ``context``).
 
     Returns
     -------
@@ -183,7 +237,8 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     """
     if edges is None:
         edges = sharp_edges(context.raycaster, context.scene)
-    edges = diffracting_edges(edges, context)
+    scene_part = edges if isinstance(edges, DiffractingEdges) else DiffractingEdges.build(edges, context.scene)
+    edges = scene_part.edges
     n_edges = len(edges)
     if n_edges == 0:
         return empty_paths_array(0)
@@ -209,12 +264,12 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     if pair_edge.size == 0:
         return empty_paths_array(0)
     rs, ts, zs = r_s[pair_edge], th_s[pair_edge], z_s[pair_edge]
-    open_start, open_end = _open_ends(edges, pair_edge, pair_rx, ok.reshape(n_edges, n_rx))
+    open_start, open_end = _open_ends(edges, pair_edge, pair_rx, ok.reshape(n_edges, n_rx), scene_part.partner)
 
     step = c / (DELAY_STEPS_PER_PERIOD * context.centre_frequency_hz)
     try:
         elements = discretise_edges(
-            edges.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m, MAX_ELEMENTS,
+            scene_part.length_m[pair_edge], rs, zs, r_r, z_r, step, config.edge_segment_m, MAX_ELEMENTS,
             coarsening_levels=COARSENING_LEVELS if config.edge_adaptive else 0, grading=GRADING,
             cap_growth=CAP_GROWTH if config.edge_adaptive else 0.0,
             onset_nodes=ONSET_NODES if config.edge_adaptive else 1, open_start=open_start, open_end=open_end,
@@ -224,12 +279,10 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
     # visibility of each element's centre from the transmitter and from its receiver, one batch
     # (before the gains: hidden elements cost no quadrature)
-    half = 0.5 * edges.wedge_angle_rad
-    bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
     # a receiver at the transmitter (the centre transducer) has the same leg: tested once
     origins, targets, own_leg = visibility_segments(
         elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m, edges.direction,
-        VISIBILITY_OFFSET_M * bisector, tx, rx, ~np.all(rx == tx, axis=1),
+        scene_part.probe_offset_m, tx, rx, ~np.all(rx == tx, axis=1),
     )
     n = elements.pair.size
     blocked = context.raycaster.occluded(origins, targets)
@@ -240,7 +293,7 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
 
     # per element: two impulses at its Gauss points (graded, see element_gains with per_point)
     # or one at its centre (fine)
-    k = pair_constants(edges.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
+    k = pair_constants(scene_part.nu[pair_edge], rs, ts, zs, r_r, th_r, z_r, edges.pressure_release[pair_edge])
     gauss_x, gauss_w = gauss_rule(GAUSS_POINTS)
     gains2, z2, path2 = gauss_point_gains(
         elements.pair, elements.z_start_m, elements.z_end_m, k.nu, k.r_s, k.z_s, k.r_r, k.z_r, k.nk,
@@ -267,4 +320,5 @@ def edge_paths(context: SolveContext, config: SolverConfig, edges: SharpEdges | 
     return rows
 
 
-__all__ = ["DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR", "MAX_ELEMENTS", "diffracting_edges", "edge_paths"]
+__all__ = ["DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR", "MAX_ELEMENTS", "DiffractingEdges", "diffracting_edges",
+           "edge_paths"]

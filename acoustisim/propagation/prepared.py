@@ -25,6 +25,7 @@ from acoustisim.propagation.smooth_mesh import SmoothMesh
 
 if TYPE_CHECKING:
     from acoustisim.propagation.edge_extraction import SharpEdges
+    from acoustisim.propagation.edges import DiffractingEdges
 from acoustisim.scene import Scene, SceneObject
 
 MIN_FACE_AREA_FRACTION = 1e-14
@@ -104,6 +105,15 @@ class PreparedScene:
         from acoustisim.propagation.edge_extraction import sharp_edges
 
         return sharp_edges(self.raycaster, self.scene)
+
+    @cached_property
+    def diffracting_edges(self) -> "DiffractingEdges":
+        """The per-scene part of edge diffraction (the edges that diffract, their lengths,
+        wedge indices, chain joints and visibility-probe offsets), built once per prepared
+        scene on first use and reused by every pose."""
+        from acoustisim.propagation.edges import DiffractingEdges
+
+        return DiffractingEdges.build(self.sharp_edges, self.scene)
 
 
 def check_mesh(obj: SceneObject) -> None:

@@ -2,8 +2,8 @@
 
 Mechanisms run in order, each given a :class:`SolveContext` whose ``first_path_id`` is the next
 free id: direct, specular (:mod:`.specular`), then edge diffraction
-(:func:`~acoustisim.propagation.edges.edge_paths`, on the prepared scene's sharp edges,
-extracted once) and diffuse reverberation (:func:`~acoustisim.propagation.diffuse.diffuse_paths`),
+(:func:`~acoustisim.propagation.edges.edge_paths`, on the prepared scene's diffracting
+edges, extracted and set up once per scene) and diffuse reverberation (:func:`~acoustisim.propagation.diffuse.diffuse_paths`),
 each when named in ``config.mechanisms``. :func:`~acoustisim.propagation.assemble.assemble_rows` then fills the
 derived columns of every row (:func:`~acoustisim.propagation.columns.complete_columns`), sorts them and applies the
 amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`, judged across the pulse band).
@@ -137,7 +137,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     if "specular" in config.mechanisms:
         add(specular_rows(context.with_first_path_id(next_id), prepared, config.max_order))
     if "edge" in config.mechanisms:
-        add(edge_paths(context.with_first_path_id(next_id), config, prepared.sharp_edges))
+        add(edge_paths(context.with_first_path_id(next_id), config, prepared.diffracting_edges))
     if "diffuse" in config.mechanisms:
         add(diffuse_paths(context.with_first_path_id(next_id), config, threads=config.threads,
                           visibility=config.diffuse_visibility))
