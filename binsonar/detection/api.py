@@ -35,7 +35,11 @@ ROW_CHUNK = 24
 RawEchoes = list[list[tuple[float, float, float, float, float]]]
 
 # Parameters of the method functions that ``detect`` supplies itself (not user options).
-_SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v", "dc_v"})
+_SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v", "dc_v",
+                       "robust_sigma_v"})
+# Base methods that take the robust noise estimate measured with the offsets
+# (``Signals.noise_sigma_v``, as ``robust_sigma_v``) instead of measuring it again.
+TAKES_ROBUST_SIGMA = frozenset({"threshold", "local-matched"})
 # Base methods that take the waveforms as recorded plus each row's DC offset (``dc_v``) and
 # fold it into their arithmetic, with the result they would give on the offset-free copy:
 # no pass over the record to make that copy. The others get ``Signals.without_dc()``.
@@ -430,6 +434,12 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     template, plan = prepared.template, prepared._plan
     fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
     dc = None if signals.dc_v is None else signals.dc_v.reshape(-1)  # per row, as ``rows``
+    robust = None if signals.noise_sigma_v is None else signals.noise_sigma_v.reshape(-1)
+    if base in TAKES_ROBUST_SIGMA and robust is not None and options.get("noise_window_s") is None:
+        # Per chunk below: the rows' robust noise estimate, already measured with their offsets.
+        options["robust_sigma_v"] = None
+    else:
+        robust = None
     if base == "threshold":
         call = lambda chunk, dc_v: function(chunk, sample_rate_hz=fs, t0_s=t0, template=template, where=where,  # noqa: E731
                                             dc_v=dc_v, **options)
@@ -446,5 +456,7 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
         raise RecordingError(f"{where}: internal: method {base!r} was given waveforms with their DC offset in them")
     out: RawEchoes = []
     for start in range(0, rows.shape[0], ROW_CHUNK):  # chunks of rows, vectorised inside
+        if robust is not None:
+            options["robust_sigma_v"] = robust[start:start + ROW_CHUNK]
         out.extend(call(rows[start:start + ROW_CHUNK], None if dc is None else dc[start:start + ROW_CHUNK]))
     return out

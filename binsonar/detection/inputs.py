@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from binsonar.detection.noise import robust_subsample, row_median
+from binsonar.detection.noise import MAD_TO_SIGMA, robust_subsample, row_median
 from binsonar.recording import Recording, RecordingError, Template
 
 
@@ -57,6 +57,12 @@ class Signals:
     source: str
     noise_floor_v: float = 0.0
     dc_v: NDArray[np.float64] | None = field(default=None, repr=False)
+    noise_sigma_v: NDArray[np.float64] | None = field(default=None, repr=False)
+    """Robust noise standard deviation of each ping-channel (V), shape (n_pings, n_channels):
+    1.4826 median |x - dc_v| over ``noise.robust_subsample``'s stretches, i.e.
+    ``noise.noise_sigma``'s robust estimate (before its floor), measured together with
+    ``dc_v`` (``robust_offsets``: one copy and two partitions of the few thousand samples per
+    row, instead of two of each). None once the waveforms change (``with_waveforms``)."""
 
     @property
     def n_pings(self) -> int:
@@ -113,6 +119,34 @@ def row_offsets(waveforms: NDArray[np.float64]) -> NDArray[np.float64] | None:
     if not np.any(median != 0.0):
         return None
     return median.reshape(n_pings, n_channels)
+
+
+def robust_offsets(waveforms: NDArray[np.float64]) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
+    """``row_offsets`` and the robust noise estimate about them, from one subsample.
+
+    Returns
+    -------
+    dc_v : ndarray, shape (n_pings, n_channels), or None
+        As ``row_offsets`` (None when every median is exactly 0).
+    sigma_v : ndarray, shape (n_pings, n_channels)
+        ``noise.MAD_TO_SIGMA`` times the median of |x - dc_v| over the same samples: what
+        ``noise.noise_sigma(rows, offset_v=dc_v)`` estimates (before its floor), equal to it
+        exactly (the same elements selected from the same values).
+    """
+    n_pings, n_channels, n = waveforms.shape
+    rows = waveforms.reshape(n_pings * n_channels, n)
+    sample = robust_subsample(rows).reshape(rows.shape[0], -1)  # a copy, unless the rows are short
+    if np.may_share_memory(sample, waveforms):
+        sample = sample.copy()  # partitioned in place below: never the caller's samples
+    k = sample.shape[1] // 2  # ``row_median``'s element
+    sample.partition(k, axis=1)
+    median = sample[:, k].copy()
+    np.subtract(sample, median[:, np.newaxis], out=sample)
+    np.abs(sample, out=sample)
+    sample.partition(k, axis=1)
+    sigma = MAD_TO_SIGMA * sample[:, k]
+    dc = median.reshape(n_pings, n_channels) if np.any(median != 0.0) else None
+    return dc, sigma.reshape(n_pings, n_channels)
 
 
 def remove_median(waveforms: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -190,8 +224,9 @@ def as_signals(
             clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
         step = adc_step_v if adc_step_v is not None else data.volts_per_code
         floor = 0.0 if step is None else quantisation_noise_std_v(step)
+        dc, sigma = robust_offsets(waveforms)
         signals = Signals(waveforms, float(data.sample_rate_hz), float(data.t0_s), clipped, data.template, where, floor,
-                          row_offsets(waveforms))
+                          dc, sigma)
         return signals.without_dc() if remove_dc else signals
 
     where = "array"
@@ -228,7 +263,8 @@ def as_signals(
     if full_scale_v is not None:
         clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
     floor = 0.0 if adc_step_v is None else quantisation_noise_std_v(adc_step_v)
-    signals = Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor, row_offsets(waveforms))
+    dc, sigma = robust_offsets(waveforms)
+    signals = Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor, dc, sigma)
     return signals.without_dc() if remove_dc else signals
 
 

@@ -418,6 +418,7 @@ def detect_local_matched(
     where: str = "record",
     noise_floor_v: float = 0.0,
     dc_v: NDArray[np.float64] | None = None,
+    robust_sigma_v: NDArray[np.float64] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Local matched filter around the strongest coarse windows of each row (module notes).
 
@@ -443,6 +444,9 @@ def detect_local_matched(
     dc_v : ndarray, shape (n_rows,), optional
         DC offset of each row still in ``rows`` (``Signals.dc_v``), folded in (module notes):
         the result is that of ``rows - dc_v`` to rounding, without a copy of the record.
+    robust_sigma_v : ndarray, shape (n_rows,), optional
+        The rows' robust noise estimate, already measured (``inputs.Signals.noise_sigma_v``):
+        used instead of measuring it again when there is no ``noise_window_s``.
 
     Returns
     -------
@@ -459,7 +463,7 @@ def detect_local_matched(
     lag_lo, lag_hi = lag_range(matched, t0_s, search_window_s, where)
     dc = None if dc_v is None else np.asarray(dc_v, dtype=float).reshape(n_rows)
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
-                        floor_v=noise_floor_v, offset_v=dc)
+                        floor_v=noise_floor_v, offset_v=dc, robust_v=robust_sigma_v)
     k = int(candidates)
     width = 2 * plan.half + 1
     rows = np.ascontiguousarray(rows)  # the kernels read rows as contiguous blocks (no copy when they are)

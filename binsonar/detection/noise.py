@@ -23,6 +23,8 @@ MAD_TO_SIGMA = 1.0 / 0.6744897501960817
 # the median of |x| over 4096 Gaussian samples has a relative standard error of about 2 %.
 ROBUST_SAMPLES = 4096
 ROBUST_SEGMENTS = 16
+# Least noise estimate (V): replaces an exactly zero one (sqrt of the smallest normal float).
+_TINY_SIGMA = float(np.finfo(float).tiny) ** 0.5
 
 
 def window_indices(
@@ -88,6 +90,7 @@ def noise_sigma(
     where: str = "record",
     floor_v: float = 0.0,
     offset_v: NDArray[np.float64] | None = None,
+    robust_v: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Noise standard deviation per row (V).
 
@@ -106,6 +109,9 @@ def noise_sigma(
         DC offset of each row still in ``rows`` (``Signals.dc_v``): subtracted from the samples
         the estimate uses (the robust estimate's few thousand, not the whole row), so the
         result is that of ``rows - offset_v``.
+    robust_v : ndarray, shape (n_rows,), optional
+        The robust estimate already measured for these rows (``inputs.Signals.noise_sigma_v``,
+        from ``inputs.robust_offsets``): used as it is, floored, when there is no noise window.
 
     Returns
     -------
@@ -115,10 +121,12 @@ def noise_sigma(
     if noise_window_s is not None:
         segment = rows[:, window_indices(noise_window_s, rows.shape[1], sample_rate_hz, t0_s, where)]
         sigma = segment.std(axis=1)  # the standard deviation ignores a constant offset
+    elif robust_v is not None:
+        sigma = np.asarray(robust_v, dtype=float).reshape(rows.shape[0])
     else:
         sample = robust_subsample(rows)
         if offset_v is not None:
             sample = sample - offset_v.reshape((-1,) + (1,) * (sample.ndim - 1))
         sigma = MAD_TO_SIGMA * row_median(np.abs(sample))
-    floor = max(np.finfo(float).tiny ** 0.5, float(floor_v))
+    floor = max(_TINY_SIGMA, float(floor_v))
     return np.maximum(sigma, floor)

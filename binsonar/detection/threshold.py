@@ -140,6 +140,7 @@ def detect_threshold(
     where: str = "record",
     noise_floor_v: float = 0.0,
     dc_v: NDArray[np.float64] | None = None,
+    robust_sigma_v: NDArray[np.float64] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """First threshold crossing of each row.
 
@@ -173,6 +174,9 @@ def detect_threshold(
         DC offset of each row still in ``rows`` (``Signals.dc_v``): folded into the
         comparisons (|x - dc| >= level, block by block) and the measurements, so the result is
         that of ``rows - dc_v`` without a copy of the record.
+    robust_sigma_v : ndarray, shape (n_rows,), optional
+        The rows' robust noise estimate, already measured (``inputs.Signals.noise_sigma_v``):
+        used instead of measuring it again when there is no ``noise_window_s``.
 
     Returns
     -------
@@ -183,7 +187,7 @@ def detect_threshold(
     """
     fs = sample_rate_hz
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
-                        floor_v=noise_floor_v, offset_v=dc_v)
+                        floor_v=noise_floor_v, offset_v=dc_v, robust_v=robust_sigma_v)
     offset = np.zeros(rows.shape[0]) if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
     if level_v is not None:
         if not (math.isfinite(level_v) and level_v > 0):
