@@ -72,6 +72,27 @@ def test_centre_visibility_changes_the_diffuse_energy_by_far_less_than_one_perce
         assert np.array_equal(exact.gain[exact.channel == 1], centre.gain[centre.channel == 1])
 
 
+def test_centre_visibility_hides_every_receiver_of_a_point_hidden_from_the_centre(tank):
+    # "centre" visibility shares the centre leg's answer: a point whose leg to the centre
+    # receiver is blocked (by a convex object's face planes or by Embree) has no reception on
+    # any channel. The centre transducer is the transmitter, so its first-bounce legs are the
+    # rays themselves (never blocked): second-bounce points on the tank's boundaries (which
+    # face every receiver in the water) are checked, against a brute-force Embree test.
+    events = trace_diffuse(tank, SolverConfig(diffuse_rays=20_000, diffuse_bounces=2, seed=6), threads=2,
+                           visibility="centre")
+    points = events.points_m
+    candidates = (events.bounce == 2) & (events.surface < len(tank.scene.boundaries))
+    blocked = candidates & tank.raycaster.occluded(points, np.broadcast_to(tank.receivers_m[1], points.shape))
+    heard = np.zeros(points.shape[0], dtype=bool)
+    heard[events.event] = True
+    assert blocked.sum() > 100
+    assert not np.any(heard & blocked)
+    # the others keep their side receptions
+    side = np.zeros(points.shape[0], dtype=bool)
+    side[events.event[events.channel != 1]] = True
+    assert np.any(side & candidates & ~blocked)
+
+
 def test_per_leg_screen_skips_only_clear_legs(tank):
     # The tracer screens each leg point -> receiver with the object boxes: a skipped leg must
     # be one Embree finds clear, for every receiver; both outcomes occur on the thesis tank

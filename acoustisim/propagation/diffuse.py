@@ -390,7 +390,7 @@ class ObjectScreen:
 
     def kernel_arguments(self) -> tuple[Any, ...]:
         """(mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset) for
-        :func:`~acoustisim.propagation.diffuse_kernels.next_event_pairs`: mode 0 when no leg can
+        :func:`~acoustisim.propagation.diffuse_kernels.scatter_and_pair`: mode 0 when no leg can
         be blocked, 1 to screen with the boxes and decide with the convex objects' planes, 2
         when every leg may be blocked (Embree tests each)."""
         p = self.planes
@@ -672,13 +672,27 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
             directions32 = _float32_rows(directions, None, m)
         origins32 = tracer.origins32[:m] if bounce == 0 else _float32_rows(origins, shift, m)
         triangle = raycaster.first_hit_triangles32(origins32, directions32)
-        points, normal, hit_departure = (np.empty((3, m)) for _ in range(3))
-        hit_weight, amplitude, hit_travelled, mu, phase = (np.empty(m) for _ in range(5))
+        keep = bounce + 1 < tracer.bounces  # the rays continue
+        points, hit_departure = np.empty((3, m)), np.empty((3, m))
+        normal = np.empty((3, m if keep else 0))  # written for continuing rays only
+        hit_weight, mu = np.empty(m if keep else 0), np.empty(m if keep else 0)
+        amplitude, hit_travelled, phase = (np.empty(m) for _ in range(3))
         hit_parent, surface = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
-        n_hits = kernels.scatter_hits(
+        # next-event estimation to every receiver; Embree tests the legs that may be blocked
+        # by a non-convex object
+        pairs = m * n_rx
+        state = np.empty(pairs, dtype=np.int8)
+        r2, cos_r2 = np.empty(pairs), np.empty(pairs)
+        leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
+        leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
+        mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset = tracer.screen
+        n_hits, n_legs, n_exact, count = kernels.scatter_and_pair(
             triangle, directions, origins, weight, travelled, parent, departure, tracer.mu, tracer.normal,
-            tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash, points, normal, hit_departure,
-            hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
+            tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash,
+            rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, plane_start, plane_normal,
+            plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep,
+            points, normal, hit_departure, hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
+            state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
         )
         if n_hits == 0:
             break
@@ -688,24 +702,11 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         ev["parent"].append(hit_parent[:n_hits])
         ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
         ev["departure"].append(departure)
-
-        # next-event estimation to every receiver; Embree tests the legs that may be blocked
-        pairs = n_hits * n_rx
-        state = np.empty(pairs, dtype=np.int8)
-        r2, cos_r2 = np.empty(pairs), np.empty(pairs)
-        leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
-        leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
-        mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset = tracer.screen
-        n_legs, n_exact = kernels.next_event_pairs(
-            points, normal, surface, n_hits, rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges,
-            plane_start,
-            plane_normal, plane_offset, shift, DEFAULT_EPS_M,
-            state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
-        )
         legs[0] += n_legs
         legs[1] += n_exact
-        blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
-        count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
+        if n_legs:
+            blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
+            count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
         pending.append(_Pending(n_hits, state, r2, cos_r2, points, amplitude, hit_travelled, phase, next_event, count))
         parent = next_event + np.arange(n_hits)
         next_event += n_hits

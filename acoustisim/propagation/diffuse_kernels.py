@@ -7,13 +7,14 @@ passes over temporary arrays, is compiled here:
 
 1. :func:`speckle_into`: the speckle factor frozen to each world position (a hash of the
    position's 1 mm cube and the seed);
-2. :func:`scatter_hits`: the rays that hit a scattering surface from its front, compacted,
+2. :func:`scatter_and_pair`: the rays that hit a scattering surface from its front, compacted,
    with the hit point solved on the triangle's plane in float64, the distance travelled and
-   the speckle amplitude |X| sqrt(mu dOmega);
-3. :func:`next_event_pairs`: for every hit and receiver, the leg's length and r2 sin(g_s),
-   whether the receiver is in front of the face, and the legs that need an Embree occlusion
-   query (near an object's box, see :class:`~acoustisim.propagation.diffuse.ObjectScreen`),
-   written as Embree's float32 buffers;
+   the speckle amplitude |X| sqrt(mu dOmega); then, for every hit and receiver, the leg's
+   length and r2 sin(g_s), whether the receiver is in front of the face, whether a convex
+   object blocks the leg (its face planes, :mod:`~acoustisim.propagation.convex_occlusion`),
+   and the legs left for an Embree occlusion query (crossing the box of a non-convex object,
+   see :class:`~acoustisim.propagation.diffuse.ObjectScreen`), written as Embree's float32
+   buffers;
 4. :func:`clear_blocked` and :func:`write_receptions`: the pairs left in view, point-major,
    with their path length, gain, phase and arrival direction, written straight into the
    tracer's output at their final place (the chunks are counted first).
@@ -155,17 +156,24 @@ def transmit_directions(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def scatter_hits(
+def scatter_and_pair(
     triangle: NDArray[np.int32], directions: NDArray[np.float64], origins: NDArray[np.float64],
     weight: NDArray[np.float64], travelled: NDArray[np.float64], parent: NDArray[np.int64],
     departure: NDArray[np.float64], tri_mu: NDArray[np.float64], tri_normal: NDArray[np.float64],
     tri_offset: NDArray[np.float64], tri_surface: NDArray[np.int64], cell: float, seed_hash: np.uint64,
+    receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
+    hi: NDArray[np.float64], own_box: NDArray[np.int64], wedges: NDArray[np.float64], plane_start: NDArray[np.int64],
+    plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64], shift: NDArray[np.float64], eps: float,
+    shared: bool, keep: bool,
     points: NDArray[np.float64], normal: NDArray[np.float64],
     out_departure: NDArray[np.float64], out_weight: NDArray[np.float64], amplitude: NDArray[np.float64],
     out_travelled: NDArray[np.float64], out_parent: NDArray[np.int64], surface: NDArray[np.int64],
     mu: NDArray[np.float64], phase: NDArray[np.float64],
-) -> int:
-    """Compact the rays that scatter and solve their hits.
+    state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
+    leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
+) -> tuple[int, int, int, int]:
+    """Compact the rays that scatter, solve their hits, and decide every (hit, receiver) pair:
+    its geometry, exact occlusion by the convex objects, and the legs Embree must test.
 
     Parameters
     ----------
@@ -184,50 +192,167 @@ def scatter_hits(
     tri_surface : ndarray of int64, shape (n_triangles,)
     cell, seed_hash
         As in :func:`speckle_into`.
+    receivers : ndarray, shape (n_rx, 3)
+    tested : ndarray of bool, shape (n_rx,)
+        Receivers whose legs are tested for occlusion.
+    screen : int
+        0: no leg can be blocked (no objects); 1: screen each leg with the boxes ``lo``, ``hi``
+        (k, 3) and decide it with the face planes of the convex objects (see below); 2: every
+        leg may be blocked (Embree tests it).
+    own_box : ndarray of int64, shape (n_surfaces,)
+        The box row skipped for a point on each surface (-1: none).
+    wedges : ndarray, shape (n_rx, k, 6)
+        Each receiver's wedges of the boxes
+        (:func:`~acoustisim.propagation.diffuse.receiver_wedges`).
+    plane_start, plane_normal, plane_offset
+        Face planes of the box rows (row b's are ``plane_start[b]:plane_start[b + 1]``, see
+        :class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes`).
+    shift : ndarray, shape (3,)
+        Subtracted from the leg starts (Embree's frame).
+    eps : float
+        Each leg is shrunk by ``eps`` (m) at both ends; shorter than 2 eps: never blocked.
+    shared : bool
+        One receiver's leg decides for all (``"centre"`` visibility): a leg blocked by a
+        convex object clears every pair of its point (Embree's answers are applied so by
+        :func:`clear_blocked`).
+    keep : bool
+        The rays continue (another bounce follows): write ``normal``, ``out_weight`` and ``mu``.
     points ... phase : outputs, first axis (or second for the (3, m) ones) of length >= m
         The kept rays' hit points, normals, departures, weights, |X| sqrt(mu weight), path
         lengths to the hit, parents, surfaces, mu and speckle phase.
+    state, r2, cos_r2 : outputs, shape (>= m n_rx,), point-major
+        Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
+        2 (leg queued for Embree); the leg length (m); r2 sin(g_s) (m).
+    leg_start, leg_unit : outputs of float32, shape (>= m n_rx, 3)
+    leg_length : output of float32, shape (>= m n_rx,)
+    leg_pair : output of int64, shape (>= m n_rx,)
+        The queued legs (Embree buffers) and their pair index.
+
+    With one box only (the union of too many objects to screen one by one), a leg crossing it
+    goes to Embree. Otherwise each object's box (rows 1:, skipping the convex object the point
+    lies on: a leg towards a receiver in front of the face cannot re-enter it) is tested: the
+    leg's direction against the box's wedge seen from the receiver, then the slab test; a leg
+    crossing the box of an object with face planes is decided exactly on the leg shrunk by
+    ``eps`` at both ends (:func:`~acoustisim.propagation.convex_occlusion.segment_crosses_convex`);
+    one crossing the box of any other object, unless a convex one blocks it, goes to Embree.
 
     Returns
     -------
-    int
+    (int, int, int, int)
         The number h of kept rays (a surface with mu > 0 hit from its front), written first
-        in the outputs, in ray order.
+        in the outputs, in ray order; the legs queued for Embree; the legs decided by the
+        convex objects' face planes; the pairs with their receiver in view (state > 0).
     """
-    shared = origins.shape[1] == 1
+    one_origin = origins.shape[1] == 1
+    n_rx = receivers.shape[0]
+    n_boxes = lo.shape[0]
+    n_legs = 0
+    n_exact = 0
+    in_view = 0
     h = 0
-    for i in range(triangle.size):
-        t = triangle[i]
+    for ray in range(triangle.size):
+        t = triangle[ray]
         if t < 0:
             continue
         m = tri_mu[t]
         if not m > 0.0:
             continue
         nx, ny, nz = tri_normal[0, t], tri_normal[1, t], tri_normal[2, t]
-        dx, dy, dz = directions[0, i], directions[1, i], directions[2, i]
+        dx, dy, dz = directions[0, ray], directions[1, ray], directions[2, ray]
         cos_in = dx * nx + dy * ny + dz * nz
         if not cos_in < 0.0:
             continue
-        j = 0 if shared else i
-        ox, oy, oz = origins[0, j], origins[1, j], origins[2, j]
+        o = 0 if one_origin else ray
+        ox, oy, oz = origins[0, o], origins[1, o], origins[2, o]
         # the hit on the triangle's plane, in float64 (Embree only chose the triangle)
         distance = (tri_offset[t] - (nx * ox + ny * oy + nz * oz)) / cos_in
         px, py, pz = ox + distance * dx, oy + distance * dy, oz + distance * dz
         points[0, h], points[1, h], points[2, h] = px, py, pz
-        normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
         out_departure[0, h], out_departure[1, h], out_departure[2, h] = (
-            departure[0, i], departure[1, i], departure[2, i])
-        w = weight[i]
-        out_weight[h] = w
+            departure[0, ray], departure[1, ray], departure[2, ray])
+        w = weight[ray]
         magnitude, angle = _speckle(px, py, pz, cell, seed_hash)
         phase[h] = angle
         amplitude[h] = magnitude * math.sqrt(w * m)
-        out_travelled[h] = (travelled[0] if travelled.size == 1 else travelled[i]) + distance
-        out_parent[h] = parent[i]
-        surface[h] = tri_surface[t]
-        mu[h] = m
+        out_travelled[h] = (travelled[0] if travelled.size == 1 else travelled[ray]) + distance
+        out_parent[h] = parent[ray]
+        s = tri_surface[t]
+        surface[h] = s
+        if keep:
+            normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
+            out_weight[h] = w
+            mu[h] = m
+        # next-event estimation to every receiver
+        i = h
+        own = own_box[s]
+        hidden = False  # a leg of this point blocked by a convex object
+        for j in range(n_rx):
+            pair = i * n_rx + j
+            qx, qy, qz = receivers[j, 0], receivers[j, 1], receivers[j, 2]
+            dx, dy, dz = qx - px, qy - py, qz - pz
+            length = math.sqrt(dx * dx + dy * dy + dz * dz)
+            c = dx * nx + dy * ny + dz * nz
+            r2[pair] = length
+            cos_r2[pair] = c
+            if not c > 0.0:
+                state[pair] = 0
+                continue
+            state[pair] = 1
+            in_view += 1
+            if not tested[j] or screen == 0 or not length > 2.0 * eps:
+                continue
+            if screen == 1:
+                # 0: clear (no box crossed); 1: blocked by a convex object; 2: Embree must test
+                # it; 3: clear, found so by the planes of the convex objects whose boxes it crosses
+                verdict = 0
+                if n_boxes == 1:  # the union of too many objects only
+                    if _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[0, 0], lo[0, 1], lo[0, 2], hi[0, 0],
+                             hi[0, 1], hi[0, 2]):  # +-inf for a zero component
+                        verdict = 2
+                for b in range(1, n_boxes):
+                    if b == own:
+                        continue
+                    if wedges[j, b, 4] == 0.0 and not _in_wedge(wedges[j, b, 5], wedges[j, b, 0], wedges[j, b, 1],
+                                                                  wedges[j, b, 2], wedges[j, b, 3], -dx, -dy, -dz):
+                        continue
+                    if not _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[b, 0], lo[b, 1], lo[b, 2], hi[b, 0],
+                                 hi[b, 1], hi[b, 2]):
+                        continue
+                    first, last = plane_start[b], plane_start[b + 1]
+                    if first == last:
+                        verdict = 2
+                    elif segment_crosses_convex(px, py, pz, dx / length, dy / length, dz / length, eps,
+                                                length - eps, plane_normal, plane_offset, first, last):
+                        verdict = 1
+                        break
+                    elif verdict == 0:
+                        verdict = 3
+                if verdict == 0:
+                    continue
+                if verdict != 2:  # decided by the convex objects' planes
+                    n_exact += 1
+                    if verdict == 1:
+                        state[pair] = 0
+                        in_view -= 1
+                        hidden = True
+                    continue
+            state[pair] = 2
+            inverse = 1.0 / length
+            ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
+            leg_start[n_legs, 0] = px + eps * ux - shift[0]
+            leg_start[n_legs, 1] = py + eps * uy - shift[1]
+            leg_start[n_legs, 2] = pz + eps * uz - shift[2]
+            leg_unit[n_legs, 0], leg_unit[n_legs, 1], leg_unit[n_legs, 2] = ux, uy, uz
+            leg_length[n_legs] = length - 2.0 * eps
+            leg_pair[n_legs] = pair
+            n_legs += 1
+        if shared and hidden:
+            for j in range(n_rx):
+                if state[i * n_rx + j] != 0:
+                    state[i * n_rx + j] = 0
+                    in_view -= 1
         h += 1
-    return h
+    return h, n_legs, n_exact, in_view
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -310,135 +435,6 @@ def _in_wedge(axis: float, ru: float, rv: float, lu: float, lv: float, ex: float
     else:
         du, dv = ex, ey
     return ru * dv - rv * du >= 0.0 and du * lv - dv * lu >= 0.0
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def next_event_pairs(
-    points: NDArray[np.float64], normal: NDArray[np.float64], surface: NDArray[np.int64], h: int,
-    receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
-    hi: NDArray[np.float64], own_box: NDArray[np.int64], wedges: NDArray[np.float64], plane_start: NDArray[np.int64],
-    plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64], shift: NDArray[np.float64], eps: float,
-    state: NDArray[np.int8],
-    r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
-    leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
-) -> tuple[int, int]:
-    """Geometry of every (hit, receiver) pair, exact occlusion by the convex objects, and the
-    legs Embree must test.
-
-    Parameters
-    ----------
-    points, normal : ndarray, shape (3, >= h)
-        Scattering points (m) and unit normals; the first ``h`` are used.
-    surface : ndarray of int64, shape (>= h,)
-        The surface of each point: its box ``own_box[surface]`` (a convex object's) is skipped
-        by the screen (a leg towards a receiver in front of the face cannot re-enter it).
-    receivers : ndarray, shape (n_rx, 3)
-    tested : ndarray of bool, shape (n_rx,)
-        Receivers whose legs are tested for occlusion.
-    screen : int
-        0: no leg can be blocked (no objects); 1: screen each leg with the boxes ``lo``, ``hi``
-        (k, 3) and decide it with the face planes of the convex objects (see below); 2: every
-        leg may be blocked (Embree tests it).
-    own_box : ndarray of int64, shape (n_surfaces,)
-        The box row skipped for a point on each surface (-1: none).
-    wedges : ndarray, shape (n_rx, k, 6)
-        Each receiver's wedges of the boxes
-        (:func:`~acoustisim.propagation.diffuse.receiver_wedges`).
-    plane_start, plane_normal, plane_offset
-        Face planes of the box rows (row b's are ``plane_start[b]:plane_start[b + 1]``, see
-        :class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes`).
-
-    With one box only (the union of too many objects to screen one by one), a leg crossing it
-    goes to Embree. Otherwise each object's box (rows 1:, skipping the convex object the point
-    lies on: a leg towards a receiver in front of the face cannot re-enter it) is tested: the
-    leg's direction against the box's wedge seen from the receiver, then the slab test; a leg
-    crossing the box of an object with face planes is decided exactly on the leg shrunk by
-    ``eps`` at both ends (:func:`~acoustisim.propagation.convex_occlusion.segment_crosses_convex`);
-    one crossing the box of any other object, unless a convex one blocks it, goes to Embree.
-    shift : ndarray, shape (3,)
-        Subtracted from the leg starts (Embree's frame).
-    eps : float
-        Each leg is shrunk by ``eps`` (m) at both ends; shorter than 2 eps: never blocked.
-    state, r2, cos_r2 : outputs, shape (>= h n_rx,), point-major
-        Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
-        2 (leg queued for Embree); the leg length (m); r2 sin(g_s) (m).
-    leg_start, leg_unit : outputs of float32, shape (>= h n_rx, 3)
-    leg_length : output of float32, shape (>= h n_rx,)
-    leg_pair : output of int64, shape (>= h n_rx,)
-        The queued legs (Embree buffers) and their pair index.
-
-    Returns
-    -------
-    (int, int)
-        The number of legs queued for Embree, and of legs decided by the convex objects' face
-        planes (crossing a convex object's box, no other).
-    """
-    n_rx = receivers.shape[0]
-    n_boxes = lo.shape[0]
-    n_legs = 0
-    n_exact = 0
-    for i in range(h):
-        px, py, pz = points[0, i], points[1, i], points[2, i]
-        nx, ny, nz = normal[0, i], normal[1, i], normal[2, i]
-        own = own_box[surface[i]]
-        for j in range(n_rx):
-            pair = i * n_rx + j
-            qx, qy, qz = receivers[j, 0], receivers[j, 1], receivers[j, 2]
-            dx, dy, dz = qx - px, qy - py, qz - pz
-            length = math.sqrt(dx * dx + dy * dy + dz * dz)
-            c = dx * nx + dy * ny + dz * nz
-            r2[pair] = length
-            cos_r2[pair] = c
-            if not c > 0.0:
-                state[pair] = 0
-                continue
-            state[pair] = 1
-            if not tested[j] or screen == 0 or not length > 2.0 * eps:
-                continue
-            if screen == 1:
-                # 0: clear (no box crossed); 1: blocked by a convex object; 2: Embree must test
-                # it; 3: clear, found so by the planes of the convex objects whose boxes it crosses
-                verdict = 0
-                if n_boxes == 1:  # the union of too many objects only
-                    if _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[0, 0], lo[0, 1], lo[0, 2], hi[0, 0],
-                             hi[0, 1], hi[0, 2]):  # +-inf for a zero component
-                        verdict = 2
-                for b in range(1, n_boxes):
-                    if b == own:
-                        continue
-                    if wedges[j, b, 4] == 0.0 and not _in_wedge(wedges[j, b, 5], wedges[j, b, 0], wedges[j, b, 1],
-                                                                  wedges[j, b, 2], wedges[j, b, 3], -dx, -dy, -dz):
-                        continue
-                    if not _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[b, 0], lo[b, 1], lo[b, 2], hi[b, 0],
-                                 hi[b, 1], hi[b, 2]):
-                        continue
-                    first, last = plane_start[b], plane_start[b + 1]
-                    if first == last:
-                        verdict = 2
-                    elif segment_crosses_convex(px, py, pz, dx / length, dy / length, dz / length, eps,
-                                                length - eps, plane_normal, plane_offset, first, last):
-                        verdict = 1
-                        break
-                    elif verdict == 0:
-                        verdict = 3
-                if verdict == 0:
-                    continue
-                if verdict != 2:  # decided by the convex objects' planes
-                    n_exact += 1
-                    if verdict == 1:
-                        state[pair] = 0
-                    continue
-            state[pair] = 2
-            inverse = 1.0 / length
-            ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
-            leg_start[n_legs, 0] = px + eps * ux - shift[0]
-            leg_start[n_legs, 1] = py + eps * uy - shift[1]
-            leg_start[n_legs, 2] = pz + eps * uz - shift[2]
-            leg_unit[n_legs, 0], leg_unit[n_legs, 1], leg_unit[n_legs, 2] = ux, uy, uz
-            leg_length[n_legs] = length - 2.0 * eps
-            leg_pair[n_legs] = pair
-            n_legs += 1
-    return n_legs, n_exact
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -614,6 +610,6 @@ __all__ = [
     "guide_table",
     "pack_rows",
     "place_events",
-    "clear_blocked", "near_points", "next_event_pairs", "scatter_hits", "speckle_into", "splitmix64",
+    "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64",
     "transmit_directions", "write_receptions",
 ]
