@@ -19,38 +19,9 @@ import pytest
 from acoustisim.datasets.generate import generate
 from acoustisim.datasets.spec import loads_spec
 from acoustisim.datasets.store import SAMPLE_ARRAYS, DatasetStore
+from dataset_specs import small_spec
 
-SPEC = """
-[dataset]
-name = "tiny-dask"
-n_samples = 16
-seed = 5
-max_arrivals = 48
-[sonar]
-x_m = [0.8, 1.2]
-y_m = [1.2, 1.8]
-yaw_deg = [-10.0, 10.0]
-record_length_s = 0.002
-[snr]
-snr_db = [10.0, 30.0]
-[solver]
-max_order = 1
-mechanisms = ["direct", "specular"]
-diffuse_rays = 0
-amplitude_floor_db = -60.0
-[placement]
-min_range_m = 0.3
-max_range_m = 1.2
-half_angle_deg = 15.0
-[[objects]]
-kind = "sphere"
-count = [1, 2]
-radius_m = [0.02, 0.05]
-[[objects]]
-kind = "post"
-count = [0, 1]
-radius_m = [0.01, 0.03]
-"""
+SPEC = small_spec(name="tiny-dask", n_samples=16, seed=5)
 
 
 @pytest.fixture(scope="module")
@@ -87,6 +58,9 @@ def test_two_workers_give_the_same_arrays_as_one(client, reference: Path, tmp_pa
     out = tmp_path / "two.zarr"
     report = generate(loads_spec(SPEC), out, client=client, progress=False)
     assert report.workers == 2 and report.n_generated == 16
+    # 4 chunks: 2 chunk tasks, then 2 chunks split into 4 sample tasks and a write each.
+    assert len(report.task_cpu_list_s) == 2 + 2 * 5
+    assert sum(busy["n_samples"] for busy in report.worker_busy_s.values()) == 16
     assert_same_samples(reference, out)
 
 
@@ -148,24 +122,37 @@ def test_cli_local_cluster_one_and_two_workers_identical(reference: Path, tmp_pa
         assert_same_samples(reference, out)
 
 
-def test_a_failing_task_on_a_worker_stops_the_run_naming_its_samples(client, tmp_path: Path) -> None:
+@pytest.mark.parametrize("n_workers", [1, 2])  # 1: a chunk task; 2: the chunk split into sample tasks + a write
+def test_a_failing_task_on_a_worker_stops_the_run_naming_its_samples(client, tmp_path: Path, n_workers: int) -> None:
     """A task that fails on a worker (here: labels outside the vocabulary) is reported with
     its samples, and nothing of its chunk is recorded complete."""
     import dataclasses
 
-    from acoustisim.datasets.generate import _run_on_client, _Tally, open_or_create
+    from acoustisim.datasets.generate import _run_on_client, _Tally, open_or_create, split_tail
     from acoustisim.datasets.labels import vocabularies
 
     spec = loads_spec(SPEC)
     vocab = vocabularies(spec)
     store = open_or_create(spec, tmp_path / "fail.zarr", vocab)
     chunks = store.chunks_to_do()[:1]
+    assert split_tail(len(chunks), n_workers) == n_workers - 1
     bad = dataclasses.replace(vocab, classes=("nothing",))
 
     class Bar:
         def update(self, n: int) -> None:
             pass
 
-    with pytest.raises(RuntimeError, match=r"^task of samples 0-3 failed: RuntimeError: sample 0: ValueError"):
-        _run_on_client(client, spec, chunks, store.writer(), bad, _Tally(Bar()), 2)
+    # Every sample fails; a split chunk reports the first of its sample tasks to fail.
+    match = r"^task of samples 0-3 failed: RuntimeError: sample [0-3]: ValueError"
+    with pytest.raises(RuntimeError, match=match):
+        _run_on_client(client, spec, chunks, store.writer(), bad, _Tally(Bar()), n_workers)
     assert not store.complete_mask().any()
+    assert not (tmp_path / "fail.zarr" / "waveforms" / "c").exists()
+
+
+@pytest.mark.parametrize(("n_chunks", "n_workers", "expected"), [(10, 1, 0), (10, 2, 2), (1, 2, 1), (10, 4, 4)])
+def test_only_the_last_chunks_are_split_and_only_with_several_workers(n_chunks: int, n_workers: int,
+                                                                      expected: int) -> None:
+    from acoustisim.datasets.generate import split_tail
+
+    assert split_tail(n_chunks, n_workers) == expected

@@ -12,41 +12,9 @@ from acoustisim.datasets.generate import generate, simulate_sample
 from acoustisim.datasets.sampling import draw_sample
 from acoustisim.datasets.spec import loads_spec
 from acoustisim.datasets.store import ARRIVAL_FIELDS, OBJECT_FIELDS, SAMPLE_FIELDS, DatasetStore
+from dataset_specs import small_spec
 
-SPEC = """
-[dataset]
-name = "tiny"
-n_samples = 5
-seed = 11
-max_arrivals = 48
-samples_per_chunk = 2    # chunks [0, 1], [2, 3], [4]: a short last chunk too
-[sonar]
-x_m = [0.8, 1.2]
-y_m = [1.2, 1.8]
-yaw_deg = [-10.0, 10.0]
-record_length_s = 0.002
-[snr]
-snr_db = [10.0, 30.0]
-[solver]
-max_order = 1
-mechanisms = ["direct", "specular"]
-diffuse_rays = 0
-amplitude_floor_db = -60.0
-[placement]
-min_range_m = 0.3
-max_range_m = 1.2
-half_angle_deg = 15.0
-[[objects]]
-kind = "sphere"
-class = "ball"
-count = [1, 2]
-radius_m = [0.02, 0.05]
-materials = ["steel", "aluminium"]
-[[objects]]
-kind = "post"
-count = [0, 1]
-radius_m = [0.01, 0.03]
-"""
+SPEC = small_spec(name="tiny", n_samples=5, seed=11, samples_per_chunk=2)  # chunks [0, 1], [2, 3], [4]: a short last chunk too
 
 
 @pytest.fixture(scope="module")

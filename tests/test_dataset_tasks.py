@@ -12,29 +12,9 @@ from acoustisim.datasets.labels import vocabularies
 from acoustisim.datasets.sampling import plan_samples
 from acoustisim.datasets.spec import loads_spec
 from acoustisim.datasets.store import DatasetStore, StoreShape
+from dataset_specs import small_spec
 
-SPEC = """
-[dataset]
-name = "tiny-tasks"
-n_samples = 3
-samples_per_chunk = 2
-seed = 11
-max_arrivals = 16
-[sonar]
-record_length_s = 0.001
-[solver]
-max_order = 1
-mechanisms = ["direct", "specular"]
-diffuse_rays = 0
-[placement]
-min_range_m = 0.3
-max_range_m = 0.7
-half_angle_deg = 10.0
-[[objects]]
-kind = "sphere"
-count = 1
-radius_m = [0.02, 0.05]
-"""
+SPEC = small_spec(name="tiny-tasks", n_samples=3, seed=11, samples_per_chunk=2)
 
 
 @pytest.mark.parametrize(("n", "chunk", "index", "expected"), [

@@ -38,12 +38,13 @@ from typing import Any
 import numpy as np
 
 from acoustisim.datasets.labels import Vocabularies, sample_arrays, vocabularies
-from acoustisim.datasets.sampling import SampleDescription, build_scene, plan_samples
+from acoustisim.datasets.sampling import SampleDescription, build_scene, draw_sample, plan_samples
 from acoustisim.datasets.spec import DatasetSpec, SpecError
 from acoustisim.datasets.store import (
     LAYOUT_VERSION,
     SAMPLE_FIELDS,
     ChunkWriter,
+    SampleArrays,
     DatasetStore,
     DatasetStoreError,
     StoreShape,
@@ -57,8 +58,49 @@ completion in the store themselves: the results only feed the run's report."""
 
 
 @dataclass(frozen=True)
+class TaskCost:
+    """CPU and wall time of one task, and the process that ran it.
+
+    Attributes
+    ----------
+    cpu_s : float
+        CPU time (s) of the process during the task (all its threads: Embree's, Zarr's I/O).
+    elapsed_s : float
+        Wall time (s) of the task.
+    worker : int
+        Process id.
+    """
+
+    cpu_s: float
+    elapsed_s: float
+    worker: int
+
+
+@dataclass(frozen=True)
+class SampleResult:
+    """One simulated sample: its rows for the store and its costs (what a sample task returns).
+
+    Attributes
+    ----------
+    arrays : SampleArrays
+    simulate_cpu_s : float
+        CPU time (s) of the process while it built and simulated the sample (the plain
+        simulator's cost, helper threads such as Embree's included: the reference of the
+        overhead figures of ``benchmarks/bench_dataset.py``). A worker runs one task at a
+        time, so the only other CPU in that interval is the Dask worker's idle background
+        (about 0.3 % of a core, measured).
+    cost : TaskCost
+        The whole task: simulate and labels.
+    """
+
+    arrays: SampleArrays
+    simulate_cpu_s: float
+    cost: TaskCost
+
+
+@dataclass(frozen=True)
 class ChunkResult:
-    """What a task returns: the chunk it wrote, its checksums and its costs.
+    """What making one chunk returns: the chunk it wrote, its checksums and its costs.
 
     Attributes
     ----------
@@ -67,18 +109,17 @@ class ChunkResult:
     checksums : tuple of int
         One per sample of the chunk, in order.
     simulate_cpu_s : float
-        CPU time (s) of the worker process while it built and simulated the samples (the plain
-        simulator's cost, helper threads such as Embree's included: the reference of the
-        overhead figures of ``benchmarks/bench_dataset.py``). A worker runs one task at a
-        time and writes synchronously, so the only other CPU in that interval is the Dask
-        worker's idle background (about 0.3 % of a core, measured).
+        Sum of the samples' :attr:`SampleResult.simulate_cpu_s`.
     task_cpu_s : float
-        CPU time (s) of the worker process during the whole task: simulate, labels,
-        checksums and the Zarr writes (with Zarr's I/O threads).
+        CPU time (s) of the whole chunk: simulate, labels, checksums and the Zarr writes
+        (with Zarr's I/O threads).
     elapsed_s : float
-        Wall time (s) of the task.
+        Wall time (s) of its tasks, summed.
     worker : int
-        Process id of the worker that ran it.
+        Process id of the worker that wrote the chunk.
+    costs : tuple of TaskCost
+        Each task of the chunk, in the order they were submitted: one (simulate and write)
+        or, for a chunk split into sample tasks, one per sample and then the write.
     """
 
     start: int
@@ -87,6 +128,7 @@ class ChunkResult:
     task_cpu_s: float
     elapsed_s: float
     worker: int
+    costs: tuple[TaskCost, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -141,7 +183,8 @@ class GenerateReport:
     driver_cpu_s: float = 0.0
     worker_busy_s: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
     task_cpu_list_s: tuple[float, ...] = ()
-    """Each task's CPU time (s), in the order the tasks were submitted."""
+    """Each task's CPU time (s), in the order the tasks were submitted (a split chunk's sample
+    tasks, then its write)."""
 
     def as_dict(self) -> dict[str, Any]:
         """The report as JSON-ready values (without the per-task list)."""
@@ -232,9 +275,49 @@ def simulate_sample(spec: DatasetSpec, sample: SampleDescription) -> tuple[Any, 
         return scene, simulate(scene, **options), SNR_NOT_SET
 
 
+def simulate_rows(spec: DatasetSpec, sample: SampleDescription, vocab: Vocabularies) -> SampleResult:
+    """Simulate one drawn sample and turn it into its rows for the store.
+
+    Raises
+    ------
+    RuntimeError
+        Naming the sample, whatever failed.
+    """
+    import os
+
+    start, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        scene, simulation, snr_reference = simulate_sample(spec, sample)
+        simulate_cpu = time.process_time() - cpu_start
+        arrays = sample_arrays(spec, sample, scene, simulation, vocab, snr_reference)
+    except Exception as exc:
+        raise RuntimeError(f"sample {sample.index}: {type(exc).__name__}: {exc}") from exc
+    cost = TaskCost(time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
+    return SampleResult(arrays, simulate_cpu, cost)
+
+
+def make_sample(spec: DatasetSpec, index: int, vocab: Vocabularies) -> SampleResult:
+    """The Dask task of one sample of a split chunk: draw sample ``index`` again from its own
+    seed (the same as the driver's plan, by construction) and :func:`simulate_rows` it."""
+    return simulate_rows(spec, draw_sample(spec, index), vocab)
+
+
+def write_chunk(writer: ChunkWriter, results: list[SampleResult]) -> ChunkResult:
+    """Write one chunk's simulated samples (data, then checksums, then completion flags)."""
+    import os
+
+    start, cpu_start = time.perf_counter(), time.process_time()
+    checksums = writer.write_chunk([r.arrays for r in results])
+    own = TaskCost(time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
+    costs = tuple(r.cost for r in results) + (own,)
+    return ChunkResult(results[0].arrays.index, tuple(int(c) for c in checksums),
+                       sum(r.simulate_cpu_s for r in results), sum(c.cpu_s for c in costs),
+                       sum(c.elapsed_s for c in costs), own.worker, costs)
+
+
 def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: ChunkWriter,
                vocab: Vocabularies) -> ChunkResult:
-    """The task: simulate the samples of one chunk, write the chunk, return its checksums.
+    """Simulate the samples of one chunk, write the chunk, return its checksums (one task).
 
     Parameters
     ----------
@@ -252,25 +335,16 @@ def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: Chun
     import os
 
     start, cpu_start = time.perf_counter(), time.process_time()
-    simulate_cpu = 0.0
-    rows = []
-    for sample in samples:
-        try:
-            c0 = time.process_time()
-            scene, simulation, snr_reference = simulate_sample(spec, sample)
-            simulate_cpu += time.process_time() - c0
-            rows.append(sample_arrays(spec, sample, scene, simulation, vocab, snr_reference))
-        except Exception as exc:
-            raise RuntimeError(f"sample {sample.index}: {type(exc).__name__}: {exc}") from exc
-    del scene, simulation  # the chunk's arrays are all that is kept while writing
-    checksums = writer.write_chunk(rows)
-    return ChunkResult(samples[0].index, tuple(int(c) for c in checksums), simulate_cpu,
-                       time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
+    results = [simulate_rows(spec, sample, vocab) for sample in samples]
+    result = write_chunk(writer, results)
+    # One task: its cost is the whole of it, not the sum of its parts.
+    cost = TaskCost(time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
+    return dataclasses.replace(result, task_cpu_s=cost.cpu_s, elapsed_s=cost.elapsed_s, costs=(cost,))
 
 
 def make_chunk_range(spec: DatasetSpec, start: int, stop: int, writer: ChunkWriter, vocab: Vocabularies) -> ChunkResult:
-    """The Dask task: draw samples ``start`` to ``stop - 1`` again from their own seeds (the
-    same as the driver's plan, by construction) and run :func:`make_chunk` on them.
+    """The Dask task of one chunk: draw samples ``start`` to ``stop - 1`` again from their own
+    seeds (the same as the driver's plan, by construction) and run :func:`make_chunk` on them.
 
     The task's arguments are then two integers besides the scattered spec, writer and
     vocabularies: nothing per sample goes through the scheduler. (Shipping the drawn samples
@@ -366,20 +440,29 @@ class _Tally:
         self.simulate_cpu_s = 0.0
         self.task_cpu_s = 0.0
         self.by_worker: dict[str, dict[str, float]] = {}
-        self.task_cpu: dict[int, float] = {}
+        self.task_cpu: dict[int, tuple[float, ...]] = {}
 
-    def add(self, result: ChunkResult, worker: str, *, update_bar: bool = True) -> None:
+    def add(self, result: ChunkResult, worker: str | None = None, *, update_bar: bool = True) -> None:
+        """Count a chunk; its tasks' costs go to the worker that ran each (all to ``worker`` if given)."""
         n = len(result.checksums)
         self.n_samples += n
         self.simulate_cpu_s += result.simulate_cpu_s
         self.task_cpu_s += result.task_cpu_s
-        self.task_cpu[result.start] = result.task_cpu_s
-        busy = self.by_worker.setdefault(worker, {"task_cpu_s": 0.0, "elapsed_s": 0.0, "n_samples": 0})
-        busy["task_cpu_s"] += result.task_cpu_s
-        busy["elapsed_s"] += result.elapsed_s
-        busy["n_samples"] += n
+        self.task_cpu[result.start] = tuple(c.cpu_s for c in result.costs)
+        # A split chunk's samples count for the workers that simulated them; a chunk task's for its worker.
+        simulated_by = [c.worker for c in result.costs[:n]] if len(result.costs) > n else [result.worker] * n
+        for cost in result.costs:
+            self._busy(worker or str(cost.worker), cost.cpu_s, cost.elapsed_s, 0)
+        for pid in simulated_by:
+            self._busy(worker or str(pid), 0.0, 0.0, 1)
         if update_bar:
             self.bar.update(n)
+
+    def _busy(self, worker: str, cpu_s: float, elapsed_s: float, n_samples: int) -> None:
+        busy = self.by_worker.setdefault(worker, {"task_cpu_s": 0.0, "elapsed_s": 0.0, "n_samples": 0})
+        busy["task_cpu_s"] += cpu_s
+        busy["elapsed_s"] += elapsed_s
+        busy["n_samples"] += n_samples
 
 
 def _run_in_process(spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
@@ -388,12 +471,28 @@ def _run_in_process(spec: DatasetSpec, chunks: list[tuple[int, int]], writer: Ch
         tally.add(make_chunk_range(spec, start, stop, writer, vocab), "in-process")
 
 
+def split_tail(n_chunks: int, n_workers: int) -> int:
+    """How many of the last chunks run as one task per sample (plus one writing the chunk).
+
+    A chunk task is the unit of work, so the run ends when the worker with the most chunk
+    work left finishes: with few chunks per worker the others wait for up to a chunk's time
+    (24 default-spec samples, 6 chunks of 4 on 2 workers: at best 1.89x one worker, from the
+    measured CPU time of each sample). Splitting the last ``n_workers`` chunks into sample
+    tasks brings the imbalance down to about one sample (1.93x for those 24 samples, 2.00x
+    for 48) at the cost of the extra tasks (~15 ms of driver CPU a split chunk, measured), so
+    only the tail is split. One worker has no imbalance: nothing is split.
+    """
+    return 0 if n_workers < 2 else min(n_chunks, n_workers)
+
+
 def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
                    vocab: Vocabularies, tally: _Tally, n_workers: int) -> None:
     """Run the tasks of ``chunks`` (``(start, stop)`` sample ranges), at most ``2 x n_workers``
-    in flight; each future is released as soon as it has finished and its result is counted.
+    chunks in flight; each future is released as soon as it has finished and its result is
+    counted. The last :func:`split_tail` chunks run as one task per sample and one writing
+    the chunk.
 
-    The scheduler then holds at most ``2 x n_workers`` tasks, and everything it logs per task
+    The scheduler then holds a few tasks per worker, and everything it logs per task
     (transitions, messages to the workers, one event per submit: all bounded deques of
     ``distributed.admin.low-level-log-length`` entries) is a few hundred bytes: the driver's
     memory does not grow with the number of samples.
@@ -403,24 +502,33 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]]
     # hash=False: keys unique to this run, so that the release of a previous run's scattered
     # copies (same content, same hashed key) cannot race with this run's scatter.
     spec_f, writer_f, vocab_f = client.scatter([spec, writer, vocab], broadcast=True, hash=False)
-    window = 2 * max(n_workers, 1)  # one task running and one queued per worker
-    queue = iter(chunks)
+    window = 2 * max(n_workers, 1)  # about one chunk running and one queued per worker
+    first_split = len(chunks) - split_tail(len(chunks), n_workers)
+    queue = iter(enumerate(chunks))
     futures = as_completed()
     range_of: dict[str, tuple[int, int]] = {}
 
     def submit_next() -> None:
-        chunk = next(queue, None)
-        if chunk is not None:
-            start, stop = chunk
+        k, chunk = next(queue, (None, None))
+        if chunk is None:
+            return
+        start, stop = chunk
+        stamp = time.monotonic_ns()
+        if k < first_split:
             future = client.submit(make_chunk_range, spec_f, start, stop, writer_f, vocab_f, pure=False,
-                                   key=f"dataset-chunk-{start}-{time.monotonic_ns()}")
-            range_of[future.key] = chunk
-            futures.add(future)
+                                   key=f"dataset-chunk-{start}-{stamp}")
+        else:
+            samples = client.map(make_sample, [spec_f] * (stop - start), range(start, stop), [vocab_f] * (stop - start),
+                                 pure=False, key=[f"dataset-sample-{i}-{stamp}" for i in range(start, stop)])
+            future = client.submit(write_chunk, writer_f, samples, pure=False, key=f"dataset-write-{start}-{stamp}")
+            del samples  # the scheduler keeps them until the write has run, then forgets them
+        range_of[future.key] = chunk
+        futures.add(future)
 
     def collect(finished: list[Any]) -> None:
         # One gather for several small results: a fetch per task costs the driver more CPU.
         for result in client.gather(finished):
-            tally.add(result, str(result.worker), update_bar=False)
+            tally.add(result, update_bar=False)
         for future in finished:
             future.release()
         finished.clear()
@@ -609,9 +717,9 @@ def generate(
         task_cpu_s=tally.task_cpu_s,
         driver_cpu_s=driver_cpu,
         worker_busy_s=tally.by_worker,
-        task_cpu_list_s=tuple(tally.task_cpu[start] for start in sorted(tally.task_cpu)),
+        task_cpu_list_s=tuple(cpu for start in sorted(tally.task_cpu) for cpu in tally.task_cpu[start]),
     )
 
 
-__all__ = ["ChunkResult", "GenerateReport", "SpecError", "code_version", "generate", "make_chunk", "make_chunk_range",
-           "simulate_sample"]
+__all__ = ["ChunkResult", "GenerateReport", "SampleResult", "SpecError", "TaskCost", "code_version", "generate",
+           "make_chunk", "make_chunk_range", "make_sample", "simulate_rows", "simulate_sample", "split_tail", "write_chunk"]
