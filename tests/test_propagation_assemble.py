@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from acoustisim.propagation import SolverConfig, prepare
-from acoustisim.propagation.assemble import assemble_rows, compact_records, scatter_records
+from acoustisim.propagation.assemble import assemble_rows, compact_records, permute_records, scatter_records
 from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import diffuse_paths
@@ -60,8 +60,8 @@ def test_ties_keep_the_parts_order(parts):
     first = pieces[1][:5].copy()
     second = first.copy()
     second["path_id"] += 1000
-    got = assemble_rows([first, second], context, None)
     expected = _reference([first, second], context, None)
+    got = assemble_rows([first, second], context, None)  # takes the parts over
     assert got.tobytes() == expected.tobytes()
     assert np.any(np.diff(got["path_id"]) != 0)
 
@@ -86,3 +86,14 @@ def test_record_kernels():
     compact_records(records, kept)
     np.testing.assert_array_equal(records[:3], source[kept])
     np.testing.assert_array_equal(records[3:], source[3:])  # untouched beyond the kept ones
+
+
+def test_permute_records_is_the_scatter():
+    rng = np.random.default_rng(2)
+    for n in (1, 2, 7, 500):
+        records = rng.integers(0, 255, (n, 9), dtype=np.uint8)
+        destination = rng.permutation(n).astype(np.int64)
+        expected = np.empty_like(records)
+        expected[destination] = records
+        permute_records(records, destination)
+        np.testing.assert_array_equal(records, expected)

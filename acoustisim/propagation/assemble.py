@@ -67,9 +67,70 @@ def compact_records(records: NDArray[np.uint8], kept: NDArray[np.int64]) -> None
                 records[r, b] = records[i, b]
 
 
+@njit(cache=True, nogil=True)
+def permute_records(records: NDArray[np.uint8], destination: NDArray[np.int64]) -> None:
+    """Move record i to ``destination[i]`` for every i, in place (a permutation; one cycle at a
+    time, each record copied through a one-record buffer).
+
+    Parameters
+    ----------
+    records : ndarray of uint8, shape (n, itemsize)
+    destination : ndarray of int64, shape (n,)
+        A permutation of 0 .. n-1.
+    """
+    n, width = records.shape
+    done = np.zeros(n, dtype=np.bool_)
+    held = np.empty(width, dtype=np.uint8)
+    spare = np.empty(width, dtype=np.uint8)
+    for start in range(n):
+        if done[start]:
+            continue
+        done[start] = True
+        target = destination[start]
+        if target == start:
+            continue
+        for b in range(width):
+            held[b] = records[start, b]
+        while True:
+            done[target] = True
+            if target == start:
+                for b in range(width):
+                    records[start, b] = held[b]
+                break
+            for b in range(width):
+                spare[b] = records[target, b]
+                records[target, b] = held[b]
+            held, spare = spare, held
+            target = destination[target]
+
+
 def _bytes(rows: NDArray[Any]) -> NDArray[np.uint8]:
     """A C-contiguous PATH_DTYPE array's records as rows of raw bytes (a view)."""
     return rows.view(np.uint8).reshape(rows.size, PATH_DTYPE.itemsize)
+
+
+def _sorted_in_place(parts: list[NDArray[Any]], destination: NDArray[np.int64]) -> NDArray[Any] | None:
+    """The rows sorted in the largest part's own buffer, grown in place (``ndarray.resize``:
+    realloc, which keeps the pages of a large buffer), or None when that part's buffer cannot
+    be taken over (not owned, a view, read-only)."""
+    host = max(range(len(parts)), key=lambda i: parts[i].size)
+    rows = parts[host]
+    if not (rows.flags.owndata and rows.base is None and rows.flags.writeable and rows.flags.c_contiguous):
+        return None
+    offsets = np.cumsum([0] + [part.size for part in parts])
+    n_host = rows.size
+    rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
+    records = _bytes(rows)
+    # buffer layout: the host's rows, then the other parts' in order; where each belongs
+    where = [destination[offsets[host]:offsets[host + 1]]]
+    at = n_host
+    for i, part in enumerate(parts):
+        if i != host:
+            records[at:at + part.size] = _bytes(part)
+            where.append(destination[offsets[i]:offsets[i + 1]])
+            at += part.size
+    permute_records(records, np.concatenate(where))
+    return rows
 
 
 def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db: float | None,
@@ -79,8 +140,9 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     Parameters
     ----------
     parts : sequence of structured ndarray of PATH_DTYPE
-        The mechanisms' rows, in the mechanisms' order; their derived columns are filled in
-        place.
+        The mechanisms' rows, in the mechanisms' order. Taken over: their derived columns are
+        filled in place, and the largest one's buffer becomes the result (resized; do not use
+        the parts afterwards).
     context : SolveContext
     floor_db : float or None
         ``SolverConfig.amplitude_floor_db``.
@@ -105,13 +167,15 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
     destination = np.empty(order.size, dtype=np.int64)
     destination[order] = np.arange(order.size)
-    rows = np.empty(order.size, dtype=PATH_DTYPE)
-    out = _bytes(rows)
-    start = 0
-    for part in parts:
-        scatter_records(_bytes(part), destination[start:start + part.size], out)
-        start += part.size
-    del out
+    rows = _sorted_in_place(parts, destination)
+    if rows is None:
+        rows = np.empty(order.size, dtype=PATH_DTYPE)
+        out = _bytes(rows)
+        start = 0
+        for part in parts:
+            scatter_records(_bytes(part), destination[start:start + part.size], out)
+            start += part.size
+        del out
     keep = floor_mask(rows, floor_db, context, band_hz)
     if not keep.all():
         kept = np.flatnonzero(keep).astype(np.int64)
@@ -121,4 +185,4 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     return rows
 
 
-__all__ = ["assemble_rows", "compact_records", "scatter_records"]
+__all__ = ["assemble_rows", "compact_records", "permute_records", "scatter_records"]
