@@ -65,22 +65,29 @@ def median_time(function, repeats: int, clock_name: str = "wall") -> float:
     return statistics.median(times)
 
 
-def paired_medians(functions: dict, repeats: int, clock_name: str = "wall", seed: int = 0) -> dict:
+def paired_medians(functions: dict, repeats: int, clock_name: str = "wall", seed: int = 0,
+                   other: dict | None = None) -> dict:
     """Median time of each function, the calls interleaved (in a seeded random order each round)
     so that all of them see the same load of a shared machine; ratios between them are then
-    paired in time, not measured minutes apart."""
+    paired in time, not measured minutes apart. ``other``, if given, receives the medians on the
+    other clock (wall for cpu and vice versa), measured on the same calls."""
     import random
 
     clock = time.process_time if clock_name == "cpu" else time.perf_counter
+    second = time.perf_counter if clock_name == "cpu" else time.process_time
     order = random.Random(seed)
     times: dict = {name: [] for name in functions}
+    times_other: dict = {name: [] for name in functions}
     for _ in range(repeats):
         names = list(functions)
         order.shuffle(names)
         for name in names:
-            start = clock()
+            start, start_other = clock(), second()
             functions[name]()
             times[name].append(clock() - start)
+            times_other[name].append(second() - start_other)
+    if other is not None:
+        other.update({name: statistics.median(t) for name, t in times_other.items()})
     return {name: statistics.median(t) for name, t in times.items()}
 
 
@@ -129,18 +136,23 @@ def main() -> int:
     print()
     print("detect(): everything per call; prepared: prepare() once, then run() per ping (live use);")
     print("/rfft and /read: against numpy's rfft and one read of the record timed interleaved with the method")
-    print(f"{'method':18s} {'ms/ping':>9s} {'/rfft':>7s} {'prepared':>9s} {'/rfft':>7s} {'/read':>7s}  echoes (ch0)")
+    other_name = "wall" if args.clock == "cpu" else "cpu"
+    print(f"{other_name} ms: the same calls timed on the {other_name} clock (with 1 thread per call they agree"
+          f" on a quiet machine; wall exceeds cpu when the process waits for a core)")
+    print(f"{'method':18s} {'ms/ping':>9s} {'/rfft':>7s} {'prepared':>9s} {'/rfft':>7s} {'/read':>7s}"
+          f" {other_name + ' det':>9s} {other_name + ' prep':>9s}  echoes (ch0)")
     per_ping, per_ping_prepared, ratio, ratio_prepared, ratio_read = {}, {}, {}, {}, {}
     for method in args.methods:
         detect(one, method, sample_rate_hz=FS, template=template)  # warm-up: imports, caches
         prepared = prepare(method, sample_rate_hz=FS, n_samples=args.samples, template=template)
         prepared.run(one)
+        other: dict = {}
         m = paired_medians({
             "detect": lambda: detect(one, method, sample_rate_hz=FS, template=template),
             "prepared": lambda: prepared.run(one),
             "rfft": lambda: np.fft.rfft(flat, axis=-1),
             "read": lambda: flat.max(axis=-1),
-        }, args.repeats, args.clock)
+        }, args.repeats, args.clock, other=other)
         seconds, ready = m["detect"], m["prepared"]
         per_ping[method], per_ping_prepared[method] = seconds, ready
         ratio[method], ratio_prepared[method] = seconds / m["rfft"], ready / m["rfft"]
@@ -148,7 +160,7 @@ def main() -> int:
         result = detect(one, method, sample_rate_hz=FS, template=template)
         tofs = ", ".join(f"{e.tof_s * 1e3:.6f}" for e in result.echoes[0][0][:3])
         print(f"{method:18s} {seconds * 1e3:9.3f} {ratio[method]:7.2f} {ready * 1e3:9.3f} {ratio_prepared[method]:7.2f}"
-              f" {ratio_read[method]:7.1f}  [{tofs}] ms")
+              f" {ratio_read[method]:7.1f} {other['detect'] * 1e3:9.3f} {other['prepared'] * 1e3:9.3f}  [{tofs}] ms")
     print()
     if not args.no_seed_table:
         seed_table(args, template)

@@ -151,3 +151,21 @@ def test_detection_path_equals_the_numpy_path_at_edges(n, bounds, k, dc):
     assert np.max(np.abs(refined[:, 0] - lag_ref)) < 1e-9
     assert np.max(np.abs(refined[:, 1] / peak_ref - 1.0)) < 1e-9
     assert np.all((refined[:, 0] >= bounds[0] - 0.5) & (refined[:, 0] <= bounds[1] + 0.5))
+
+
+@pytest.mark.parametrize("bounds", [(1000, 1300), (N - 600, N - 201), (0, 64 * 42 * 3)])
+@pytest.mark.parametrize("flat", [False, True])
+def test_candidate_search_in_groups_keeps_ties_and_exhausted_windows(bounds, flat):
+    # The kernel scans groups of windows (``local_kernels._GROUP``) for each pick; the numpy
+    # definition scans every window. Few windows (every window blanked before the last pick:
+    # the first one again), windows spanning exactly whole groups, and exactly equal windows
+    # (zero rows: every statistic exactly 0, ties, the first window wins; a constant nonzero row
+    # would tie only to rounding, which the kernel's and numpy's sums break differently) must
+    # give the same picks.
+    plan = plan_local(_template(), N, FS)
+    rows = np.zeros((3, N)) if flat else _rows(3, False)[0]
+    z, start = _candidate_correlations(plan, rows, 3, bounds)
+    coarse = coarse_lags(plan, rows, 3, bounds)
+    width = 2 * plan.half + 1
+    expected = np.maximum(np.minimum(coarse - plan.half, bounds[1] - (width - 1)), bounds[0]).reshape(-1)
+    assert np.array_equal(start, expected)

@@ -90,6 +90,21 @@ def _block_power(row: NDArray[np.float64], first_block: int, energy: NDArray[np.
         j += count
 
 
+# Windows per group of the candidate search: each pick scans the groups' maxima and one group,
+# not every window (three picks of ~6,000 windows per 12.5 ms channel: ~60 us saved per ping).
+_GROUP = 64
+
+
+@njit(cache=True, nogil=True)
+def _group_max(window: NDArray[np.float64], lo: int, hi: int) -> float:
+    """max(window[lo:hi]) (hi > lo)."""
+    value = window[lo]
+    for w in range(lo + 1, hi):
+        if window[w] > value:
+            value = window[w]
+    return value
+
+
 @njit(cache=True, nogil=True)
 def coarse_stretches(
     rows: NDArray[np.float64],
@@ -134,6 +149,8 @@ def coarse_stretches(
     n_searched = last - first
     energy = np.empty(n_searched + sp - 1)
     window = np.empty(n_searched)
+    n_groups = -(-n_searched // _GROUP)
+    group_max = np.empty(n_groups)
     sum_cos = 0.0
     sum_sin = 0.0
     for q in range(block):
@@ -149,15 +166,28 @@ def coarse_stretches(
             for t in range(sp):
                 total += energy[w + t]
             window[w] = total
+        for g in range(n_groups):
+            group_max[g] = _group_max(window, g * _GROUP, min((g + 1) * _GROUP, n_searched))
         for k in range(candidates):
-            best = 0
-            value = window[0]
-            for w in range(1, n_searched):
+            # The first window holding the largest value (as one scan of all windows with a
+            # strict >): the first group whose maximum is the largest, then its first window
+            # reaching it. Exact, ties and all-blanked (-inf) rows included: window 0 then.
+            top = 0
+            value = group_max[0]
+            for g in range(1, n_groups):
+                if group_max[g] > value:
+                    value = group_max[g]
+                    top = g
+            best = top * _GROUP
+            value = window[best]
+            for w in range(best + 1, min((top + 1) * _GROUP, n_searched)):
                 if window[w] > value:
                     value = window[w]
                     best = w
             for o in range(-exclusion, exclusion + 1):
                 window[min(max(best + o, 0), n_searched - 1)] = -np.inf
+            for g in range(max(best - exclusion, 0) // _GROUP, min(best + exclusion, n_searched - 1) // _GROUP + 1):
+                group_max[g] = _group_max(window, g * _GROUP, min((g + 1) * _GROUP, n_searched))
             lag = min(max((first + best) * block + centre, lag_lo), lag_hi)
             start = max(min(lag - half, lag_hi - (width - 1)), lag_lo)
             i = r * candidates + k
