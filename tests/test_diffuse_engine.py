@@ -10,7 +10,14 @@ from acoustisim.errors import InputError
 from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.diffuse import CHUNK_RAYS, ObjectScreen, diffuse_paths, sample_directions, trace_diffuse
+from acoustisim.propagation.diffuse import (
+    CHUNK_RAYS,
+    ObjectScreen,
+    diffuse_paths,
+    receiver_wedges,
+    sample_directions,
+    trace_diffuse,
+)
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation.ray_threads import resolve_threads, run_in_order
 from acoustisim.propagation.raycast import RayCaster
@@ -91,6 +98,39 @@ def test_centre_visibility_hides_every_receiver_of_a_point_hidden_from_the_centr
     side = np.zeros(points.shape[0], dtype=bool)
     side[events.event[events.channel != 1]] = True
     assert np.any(side & candidates & ~blocked)
+
+
+def test_receiver_wedges_hold_every_leg_crossing_a_box():
+    # The wedge of a box seen from a receiver (projected along the box's longest side) must
+    # contain the direction of every leg receiver -> point crossing the box (a slab test in
+    # float64), else the screen would skip a blocked leg; and it must reject most legs that
+    # miss a small box, else it is useless. Random boxes, receivers (some inside a box's
+    # projected rectangle: no wedge) and points.
+    rng = np.random.default_rng(4)
+    lo = rng.uniform(-1.0, 1.0, (20, 3))
+    hi = lo + rng.uniform(0.01, 1.0, (20, 3))
+    receivers = rng.uniform(-2.0, 2.0, (6, 3))
+    wedges = receiver_wedges(lo, hi, receivers)
+    points = rng.uniform(-3.0, 3.0, (20_000, 3))
+    rejected, misses, inside = 0, 0, 0
+    for j, q in enumerate(receivers):
+        e = points - q
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (lo[:, None, :] - q) / e, (hi[:, None, :] - q) / e  # (k, n, 3): the ray q + t e
+        enter = np.maximum(np.nanmax(np.minimum(t1, t2), axis=2), 0.0)
+        leave = np.minimum(np.nanmin(np.maximum(t1, t2), axis=2), 1.0)
+        crosses = enter <= leave  # (k, n)
+        for b in range(lo.shape[0]):
+            w = wedges[j, b]
+            axis = int(w[5])
+            eu, ev = e[:, (axis + 1) % 3], e[:, (axis + 2) % 3]
+            inside += int(w[4])
+            within = (w[0] * ev - w[1] * eu >= 0) & (eu * w[3] - ev * w[2] >= 0) | (w[4] == 1.0)
+            assert np.all(within[crosses[b]]), (j, b)
+            rejected += int(np.sum(~within & ~crosses[b]))
+            misses += int(np.sum(~crosses[b]))
+    assert 0 < inside < 60  # both cases occur
+    assert rejected > 0.5 * misses
 
 
 def test_per_leg_screen_skips_only_clear_legs(tank):

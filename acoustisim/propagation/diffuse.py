@@ -22,10 +22,14 @@ of the position quantised to :data:`SPECKLE_CELL_M` and of ``config.seed``, so t
 same for every receiver and every ping. |X| sqrt(...) is the row's ``geometric_gain`` and
 arg X its ``phase_rad``; directivities and absorption come from the common columns. A row is
 emitted when the receiver is in front of the scattering face and the leg hit -> receiver is
-not occluded (one batched Embree occlusion query for the legs that may cross an object: the
-tank's boundaries enclose a convex box and cannot block a leg, so a leg missing every object's
-bounding box, or only the box of the convex object it starts on, is clear without a query,
-see :class:`ObjectScreen`).
+not occluded. The tank's boundaries enclose a convex box and cannot block a leg, so a leg
+missing every object's bounding box, or crossing only the box of the convex object it starts
+on, is clear; a leg crossing the box of a convex object (a closed mesh with every vertex
+inside every face plane: the prisms, posts and pipes) is decided exactly by clipping it
+against the object's face planes (:mod:`~acoustisim.propagation.convex_occlusion`); only the
+legs crossing the box of a non-convex object go to one batched Embree occlusion query per
+chunk and bounce (see :class:`ObjectScreen`). The plane test is the exact answer in float64;
+Embree's, in float32, differs only for legs grazing a face within its rounding (1e-6 m).
 
 The rays are traced in fixed chunks of :data:`CHUNK_RAYS`, each with its own random stream
 (seeded by the solver seed and the chunk index), on a small thread pool (Embree, the compiled
@@ -297,8 +301,11 @@ class ObjectScreen:
     straight leg between two points in the water, a scattering point on a boundary or an
     object and a receiver, never crosses a boundary: only objects can block it. A leg that
     misses every object's axis-aligned box (grown by :data:`SCREEN_MARGIN_M`) is clear, and
-    Embree need not test it: each leg is slab-tested against the union box, then the boxes of
-    the objects one by one. Exact: only legs Embree would report clear are skipped.
+    Embree need not test it: each leg is tested against each object's box (its wedge seen
+    from the receiver, then the slab test; the union box alone beyond
+    :data:`SCREEN_MAX_BOXES` objects), and a leg crossing a convex object's box is decided by
+    that object's face planes. Exact: only legs Embree would report clear are skipped (up to
+    legs grazing a face, where float32 Embree and the float64 plane test may differ).
 
     Attributes
     ----------
