@@ -63,10 +63,12 @@ def check_sonar(prepared: PreparedScene, sonar: SonarHead) -> None:
                 f"sonar.position_m: the {CHANNEL_NAMES[i]} transducer at {positions[i].round(4).tolist()} m is "
                 f"outside the water or within {a} m of a tank boundary"
             )
-    for obj, (lo, hi) in zip(scene.objects, prepared.object_bounds):
-        near = np.all((positions >= lo - a) & (positions <= hi + a), axis=1)
-        if not np.any(near):
-            continue
+    bounds = prepared.object_bounds
+    # (object, transducer) pairs within the piston radius of the object's box, all at once
+    close = np.all((positions[None, :, :] >= bounds[:, None, 0, :] - a)
+                   & (positions[None, :, :] <= bounds[:, None, 1, :] + a), axis=2)
+    for j in np.flatnonzero(np.any(close, axis=1)):
+        obj, near = scene.objects[j], close[j]
         candidates = positions[near]
         primitive = obj.primitive
         if isinstance(primitive, SpherePrimitive):
