@@ -150,3 +150,24 @@ def test_a_forced_block_too_short_for_the_template_is_refused():
     with pytest.raises(ValueError, match="block must be an even integer"):
         plan_blocks(template.samples, N, band_edge_cycles(template.samples), plan.analytic_offset,
                     plan.analytic_template_conj.size, block=512)
+
+
+def test_false_alarm_rate_over_the_whole_record_matches_the_design():
+    # Noise only, 100 pings x 3 channels of 16,384 samples, pfa 0.2 over every full-overlap lag:
+    # 60 false alarms designed (Rice's up-crossing rate, ``MatchedPlan.threshold_factor``). The
+    # overlap-save path must hold the design as the record-size FFT does: both counts within a
+    # factor 2 of it (Poisson sd ~8, plus Rice's approximation), and within a few of each other
+    # (the same noise; the two envelopes differ by ~1e-2 of the noise at most, so only rows
+    # whose peak sits at the threshold can differ). Measured: 59 and 56.
+    from binsonar.detection import detect
+    from binsonar.detection.inputs import row_offsets
+
+    n = 16384
+    noise = np.random.default_rng(17).standard_normal((100, 3, n))
+    result = detect(noise, "matched", sample_rate_hz=FS, template=pulse_template(), pfa=0.2)
+    blocked = sum(len(ch) for ping in result.echoes for ch in ping)
+    record = detect_matched(noise.reshape(-1, n), plan_matched(pulse_template(), n, FS), t0_s=0.0, pfa=0.2,
+                            dc_v=row_offsets(noise).reshape(-1))
+    full = sum(len(r) for r in record)
+    assert 30 <= blocked <= 120 and 30 <= full <= 120, (blocked, full)
+    assert abs(blocked - full) <= 4, (blocked, full)

@@ -16,21 +16,29 @@ points); here the record is cut into overlapping blocks of L samples (a few thou
    correlation; an inverse FFT of only those bins, of length ``n_env`` = L / D, samples it
    every D full-rate samples.
 3. Lags 0 .. H - 1 of a block (H = ``per_block`` D) see only samples of the block through the
-   analytic template's taps (H <= L - m_a + 1, m_a the taps' length), so the block's circular
-   correlation there is the record's linear one; consecutive blocks' lags abut, giving z at
-   lags 0, D, 2D, ... with H a whole number of samples.
+   truncated analytic template's taps (H <= L - m_a + 1, m_a the taps' length), so the
+   block's circular correlation there is the record's linear one up to the tails beyond that
+   truncation (next paragraph); consecutive blocks' lags abut, giving z at lags 0, D, 2D, ...
+   with H a whole number of samples.
 
-What differs from the record-size FFT: both are the analytic correlation with the template's
-band-limited analytic signal, truncated where its Hilbert tails fall below
-``matched.ANALYTIC_TAIL`` (1e-5) of its peak (here by the block's span, there by the zero
-padding), so the two envelopes agree to ~1e-5 of the template's peak response
-(``tests/test_detection_overlap_save.py``). Their decimated grids differ (D ~ 14.2 here against
-~14.9), which changes neither the noise statistics (the median of |z|^2 over the cells) nor the
-refined peak (recomputed at full rate around the best cell).
+What differs from the record-size FFT: both are the correlation with the template's
+band-limited analytic signal, whose Hilbert tails decay only like 1/t (the analytic spectrum
+steps at f = 0, where the 500 kHz pulse still has ~1 % of its peak amplitude). The record-size
+FFT sums them over the whole record; a block sums them over its own span and wraps the rest
+around (those beyond ``matched.ANALYTIC_TAIL`` = 1e-5 of the peak, the part the time-domain
+refinement also truncates). On white noise the two envelopes differ by up to ~6e-3 of the
+noise's RMS |z| at a block's first lags, less further in, and by ~1e-4 of an echo's peak
+(``tests/test_detection_overlap_save.py``): as much as the refinement's truncated template
+already differs from either (``tests/test_detection_matched.py``, ~1e-3 of the peak), and far
+below the noise on any cell. The decimated grids differ too (D ~ 14.6 against ~14.9), which
+changes neither the noise statistics (the median of |z|^2 over the cells: the same exponential
+law) nor the false-alarm design (Rice's rate over the searched lags, a property of the
+continuous envelope that both grids sample completely), nor the refined peak (recomputed at
+full rate around the best cell).
 
-Why: pocketfft's large transforms leave the cache; 105 real FFTs of 8,192 points cost ~1/5 of
-one of 256,000 points on the team's machine (``benchmarks/bench_detection.py``), for ~14 %
-more samples transformed (the blocks' overlap).
+Why: pocketfft's large transforms leave the cache; 35 real FFTs of 8,192 points per channel
+cost about a fifth of one of 256,000 points on the team's machine (``benchmarks/bench_detection.py``),
+for ~14 % more samples transformed (the blocks' overlap).
 """
 
 from __future__ import annotations
@@ -157,7 +165,7 @@ def plan_blocks(
         if forced is None and block < 2 * span and block != BLOCK_SIZES[-1]:
             continue  # mostly overlap: a longer block is cheaper
         k_hi = int(min(block // 2 + 1, math.ceil(band_edge_cycles * block) + 2))
-        for n_env in _fast_sizes(k_hi, 8):  # a few sizes just above the band
+        for n_env in _fast_sizes(k_hi, 4):  # a few sizes just above the band
             step = block // math.gcd(block, n_env)  # hops that are a whole number of decimated samples
             hop = ((block - span + 1) // step) * step
             if hop <= 0:
