@@ -132,6 +132,8 @@ def convex_object_planes(vertices: NDArray[np.float64], faces: NDArray[np.int64]
         The ray caster's arrays (:class:`~acoustisim.propagation.raycast.RayCaster`).
     object_surfaces : range
         The surface indices of the objects, in order (the boundaries come first).
+        ``surface_index`` must be non-decreasing (each surface's triangles are one block, in
+        surface order, as the ray caster stores them).
 
     Returns
     -------
@@ -140,11 +142,13 @@ def convex_object_planes(vertices: NDArray[np.float64], faces: NDArray[np.int64]
     normals: list[NDArray[np.float64]] = []
     offsets: list[NDArray[np.float64]] = []
     start = [0]
-    for s in object_surfaces:
-        rows = np.flatnonzero(surface_index == s)
+    surfaces = np.asarray(object_surfaces, dtype=np.int64)
+    first = np.searchsorted(surface_index, surfaces, side="left")
+    last = np.searchsorted(surface_index, surfaces, side="right")
+    for a, b in zip(first.tolist(), last.tolist()):
         planes = None
-        if 0 < rows.size <= CONVEX_MAX_FACES:
-            planes = mesh_planes(vertices, faces[rows], face_normals[rows], plane_offset[rows])
+        if 0 < b - a <= CONVEX_MAX_FACES:
+            planes = mesh_planes(vertices, faces[a:b], face_normals[a:b], plane_offset[a:b])
         if planes is not None:
             normals.append(planes[0])
             offsets.append(planes[1])

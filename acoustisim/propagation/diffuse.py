@@ -321,7 +321,7 @@ class ObjectScreen:
         body, so that box is skipped for it.
     wedges : ndarray, shape (n_rx, k, 6)
         :func:`receiver_wedges` of the boxes: a leg outside a box's wedge does not cross it
-        (tested before the box itself, at a few multiplications).
+        (tested before the box itself, at two dot products).
     planes : ConvexPlanes
         Face planes of the rows of ``lo``, ``hi`` (row 0, the union, has none): a leg crossing
         the box of an object with planes is decided exactly by them
@@ -431,10 +431,13 @@ def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
     Returns
     -------
     ndarray, shape (n_rx, k, 6)
-        Per receiver and box: the wedge's right and left edges (R_u, R_v, L_u, L_v) in the
-        projected coordinates (u, v) = ((a + 1) % 3, (a + 2) % 3), a flag (1: no wedge, q lies
-        within 1e-9 m of the projected rectangle, every leg goes to the slab test) and the axis
-        a. A direction d (projected) lies in the wedge iff ``R x d >= 0`` and ``d x L >= 0``.
+        Per receiver and box, the normals N1, N2 (3 each) of the wedge's two half-spaces
+        through the receiver: a leg receiver -> point (direction e) can cross the box only if
+        ``N1 . e >= 0`` and ``N2 . e >= 0``. In the projected coordinates (u, v) = ((a + 1) % 3,
+        (a + 2) % 3), a the projection axis, with the wedge's right and left edges R and L:
+        ``N1 . e = R_u e_v - R_v e_u`` and ``N2 . e = e_u L_v - e_v L_u``. Both are zero (every
+        leg passes to the slab test) when the receiver lies within 1e-9 m of the projected
+        rectangle.
     """
     k, n_rx = lo.shape[0], receivers.shape[0]
     out = np.zeros((n_rx, k, 6))
@@ -456,9 +459,12 @@ def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
     angle = np.arctan2(centre[..., 0] * rel[..., 1] - centre[..., 1] * rel[..., 0], np.sum(rel * centre, axis=-1))
     right = np.take_along_axis(rel, np.argmin(angle, axis=2)[..., None, None], axis=2)[:, :, 0]
     left = np.take_along_axis(rel, np.argmax(angle, axis=2)[..., None, None], axis=2)[:, :, 0]
-    out[..., 0:2], out[..., 2:4] = right, left
-    out[..., 4] = inside
-    out[..., 5] = axis
+    right[inside], left[inside] = 0.0, 0.0
+    receiver_index, box_index = np.indices((n_rx, k))
+    u3, v3 = u[box_index], v[box_index]
+    # N1 . e = R_u e_v - R_v e_u;  N2 . e = e_u L_v - e_v L_u
+    out[receiver_index, box_index, v3], out[receiver_index, box_index, u3] = right[..., 0], -right[..., 1]
+    out[receiver_index, box_index, 3 + u3], out[receiver_index, box_index, 3 + v3] = left[..., 1], -left[..., 0]
     return out
 
 

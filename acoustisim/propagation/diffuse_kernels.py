@@ -312,8 +312,9 @@ def scatter_and_pair(
                 for b in range(1, n_boxes):
                     if b == own:
                         continue
-                    if wedges[j, b, 4] == 0.0 and not _in_wedge(wedges[j, b, 5], wedges[j, b, 0], wedges[j, b, 1],
-                                                                  wedges[j, b, 2], wedges[j, b, 3], -dx, -dy, -dz):
+                    # the wedge seen from the receiver: e = -(dx, dy, dz), receiver -> point
+                    if (wedges[j, b, 0] * dx + wedges[j, b, 1] * dy + wedges[j, b, 2] * dz > 0.0
+                            or wedges[j, b, 3] * dx + wedges[j, b, 4] * dy + wedges[j, b, 5] * dz > 0.0):
                         continue
                     if not _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[b, 0], lo[b, 1], lo[b, 2], hi[b, 0],
                                  hi[b, 1], hi[b, 2]):
@@ -421,20 +422,6 @@ def _slab(px: float, py: float, pz: float, ix: float, iy: float, iz: float, lx: 
     enter = max(enter, min(t1, t2))
     leave = min(leave, max(t1, t2))
     return max(enter, 0.0) <= min(leave, 1.0)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _in_wedge(axis: float, ru: float, rv: float, lu: float, lv: float, ex: float, ey: float, ez: float) -> bool:
-    """Whether the direction e (receiver -> point), projected along ``axis``, lies in the
-    wedge of right and left edges (ru, rv), (lu, lv) (a row of
-    :func:`~acoustisim.propagation.diffuse.receiver_wedges`)."""
-    if axis == 0.0:
-        du, dv = ey, ez
-    elif axis == 1.0:
-        du, dv = ez, ex
-    else:
-        du, dv = ex, ey
-    return ru * dv - rv * du >= 0.0 and du * lv - dv * lu >= 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
