@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from acoustisim.propagation import SolverConfig, prepare
+from acoustisim.propagation import SolverConfig, assemble, prepare
 from acoustisim.propagation.assemble import assemble_rows, compact_records, permute_records, scatter_records
 from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.context import SolveContext
@@ -40,9 +40,12 @@ def _reference(parts: list[np.ndarray], context: SolveContext, floor_db: float |
     return rows[np.lexsort((rows["delay_s"], rows["channel"]))]
 
 
+@pytest.mark.parametrize("in_place", [True, False])
 @pytest.mark.parametrize("floor_db", [None, -40.0, -80.0])
-def test_assembled_rows_are_the_plain_recipe_byte_for_byte(parts, floor_db):
+def test_assembled_rows_are_the_plain_recipe_byte_for_byte(parts, floor_db, in_place, monkeypatch):
+    """Both ways of sorting: in the largest part's buffer and scattered into a new one."""
     context, pieces = parts
+    monkeypatch.setattr(assemble, "IN_PLACE_MAX_BYTES", 1 << 40 if in_place else 0)
     expected = _reference(pieces, context, floor_db)
     got = assemble_rows([part.copy() for part in pieces], context, floor_db)
     assert got.flags.c_contiguous and got.flags.owndata and got.base is None

@@ -10,8 +10,10 @@ so the steps work in place where they can:
 1. :func:`~acoustisim.propagation.columns.complete_columns` fills the derived columns of each
    part in place (it is row by row: the same values as on the joined array);
 2. the rows are ordered by channel, then delay, then their place in the mechanisms' order (the
-   order a stable sort of the joined parts gives), and each part's records are copied straight
-   to their sorted places in the one result buffer (:func:`scatter_records`);
+   order a stable sort of the joined parts gives). Up to :data:`IN_PLACE_MAX_BYTES` of rows
+   (a deterministic pose), the largest part's buffer is grown (realloc) and the rows permuted
+   there (:func:`permute_records`): no new buffer at all. Beyond, each part's records are
+   copied straight to their sorted places in one new buffer (:func:`scatter_records`);
 3. the amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`) judges the sorted
    rows; the kept ones are moved to the front in place (:func:`compact_records`) and the
    buffer is shrunk (``ndarray.resize``: the allocator's realloc, no copy of the kept rows).
@@ -30,6 +32,14 @@ from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
+
+
+IN_PLACE_MAX_BYTES = 8 << 20
+"""Rows up to this size (bytes; 34 000 rows) are sorted in place (:func:`permute_records`), larger
+sets are scattered into a new buffer (:func:`scatter_records`): the in-place permutation reads
+and writes at random, which stays fast only while the rows fit in the last-level cache (on the
+2-core test machine: 16 000 rows 1.5 ms faster in place, counting the page faults saved;
+60 000 rows, 14 MB, 2.7 times slower in place than scattered)."""
 
 
 @njit(cache=True, nogil=True)
@@ -167,7 +177,7 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
     destination = np.empty(order.size, dtype=np.int64)
     destination[order] = np.arange(order.size)
-    rows = _sorted_in_place(parts, destination)
+    rows = _sorted_in_place(parts, destination) if order.size * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES else None
     if rows is None:
         rows = np.empty(order.size, dtype=PATH_DTYPE)
         out = _bytes(rows)
@@ -185,4 +195,4 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     return rows
 
 
-__all__ = ["assemble_rows", "compact_records", "permute_records", "scatter_records"]
+__all__ = ["IN_PLACE_MAX_BYTES", "assemble_rows", "compact_records", "permute_records", "scatter_records"]
