@@ -171,3 +171,19 @@ def test_false_alarm_rate_over_the_whole_record_matches_the_design():
     full = sum(len(r) for r in record)
     assert 30 <= blocked <= 120 and 30 <= full <= 120, (blocked, full)
     assert abs(blocked - full) <= 4, (blocked, full)
+
+
+def test_cell_bounds_are_the_cell_masks_range():
+    # ``cell_bounds`` replaces the mask in ``detect_matched``: the same cells for any lag range
+    # (fractional decimations of both grids, ranges at the record's ends, a range inside one cell).
+    from binsonar.detection.matched import cell_bounds, cell_mask
+
+    rng = np.random.default_rng(6)
+    for plan in (plan_matched(pulse_template(), N, FS), plan_matched(pulse_template(), N, FS, full=False, overlap_save=True)):
+        n_cells = plan.n_valid
+        top = N - pulse_template().samples.size
+        for lo, hi in [(0, top), (0, 0), (top, top), (5, 6), (1000, 1001)] + [tuple(sorted(rng.integers(0, top, 2))) for _ in range(200)]:
+            mask = cell_mask(plan, n_cells, (int(lo), int(hi)))
+            first, stop = cell_bounds(plan, n_cells, (int(lo), int(hi)))
+            expected = np.flatnonzero(mask)
+            assert np.array_equal(np.arange(first, stop), expected), (lo, hi)

@@ -679,6 +679,20 @@ def cell_mask(plan: MatchedPlan, n_cells: int, lags: tuple[int, int]) -> NDArray
     return (lag >= lags[0] - 0.5 * plan.decimation) & (lag <= lags[1] + 0.5 * plan.decimation)
 
 
+def cell_bounds(plan: MatchedPlan, n_cells: int, lags: tuple[int, int]) -> tuple[int, int]:
+    """``cell_mask``'s True cells as a range [first, stop) (they are contiguous), without the
+    mask: the same floating-point tests on the few cells at its ends only."""
+    d = plan.decimation
+    low, high = lags[0] - 0.5 * d, lags[1] + 0.5 * d
+    first = min(max(0, int(math.ceil(low / d)) - 2), n_cells)
+    while first < n_cells and not float(first) * d >= low:
+        first += 1
+    stop = min(max(first, int(math.floor(high / d)) + 3), n_cells)
+    while stop > first and not float(stop - 1) * d <= high:
+        stop -= 1
+    return first, stop
+
+
 def detect_matched(
     rows: NDArray[np.float64],
     plan: MatchedPlan,
@@ -731,8 +745,11 @@ def detect_matched(
     power = np.square(z.real, dtype=float) + np.square(z.imag, dtype=float)  # float64 even from float32 z
     noise = noise_mean_power(power, float(white_noise_power(plan, noise_floor_v)))
     lags = lag_range(plan, t0_s, search_window_s)
-    inside = cell_mask(plan, power.shape[1], lags)
-    coarse = np.argmax(np.where(inside, power, -1.0), axis=1)
+    first, stop = cell_bounds(plan, power.shape[1], lags)
+    if stop > first:  # the searched cells' maximum (the first on ties)
+        coarse = first + np.argmax(power[:, first:stop], axis=1)
+    else:  # no cell inside the searched lags (as the mask's argmax: cell 0)
+        coarse = np.zeros(rows.shape[0], dtype=np.intp)
     row_index = np.arange(rows.shape[0])
     lag, peak = refine_peaks(plan, rows, spectrum, row_index, coarse * plan.decimation, dc=dc)
     factor = plan.threshold_factor(pfa, lags[1] - lags[0])  # pfa over the searched lags only
