@@ -7,16 +7,19 @@ each with the graded edge discretisation (the default, ``SolverConfig.edge_adapt
 the fine 1/16-period one (the same-run baseline of the edge work). Then it checks that a scene
 of over a million triangles loads and solves.
 
-Two figures of the whole solve follow: the CPU-time cost of the amplitude floor (judged across
+Figures of the whole solve follow: the CPU-time cost of the amplitude floor (judged across
 the pulse band, ``SolverConfig.amplitude_floor_db = -80``) against keep-all (``None``) on the
-default configuration (with 20 000 diffuse rays), and the CPU time of
+default configuration (with 20 000 diffuse rays); the floor alone
+(:func:`~acoustisim.propagation.floor.floor_mask`) on the keep-all rows against the same-run
+baseline of the rule evaluated on every arrival (:func:`~acoustisim.propagation.floor.band_levels`);
+and the CPU time of
 :func:`~acoustisim.propagation.columns.complete_columns` on the diffuse rows of
 ``--columns-rays`` rays (about 2.1 rows per ray), with ``--columns-before FILE`` (an older
 ``acoustisim/propagation/columns.py``, e.g. ``git show 21590e5:acoustisim/propagation/columns.py
 > /tmp/columns_before.py``) timed interleaved with it as the same-run baseline.
 
 Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]``
-(``--repeats 21 --skip-large``: about 40 s on a quiet 2-core machine).
+(``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine).
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ def _floor_and_columns(prepared, args) -> None:
     from acoustisim.propagation.columns import complete_columns
     from acoustisim.propagation.context import SolveContext
     from acoustisim.propagation.diffuse import diffuse_paths
+    from acoustisim.propagation.floor import band_levels, floor_frequencies, floor_mask
 
     repeats = max(3, args.repeats)
     floored, keep_all = SolverConfig(), SolverConfig(amplitude_floor_db=None)
@@ -61,6 +65,25 @@ def _floor_and_columns(prepared, args) -> None:
 
     scene = prepared.scene
     context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
+    # the floor alone on the keep-all rows, against the rule evaluated on every arrival
+    everything = solve(prepared, config=keep_all).rows.copy()
+    frequencies, weights = floor_frequencies(context, None)
+    keys = everything["path_id"].astype(np.int64) * 8 + everything["channel"]
+    _, group = np.unique(keys, return_inverse=True)
+    group = group.ravel()
+    mask = floor_mask(everything, floored.amplitude_floor_db, context)
+    cpu = {"bounds": [], "rule": []}
+    for _ in range(repeats):
+        start = time.process_time()
+        floor_mask(everything, floored.amplitude_floor_db, context)
+        cpu["bounds"].append(time.process_time() - start)
+        start = time.process_time()
+        band_levels(everything, group, int(group.max()) + 1, context, frequencies, weights)
+        cpu["rule"].append(time.process_time() - start)
+    bounds_s, rule_s = float(np.median(cpu["bounds"])), float(np.median(cpu["rule"]))
+    print(f"  floor_mask alone on those {everything.size} rows ({int(mask.sum())} kept): CPU median "
+          f"{bounds_s * 1e3:.1f} ms; the rule's band levels of every arrival (numpy band_levels, the same-run "
+          f"baseline) {rule_s * 1e3:.1f} ms; ratio {rule_s / bounds_s:.1f}")
     rows = diffuse_paths(context, SolverConfig(diffuse_rays=args.columns_rays))
     functions = {"compiled": complete_columns}
     if args.columns_before:

@@ -138,9 +138,8 @@ def _envelope(angle: float, envelope: NDArray[np.float64]) -> float:
 def _edge_groups(kind: NDArray[np.int8], path_id: NDArray[np.int64], channel: NDArray[np.int8], edge_kind: int
                  ) -> tuple[NDArray[np.int64], int]:
     """The arrival group (0 .. n_groups - 1) of every edge row, -1 for other rows: edge rows
-    with equal (path_id, channel) form one group. Through a dense key table when the edge
-    rows' path ids span at most 64 times their count (the solver numbers them densely), else
-    by sorting the keys."""
+    with equal (path_id, channel) form one group (:func:`arrival_bounds`' grouping when the
+    edge rows' path ids are sparse: by sorting the keys)."""
     n = kind.size
     lowest = np.iinfo(np.int64).max
     highest = np.iinfo(np.int64).min
@@ -154,16 +153,6 @@ def _edge_groups(kind: NDArray[np.int8], path_id: NDArray[np.int64], channel: ND
     if n_edge == 0:
         return groups, 0
     n_groups = 0
-    if highest - lowest <= 64 * n_edge + 1024:
-        slot = np.full((highest - lowest + 1) * 8, -1, dtype=np.int64)
-        for i in range(n):
-            if kind[i] == edge_kind:
-                key = (path_id[i] - lowest) * 8 + channel[i]
-                if slot[key] < 0:
-                    slot[key] = n_groups
-                    n_groups += 1
-                groups[i] = slot[key]
-        return groups, n_groups
     rows = np.empty(n_edge, dtype=np.int64)
     keys = np.empty(n_edge, dtype=np.int64)
     e = 0
@@ -225,21 +214,41 @@ def arrival_bounds(
     """
     alpha_min_neper = -alpha_min_db_per_m * _NEPER_PER_DB  # >= 0: nepers per metre
     n = kind.size
-    groups, n_groups = _edge_groups(kind, path_id, channel, edge_kind)
+    # pass 1 (kind and path_id only): counts, and the edge keys' range
     n_single = 0
+    n_edge = 0
+    lowest = np.iinfo(np.int64).max
+    highest = np.iinfo(np.int64).min
     for i in range(n):
-        if kind[i] != direct_kind and kind[i] != edge_kind:
+        k = kind[i]
+        if k == edge_kind:
+            n_edge += 1
+            lowest = min(lowest, path_id[i])
+            highest = max(highest, path_id[i])
+        elif k != direct_kind:
             n_single += 1
+    dense = n_edge > 0 and highest - lowest <= 64 * n_edge + 1024
+    if dense:  # groups numbered in order of first appearance, through a key table
+        slot = np.full((highest - lowest + 1) * 8, -1, dtype=np.int64)
+        groups = np.empty(0, dtype=np.int64)
+        n_groups = n_edge  # at most; trimmed below
+    else:
+        slot = np.empty(0, dtype=np.int64)
+        groups, n_groups = _edge_groups(kind, path_id, channel, edge_kind)
     single_rows = np.empty(n_single, dtype=np.int64)
-    group_start = np.zeros(n_groups + 1, dtype=np.int64)
+    edge_rows = np.empty(n_edge, dtype=np.int64)
+    edge_group = np.empty(n_edge, dtype=np.int64)
     lower = np.zeros(n_single + n_groups)
     upper = np.zeros(n_single + n_groups)
     re = np.zeros(n_groups)
     im = np.zeros(n_groups)
     magnitude = np.zeros(n_groups)
     reference = np.empty(n_groups)
-    seen = np.zeros(n_groups, dtype=np.bool_)
+    count = np.zeros(n_groups + 1, dtype=np.int64)
     s = 0
+    e = 0
+    found = 0
+    # pass 2: the bounds
     for i in range(n):
         k = kind[i]
         if k == direct_kind:
@@ -256,27 +265,43 @@ def arrival_bounds(
             upper[s] = bound
             s += 1
             continue
-        g = groups[i]
-        group_start[g + 1] += 1
-        if not seen[g]:
-            seen[g] = True
-            reference[g] = delay[i]
+        if dense:
+            key = (path_id[i] - lowest) * 8 + channel[i]
+            g = slot[key]
+            if g < 0:
+                g = found
+                slot[key] = g
+                found += 1
+                reference[g] = delay[i]
+        else:
+            g = groups[i]
+            if count[g + 1] == 0:
+                reference[g] = delay[i]
+        edge_rows[e] = i
+        edge_group[e] = g
+        e += 1
+        count[g + 1] += 1
         factor = gain[i] * directivity_tx[i] * directivity_rx[i] * math.exp(absorption_db[i] * _NEPER_PER_DB)
         angle = phase[i] - two_pi_f0 * (delay[i] - reference[g])
         re[g] += factor * math.cos(angle)
         im[g] += factor * math.sin(angle)
         magnitude[g] += abs(factor)
         upper[n_single + g] += bound
+    if dense:
+        n_groups = found
+        lower = lower[:n_single + n_groups].copy()
+        upper = upper[:n_single + n_groups].copy()
+    group_start = np.zeros(n_groups + 1, dtype=np.int64)
     for g in range(n_groups):
         lower[n_single + g] = max(math.hypot(re[g], im[g]) - ROUNDING_SLACK * magnitude[g], 0.0) * centre_weight
-        group_start[g + 1] += group_start[g]
-    group_rows = np.empty(group_start[n_groups], dtype=np.int64)
+        group_start[g + 1] = group_start[g] + count[g + 1]
+    # the edge rows by group (a counting sort; rows stay increasing within a group)
+    group_rows = np.empty(n_edge, dtype=np.int64)
     fill = group_start[:n_groups].copy()
-    for i in range(n):
-        if kind[i] == edge_kind:
-            g = groups[i]
-            group_rows[fill[g]] = i
-            fill[g] += 1
+    for r in range(n_edge):
+        g = edge_group[r]
+        group_rows[fill[g]] = edge_rows[r]
+        fill[g] += 1
     return single_rows, group_start, group_rows, lower, upper
 
 
