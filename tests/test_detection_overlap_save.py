@@ -179,10 +179,14 @@ def test_cell_bounds_are_the_cell_masks_range():
     from binsonar.detection.matched import cell_bounds, cell_mask
 
     rng = np.random.default_rng(6)
-    for plan in (plan_matched(pulse_template(), N, FS), plan_matched(pulse_template(), N, FS, full=False, overlap_save=True)):
+    record = plan_matched(pulse_template(), N, FS)
+    blocked = plan_matched(pulse_template(), N, FS, full=False, overlap_save=True)
+    top = N - pulse_template().samples.size
+    ranges = [(0, top), (0, 0), (top, top), (5, 6), (1000, 1001)]
+    ranges += [tuple(sorted(rng.integers(0, top, 2))) for _ in range(200)]
+    for plan in (record, blocked):
         n_cells = plan.n_valid
-        top = N - pulse_template().samples.size
-        for lo, hi in [(0, top), (0, 0), (top, top), (5, 6), (1000, 1001)] + [tuple(sorted(rng.integers(0, top, 2))) for _ in range(200)]:
+        for lo, hi in ranges:
             mask = cell_mask(plan, n_cells, (int(lo), int(hi)))
             first, stop = cell_bounds(plan, n_cells, (int(lo), int(hi)))
             expected = np.flatnonzero(mask)

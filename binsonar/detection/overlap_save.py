@@ -160,7 +160,8 @@ def plan_blocks(
     best: tuple[float, int, int, int] | None = None
     forced = block
     if forced is not None and not (isinstance(forced, (int, np.integer)) and forced % 2 == 0 and forced > span):
-        raise ValueError(f"plan_blocks: block must be an even integer > {span} (the analytic taps' span), got {forced!r}")
+        raise ValueError(f"plan_blocks: block must be an even integer > {span} (the analytic taps' span), "
+                         f"got {forced!r}")
     for block in BLOCK_SIZES if forced is None else (int(forced),):
         if forced is None and block < 2 * span and block != BLOCK_SIZES[-1]:
             continue  # mostly overlap: a longer block is cheaper
