@@ -519,12 +519,12 @@ class DiffuseEvents:
     """
 
     points_m: NDArray[np.float64]
-    surface: NDArray[np.int64]
-    parent: NDArray[np.int64]
-    bounce: NDArray[np.int64]
+    surface: NDArray[np.int32]
+    parent: NDArray[np.int32]
+    bounce: NDArray[np.int32]
     departure_dir: NDArray[np.float64]
-    event: NDArray[np.int64]
-    channel: NDArray[np.int64]
+    event: NDArray[np.int32]
+    channel: NDArray[np.int8]
     path_length_m: NDArray[np.float64]
     gain: NDArray[np.float64]
     phase_rad: NDArray[np.float64]
@@ -579,6 +579,10 @@ class _Tracer:
     receivers : ndarray, shape (n_rx, 3)
     screen : tuple
         :meth:`ObjectScreen.kernel_arguments`.
+    queues : bool
+        Whether any leg may be left to Embree (a receiver outside the water, too many objects
+        to screen one by one, or an object without face planes): else the chunks allocate no
+        Embree leg buffers.
     tested : ndarray of bool, shape (2, n_rx)
         Receivers whose legs are tested for occlusion from first hits (row 0: not a receiver
         at the transmitter, whose leg is the ray itself) and from later ones (row 1); with
@@ -602,6 +606,7 @@ class _Tracer:
     frame: tuple[NDArray[np.float64], ...]
     receivers: NDArray[np.float64]
     screen: tuple[Any, ...]
+    queues: bool
     tested: NDArray[np.bool_]
     shared: bool
     seed_hash: np.uint64
@@ -634,9 +639,9 @@ class _ChunkEvents:
     (3, m)) and its pending receptions, bounce by bounce."""
 
     points: NDArray[np.float64]
-    surface: NDArray[np.int64]
-    parent: NDArray[np.int64]
-    bounce: NDArray[np.int64]
+    surface: NDArray[np.int32]
+    parent: NDArray[np.int32]
+    bounce: NDArray[np.int32]
     departure: NDArray[np.float64]
     pending: tuple[_Pending, ...]
     legs: tuple[int, int] = (0, 0)
@@ -674,7 +679,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
-    parent = np.full(n, -1, dtype=np.int64)
+    parent = np.full(n, -1, dtype=np.int32)
     ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
     pending: list[_Pending] = []
     next_event = 0
@@ -690,14 +695,15 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         normal = np.empty((3, m if keep else 0))  # written for continuing rays only
         hit_weight, mu = np.empty(m if keep else 0), np.empty(m if keep else 0)
         amplitude, hit_travelled, phase = (np.empty(m) for _ in range(3))
-        hit_parent, surface = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+        hit_parent, surface = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
         # next-event estimation to every receiver; Embree tests the legs that may be blocked
         # by a non-convex object
         pairs = m * n_rx
         state = np.empty(pairs, dtype=np.int8)
         r2, cos_r2 = np.empty(pairs), np.empty(pairs)
-        leg_start, leg_unit = np.empty((pairs, 3), dtype=np.float32), np.empty((pairs, 3), dtype=np.float32)
-        leg_length, leg_pair = np.empty(pairs, dtype=np.float32), np.empty(pairs, dtype=np.int64)
+        legs_max = pairs if tracer.queues else 0  # no Embree buffers when every leg is decided here
+        leg_start, leg_unit = np.empty((legs_max, 3), dtype=np.float32), np.empty((legs_max, 3), dtype=np.float32)
+        leg_length, leg_pair = np.empty(legs_max, dtype=np.float32), np.empty(legs_max, dtype=np.int64)
         mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset = tracer.screen
         n_hits, n_legs, n_exact, count = kernels.scatter_and_pair(
             triangle, directions, origins, weight, travelled, parent, departure, tracer.mu, tracer.normal,
@@ -713,7 +719,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         ev["points"].append(points)
         ev["surface"].append(surface[:n_hits])
         ev["parent"].append(hit_parent[:n_hits])
-        ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int64))
+        ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int32))
         ev["departure"].append(departure)
         legs[0] += n_legs
         legs[1] += n_exact
@@ -721,7 +727,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
             blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
             count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
         pending.append(_Pending(n_hits, state, r2, cos_r2, points, amplitude, hit_travelled, phase, next_event, count))
-        parent = next_event + np.arange(n_hits)
+        parent = np.arange(next_event, next_event + n_hits, dtype=np.int32)
         next_event += n_hits
         if bounce + 1 >= tracer.bounces:
             break
@@ -742,7 +748,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         travelled = hit_travelled[:n_hits]
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
     if not ev["points"]:
-        i0, v0 = np.zeros(0, np.int64), np.zeros((3, 0))
+        i0, v0 = np.zeros(0, np.int32), np.zeros((3, 0))
         return _ChunkEvents(v0, i0, i0, i0, v0, ())
     return _ChunkEvents(
         points=_join(ev["points"], axis=1), surface=_join(ev["surface"]), parent=_join(ev["parent"]),
@@ -782,6 +788,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         tested[:, np.arange(n_rx) != reference] = False
     sizes = [CHUNK_RAYS] * (n_rays // CHUNK_RAYS) + ([n_rays % CHUNK_RAYS] if n_rays % CHUNK_RAYS else [])
     n_uniform = sum(_LobeTable.uniform_count(size) for size in sizes)
+    screen = ObjectScreen.create(scene, rx, raycaster.convex_planes).kernel_arguments()
     tracer = _Tracer(
         raycaster=raycaster,
         lobe=_LobeTable.create(context),
@@ -793,7 +800,9 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         origins32=_float32_rows(tx[:, None], raycaster.shift_m, min(n_rays, CHUNK_RAYS)),
         frame=(*_basis(boresight), boresight),
         receivers=np.ascontiguousarray(rx),
-        screen=ObjectScreen.create(scene, rx, raycaster.convex_planes).kernel_arguments(),
+        screen=screen,
+        queues=screen[0] == 2 or (screen[0] == 1 and (screen[1].shape[0] == 1 or bool(np.any(
+            screen[5][1:-1] == screen[5][2:])))),
         tested=tested,
         shared=visibility == "centre",
         seed_hash=_seed_hash(int(config.seed)),

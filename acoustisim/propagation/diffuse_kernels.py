@@ -158,7 +158,7 @@ def transmit_directions(
 @njit(cache=True, nogil=True, error_model="numpy")
 def scatter_and_pair(
     triangle: NDArray[np.int32], directions: NDArray[np.float64], origins: NDArray[np.float64],
-    weight: NDArray[np.float64], travelled: NDArray[np.float64], parent: NDArray[np.int64],
+    weight: NDArray[np.float64], travelled: NDArray[np.float64], parent: NDArray[np.int32],
     departure: NDArray[np.float64], tri_mu: NDArray[np.float64], tri_normal: NDArray[np.float64],
     tri_offset: NDArray[np.float64], tri_surface: NDArray[np.int64], cell: float, seed_hash: np.uint64,
     receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
@@ -167,7 +167,7 @@ def scatter_and_pair(
     shared: bool, keep: bool,
     points: NDArray[np.float64], normal: NDArray[np.float64],
     out_departure: NDArray[np.float64], out_weight: NDArray[np.float64], amplitude: NDArray[np.float64],
-    out_travelled: NDArray[np.float64], out_parent: NDArray[np.int64], surface: NDArray[np.int64],
+    out_travelled: NDArray[np.float64], out_parent: NDArray[np.int32], surface: NDArray[np.int32],
     mu: NDArray[np.float64], phase: NDArray[np.float64],
     state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
@@ -185,7 +185,7 @@ def scatter_and_pair(
         Ray origins (m); one column is shared by every ray.
     weight, travelled : ndarray, shape (m,)
         Solid angle (x albedo products) and path length so far (m) of each ray.
-    parent : ndarray of int64, shape (m,)
+    parent : ndarray of int32, shape (m,)
     tri_mu, tri_offset : ndarray, shape (n_triangles,)
         Lambert mu of each triangle's surface and its plane offset n . v0 (m).
     tri_normal : ndarray, shape (3, n_triangles)
@@ -338,6 +338,8 @@ def scatter_and_pair(
                         hidden = True
                     continue
             state[pair] = 2
+            if n_legs == leg_pair.size:  # the caller allocated no room: an internal error
+                raise RuntimeError("scatter_and_pair: a leg left to Embree without a buffer for it")
             inverse = 1.0 / length
             ux, uy, uz = dx * inverse, dy * inverse, dz * inverse
             leg_start[n_legs, 0] = px + eps * ux - shift[0]
@@ -454,8 +456,8 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int64],
-                 parent: NDArray[np.int64], bounce: NDArray[np.int64], first: int, out_points: NDArray[np.float64],
+def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int32],
+                 parent: NDArray[np.int32], bounce: NDArray[np.int32], first: int, out_points: NDArray[np.float64],
                  out_departure: NDArray[np.float64], out_surface: NDArray[np.int32], out_parent: NDArray[np.int32],
                  out_bounce: NDArray[np.int32]) -> None:
     """Copy one chunk's events (vectors as components (3, m), chunk-local parents) into the
