@@ -623,8 +623,7 @@ class _Pending:
 
     n_hits: int
     state: NDArray[np.int8]
-    r2: NDArray[np.float64]
-    cos_r2: NDArray[np.float64]
+    triangle: NDArray[np.int32]
     points: NDArray[np.float64]
     amplitude: NDArray[np.float64]
     travelled: NDArray[np.float64]
@@ -700,7 +699,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         # by a non-convex object
         pairs = m * n_rx
         state = np.empty(pairs, dtype=np.int8)
-        r2, cos_r2 = np.empty(pairs), np.empty(pairs)
+        hit_triangle = np.empty(m, dtype=np.int32)
         legs_max = pairs if tracer.queues else 0  # no Embree buffers when every leg is decided here
         leg_start, leg_unit = np.empty((legs_max, 3), dtype=np.float32), np.empty((legs_max, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(legs_max, dtype=np.float32), np.empty(legs_max, dtype=np.int64)
@@ -711,7 +710,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
             rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, plane_start, plane_normal,
             plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep,
             points, normal, hit_departure, hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
-            state, r2, cos_r2, leg_start, leg_unit, leg_length, leg_pair,
+            hit_triangle, state, leg_start, leg_unit, leg_length, leg_pair,
         )
         if n_hits == 0:
             break
@@ -726,7 +725,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         if n_legs:
             blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
             count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
-        pending.append(_Pending(n_hits, state, r2, cos_r2, points, amplitude, hit_travelled, phase, next_event, count))
+        pending.append(_Pending(n_hits, state, hit_triangle, points, amplitude, hit_travelled, phase, next_event, count))
         parent = np.arange(next_event, next_event + n_hits, dtype=np.int32)
         next_event += n_hits
         if bounce + 1 >= tracer.bounces:
@@ -758,8 +757,9 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
 
 
 def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | None,
-                  visibility: str) -> list[_ChunkEvents]:
-    """Validate the knobs, set up the tracer and trace every chunk (in chunk order)."""
+                  visibility: str) -> tuple[list[_ChunkEvents], NDArray[np.float64]]:
+    """Validate the knobs, set up the tracer and trace every chunk (in chunk order); return
+    them and the triangles' normals as components (3, n_triangles)."""
     n_rays = int(config.diffuse_rays)
     if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
         raise InputError(
@@ -776,7 +776,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
     )
     # No surface scatters (e.g. an empty free field): nothing to trace.
     if n_rays <= 0 or raycaster.triangle_count == 0 or not np.any(mu_of_surface > 0.0):
-        return []
+        return [], np.zeros((3, 0))
     tx = np.asarray(context.transmitter_m, dtype=float)
     rx = np.asarray(context.receivers_m, dtype=float)
     boresight = np.asarray(context.boresight, dtype=float)
@@ -811,7 +811,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         totals=(n_uniform, n_rays - n_uniform),
     )
     n_chunks = -(-n_rays // CHUNK_RAYS)
-    return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers)
+    return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers), tracer.normal
 
 
 def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
@@ -841,7 +841,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`, or ``threads`` or
         ``visibility`` is invalid.
     """
-    chunks = _trace_chunks(context, config, threads, visibility)
+    chunks, tri_normal = _trace_chunks(context, config, threads, visibility)
     workers = resolve_threads(threads)
     n_events = [c.surface.size for c in chunks]
     n_receptions = [c.receptions for c in chunks]
@@ -862,7 +862,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         start = int(reception_start[index])
         for p in chunk.pending:  # the bounces
             start = kernels.write_receptions(
-                p.n_hits, rx.shape[0], p.state, p.r2, p.cos_r2, p.points, rx, p.amplitude, p.travelled, p.phase,
+                p.n_hits, rx.shape[0], p.state, p.triangle, tri_normal, p.points, rx, p.amplitude, p.travelled, p.phase,
                 first + p.first_event, start, event, channel, length, gain, phase,
             )
 

@@ -168,8 +168,8 @@ def scatter_and_pair(
     points: NDArray[np.float64], normal: NDArray[np.float64],
     out_departure: NDArray[np.float64], out_weight: NDArray[np.float64], amplitude: NDArray[np.float64],
     out_travelled: NDArray[np.float64], out_parent: NDArray[np.int32], surface: NDArray[np.int32],
-    mu: NDArray[np.float64], phase: NDArray[np.float64],
-    state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64], leg_start: NDArray[np.float32],
+    mu: NDArray[np.float64], phase: NDArray[np.float64], hit_triangle: NDArray[np.int32],
+    state: NDArray[np.int8], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
 ) -> tuple[int, int, int, int]:
     """Compact the rays that scatter, solve their hits, and decide every (hit, receiver) pair:
@@ -217,12 +217,12 @@ def scatter_and_pair(
         :func:`clear_blocked`).
     keep : bool
         The rays continue (another bounce follows): write ``normal``, ``out_weight`` and ``mu``.
-    points ... phase : outputs, first axis (or second for the (3, m) ones) of length >= m
+    points ... hit_triangle : outputs, first axis (or second for the (3, m) ones) of length >= m
         The kept rays' hit points, normals, departures, weights, |X| sqrt(mu weight), path
-        lengths to the hit, parents, surfaces, mu and speckle phase.
-    state, r2, cos_r2 : outputs, shape (>= m n_rx,), point-major
+        lengths to the hit, parents, surfaces, mu, speckle phase and triangle.
+    state : output, shape (>= m n_rx,), point-major
         Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
-        2 (leg queued for Embree); the leg length (m); r2 sin(g_s) (m).
+        2 (leg queued for Embree).
     leg_start, leg_unit : outputs of float32, shape (>= m n_rx, 3)
     leg_length : output of float32, shape (>= m n_rx,)
     leg_pair : output of int64, shape (>= m n_rx,)
@@ -278,6 +278,7 @@ def scatter_and_pair(
         out_parent[h] = parent[ray]
         s = tri_surface[t]
         surface[h] = s
+        hit_triangle[h] = t
         if keep:
             normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
             out_weight[h] = w
@@ -292,8 +293,6 @@ def scatter_and_pair(
             dx, dy, dz = qx - px, qy - py, qz - pz
             length = math.sqrt(dx * dx + dy * dy + dz * dz)
             c = dx * nx + dy * ny + dz * nz
-            r2[pair] = length
-            cos_r2[pair] = c
             if not c > 0.0:
                 state[pair] = 0
                 continue
@@ -474,7 +473,7 @@ def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], su
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def write_receptions(
-    h: int, n_rx: int, state: NDArray[np.int8], r2: NDArray[np.float64], cos_r2: NDArray[np.float64],
+    h: int, n_rx: int, state: NDArray[np.int8], triangle: NDArray[np.int32], tri_normal: NDArray[np.float64],
     points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
     travelled: NDArray[np.float64], phase: NDArray[np.float64], first_event: int, start: int,
     event: NDArray[np.int32], channel: NDArray[np.int8], length: NDArray[np.float64], gain: NDArray[np.float64],
@@ -485,7 +484,10 @@ def write_receptions(
     Each gives event ``first_event + point``, its channel, the path length (travelled + r2, m),
     the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega))
     and the speckle phase (the arrival direction is derived when needed, see
-    :func:`arrival_directions`).
+    :func:`arrival_directions`). r2 and r2 sin(g_s) are recomputed from the point, the receiver
+    and the normal of the point's ``triangle`` (rows of ``tri_normal``, (3, n_triangles)) as
+    :func:`scatter_and_pair` computed them (the same operations: the same values), rather than
+    kept per pair between the two passes.
 
     Returns
     -------
@@ -498,11 +500,14 @@ def write_receptions(
             pair = i * n_rx + j
             if state[pair] == 0:
                 continue
-            r = r2[pair]
+            dx, dy, dz = receivers[j, 0] - points[0, i], receivers[j, 1] - points[1, i], receivers[j, 2] - points[2, i]
+            r = math.sqrt(dx * dx + dy * dy + dz * dz)
+            t = triangle[i]
+            c = dx * tri_normal[0, t] + dy * tri_normal[1, t] + dz * tri_normal[2, t]
             event[k] = first_event + i
             channel[k] = j
             length[k] = travelled[i] + r
-            gain[k] = amplitude[i] * math.sqrt(cos_r2[pair] / (r * r * r))
+            gain[k] = amplitude[i] * math.sqrt(c / (r * r * r))
             out_phase[k] = phase[i]
             k += 1
     return k
