@@ -50,6 +50,7 @@ source solver's business.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -236,9 +237,13 @@ class _LobeTable:
         return max(1, int(round(UNIFORM_FRACTION * n))) if n else 0
 
     def draw(self, n: int, totals: tuple[int, int], frame: tuple[NDArray[np.float64], ...],
-             rng: np.random.Generator) -> tuple[NDArray[np.float64], NDArray[np.float32], NDArray[np.float64]]:
+             rng: np.random.Generator, workspace: "_DrawBuffers | None" = None) -> tuple[
+                 NDArray[np.float64], NDArray[np.float32], NDArray[np.float64]]:
         """Directions of ``n`` rays as components (3, n) and as float32 rows (n, 3) (Embree's
         buffer), and their solid angles (n,) (sr).
+
+        ``workspace``: buffers for at least ``n`` rays, overwritten and returned (views); None:
+        new arrays.
 
         ``frame`` = (e1, e2, boresight): the transmitter's orthonormal frame (see :func:`_basis`).
 
@@ -248,20 +253,44 @@ class _LobeTable:
         integer and fractional parts in units of a guide bin), the azimuth from the other.
         """
         n_uniform = self.uniform_count(n)
-        u = rng.random((2, n))
+        w = _DrawBuffers.create(n) if workspace is None else workspace
+        u = w.uniform[: 2 * n].reshape(2, n)
+        rng.random(out=u)
         # the azimuth's cosine and sine in float32, rescaled to unit length in the kernel (as
         # _unit_circle does)
-        phi32 = u[1].astype(np.float32)
+        phi32, cos32 = w.angle32[:n], w.cos32[:n]
+        np.copyto(phi32, u[1], casting="same_kind")
         phi32 *= np.float32(2.0 * np.pi)
-        cos32 = np.cos(phi32)
+        np.cos(phi32, out=cos32)
         sin32 = np.sin(phi32, out=phi32)
-        directions, directions32, solid_angle = np.empty((3, n)), np.empty((n, 3), dtype=np.float32), np.empty(n)
+        directions = w.directions[: 3 * n].reshape(3, n)
+        directions32, solid_angle = w.directions32[:n], w.solid_angle[:n]
         n_u, n_l = totals
         e1, e2, axis = frame
         kernels.transmit_directions(u[0], cos32, sin32, n_uniform, self.guide, self.edges, self.lobe_pdf,
                                     n_u / (4.0 * np.pi), float(n_l), e1, e2, axis, directions, directions32,
                                     solid_angle)
         return directions, directions32, solid_angle
+
+
+@dataclass(frozen=True, eq=False)
+class _DrawBuffers:
+    """Buffers of :meth:`_LobeTable.draw` for up to ``capacity`` rays, reused by the chunks one
+    tracer thread draws (the drawn arrays are read by the chunk's first bounce only: fresh
+    memory costs more, in page faults, than the kernels that fill it)."""
+
+    uniform: NDArray[np.float64]
+    angle32: NDArray[np.float32]
+    cos32: NDArray[np.float32]
+    directions: NDArray[np.float64]
+    directions32: NDArray[np.float32]
+    solid_angle: NDArray[np.float64]
+
+    @classmethod
+    def create(cls, capacity: int) -> "_DrawBuffers":
+        """Uninitialised buffers for ``capacity`` rays."""
+        return cls(np.empty(2 * capacity), np.empty(capacity, dtype=np.float32), np.empty(capacity, dtype=np.float32),
+                   np.empty(3 * capacity), np.empty((capacity, 3), dtype=np.float32), np.empty(capacity))
 
 
 def sample_directions(
@@ -593,6 +622,9 @@ class _Tracer:
     bounces, n_rays : int
     totals : tuple of int
         Rays drawn uniformly and from the lobe, over all chunks (see :class:`_LobeTable`).
+    buffers : threading.local
+        Each tracing thread's :class:`_DrawBuffers` (attribute ``draw``), made on its first
+        chunk of this solve.
     """
 
     raycaster: RayCaster
@@ -613,6 +645,7 @@ class _Tracer:
     bounces: int
     n_rays: int
     totals: tuple[int, int]
+    buffers: threading.local
 
 
 @dataclass(frozen=True, eq=False)
@@ -674,7 +707,10 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     shift = raycaster.shift_m
     rx = tracer.receivers
     n_rx = rx.shape[0]
-    directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng)
+    buffers = getattr(tracer.buffers, "draw", None)  # this thread's, reused chunk after chunk
+    if buffers is None:
+        buffers = tracer.buffers.draw = _DrawBuffers.create(min(tracer.n_rays, CHUNK_RAYS))
+    directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng, buffers)
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
@@ -809,6 +845,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         bounces=int(config.diffuse_bounces),
         n_rays=n_rays,
         totals=(n_uniform, n_rays - n_uniform),
+        buffers=threading.local(),
     )
     n_chunks = -(-n_rays // CHUNK_RAYS)
     return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers), tracer.normal
