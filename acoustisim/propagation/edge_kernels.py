@@ -9,8 +9,9 @@ passes over temporary arrays. Here each branch, element or row is one loop itera
 1. :func:`branch_elements` (called by :func:`~acoustisim.propagation.btm.discretise_edges`):
    the graded nodes of each branch (roots on the spheroids m + l = const) and the elements
    between them, split to the length cap;
-2. :func:`visibility_segments`: the occlusion segments of every element's centre (one Embree
-   batch, :meth:`~acoustisim.propagation.raycast.RayCaster.occluded`, between the kernels);
+2. :func:`visibility_rays32`: the occlusion queries of every element's centre, written as
+   Embree's float32 buffers (one batch,
+   :meth:`~acoustisim.propagation.raycast.RayCaster.occluded_segments32`, between the kernels);
 3. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
    m + l, and their gains (the element's BTM integral split between them);
 4. :func:`fill_edge_rows`: the rows above the amplitude floor, with dense path ids per
@@ -304,14 +305,22 @@ def gauss_point_gains(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def visibility_segments(
+def visibility_rays32(
     pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
     pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], start: NDArray[np.float64],
     direction: NDArray[np.float64], offset: NDArray[np.float64], tx: NDArray[np.float64],
-    rx: NDArray[np.float64], own_leg_rx: NDArray[np.bool_],
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
-    """The occlusion segments of every element: its centre's probe to the transmitter, and to
-    its receiver where that is not the transmitter.
+    rx: NDArray[np.float64], own_leg_rx: NDArray[np.bool_], shift: NDArray[np.float64], eps: float,
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.int64], NDArray[np.int64]]:
+    """The occlusion queries of every element, as Embree's float32 buffers: its centre's probe
+    to the transmitter, and to its receiver where that is not the transmitter.
+
+    Segment s of the n + k (the n probe -> transmitter ones, then the k probe -> receiver ones)
+    runs from the probe o (the element's centre plus its edge's offset) to the target t; its
+    query is what :meth:`~acoustisim.propagation.raycast.RayCaster.occluded` makes of it, with
+    the same operations in the same order (so the same float32 buffers and the same answers):
+    length L = sqrt((s0^2 + s1^2) + s2^2) of s = t - o, unit direction d = s / L, start
+    eps d + o shrunk by ``eps`` and shifted by ``shift`` (rounded once to float32), length
+    L - 2 eps; segments with L <= 2 eps are never blocked and get no query.
 
     Parameters
     ----------
@@ -327,11 +336,18 @@ def visibility_segments(
     rx : ndarray, shape (n_rx, 3)
     own_leg_rx : ndarray of bool, shape (n_rx,)
         Whether a receiver has its own leg (is not at the transmitter).
+    shift : ndarray, shape (3,)
+        :attr:`~acoustisim.propagation.raycast.RayCaster.shift_m`.
+    eps : float
+        End shrink (m), :data:`~acoustisim.propagation.raycast.DEFAULT_EPS_M`.
 
     Returns
     -------
-    origins, targets : ndarray, shape (n + k, 3)
-        The n probe -> transmitter segments, then the k probe -> receiver ones.
+    starts32, directions32 : ndarray of float32, shape (q, 3)
+    lengths32 : ndarray of float32, shape (q,)
+        The queries (for :meth:`~acoustisim.propagation.raycast.RayCaster.occluded_segments32`).
+    segment : ndarray of int64, shape (q,)
+        The segment (0 .. n + k - 1) of each query, increasing.
     own_leg : ndarray of int64, shape (k,)
         The elements of the k receiver legs, increasing.
     """
@@ -340,25 +356,48 @@ def visibility_segments(
     for i in range(n):
         if own_leg_rx[pair_rx[pair[i]]]:
             k += 1
-    origins = np.empty((n + k, 3))
-    targets = np.empty((n + k, 3))
     own_leg = np.empty(k, dtype=np.int64)
-    j = n
+    probes = np.empty((n, 3))
+    j = 0
     for i in range(n):
         p = pair[i]
         e = pair_edge[p]
         z = 0.5 * (z_start[i] + z_end[i])
         for c in range(3):
-            origins[i, c] = start[e, c] + z * direction[e, c] + offset[e, c]
-            targets[i, c] = tx[c]
-        ch = pair_rx[p]
-        if own_leg_rx[ch]:
-            for c in range(3):
-                origins[j, c] = origins[i, c]
-                targets[j, c] = rx[ch, c]
-            own_leg[j - n] = i
+            probes[i, c] = start[e, c] + z * direction[e, c] + offset[e, c]
+        if own_leg_rx[pair_rx[p]]:
+            own_leg[j] = i
             j += 1
-    return origins, targets, own_leg
+    m = n + k
+    starts32 = np.empty((m, 3), dtype=np.float32)
+    directions32 = np.empty((m, 3), dtype=np.float32)
+    lengths32 = np.empty(m, dtype=np.float32)
+    segment = np.empty(m, dtype=np.int64)
+    two_eps = 2.0 * eps
+    q = 0
+    for s in range(m):
+        i = s if s < n else own_leg[s - n]
+        if s < n:
+            t0, t1, t2 = tx[0], tx[1], tx[2]
+        else:
+            ch = pair_rx[pair[i]]
+            t0, t1, t2 = rx[ch, 0], rx[ch, 1], rx[ch, 2]
+        o0, o1, o2 = probes[i, 0], probes[i, 1], probes[i, 2]
+        s0, s1, s2 = t0 - o0, t1 - o1, t2 - o2
+        length = math.sqrt((s0 * s0 + s1 * s1) + s2 * s2)
+        if not length > two_eps:
+            continue
+        d0, d1, d2 = s0 / length, s1 / length, s2 / length
+        starts32[q, 0] = np.float32((eps * d0 + o0) - shift[0])
+        starts32[q, 1] = np.float32((eps * d1 + o1) - shift[1])
+        starts32[q, 2] = np.float32((eps * d2 + o2) - shift[2])
+        directions32[q, 0] = np.float32(d0)
+        directions32[q, 1] = np.float32(d1)
+        directions32[q, 2] = np.float32(d2)
+        lengths32[q] = np.float32(length - two_eps)
+        segment[q] = s
+        q += 1
+    return starts32[:q], directions32[:q], lengths32[:q], segment[:q], own_leg
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -443,4 +482,4 @@ def fill_edge_rows(
             rows_points[r, j, 2] = np.nan
 
 
-__all__ = ["branch_elements", "fill_edge_rows", "gauss_point_gains", "visibility_segments"]
+__all__ = ["branch_elements", "fill_edge_rows", "gauss_point_gains", "visibility_rays32"]

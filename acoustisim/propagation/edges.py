@@ -63,8 +63,9 @@ from acoustisim.propagation.btm import EdgeElements, discretise_edges, gauss_rul
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
-from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains, visibility_segments
+from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains, visibility_rays32
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
+from acoustisim.propagation.raycast import DEFAULT_EPS_M
 from acoustisim.scene import Scene
 
 DELAY_STEPS_PER_PERIOD = 16
@@ -280,12 +281,13 @@ def edge_paths(context: SolveContext, config: SolverConfig,
     # visibility of each element's centre from the transmitter and from its receiver, one batch
     # (before the gains: hidden elements cost no quadrature)
     # a receiver at the transmitter (the centre transducer) has the same leg: tested once
-    origins, targets, own_leg = visibility_segments(
+    starts32, directions32, lengths32, segment, own_leg = visibility_rays32(
         elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m, edges.direction,
-        scene_part.probe_offset_m, tx, rx, ~np.all(rx == tx, axis=1),
+        scene_part.probe_offset_m, tx, rx, ~np.all(rx == tx, axis=1), context.raycaster.shift_m, DEFAULT_EPS_M,
     )
     n = elements.pair.size
-    blocked = context.raycaster.occluded(origins, targets)
+    blocked = np.zeros(n + own_leg.size, dtype=bool)
+    blocked[segment] = context.raycaster.occluded_segments32(starts32, directions32, lengths32)
     visible = ~blocked[:n]
     visible[own_leg] &= ~blocked[n:]
     elements = EdgeElements(elements.pair[visible], elements.z_start_m[visible], elements.z_end_m[visible],
