@@ -85,7 +85,7 @@ def test_angle_envelope_bounds_the_directivity_over_the_band():
     scales = np.array([11.0, 30.0, 69.0])  # k a at the low, centre and high frequencies
     table, step = directivity_table(float(scales[-1]))
     envelope = angle_envelope(table, step, float(scales[0]) / step)
-    angle = np.linspace(0.0, 0.5 * np.pi, 200_001)
+    angle = np.linspace(0.0, 0.5 * np.pi, 40_001)
     cells = envelope.size - 1
     bound = envelope[np.minimum((angle * (cells / (0.5 * np.pi))).astype(int), cells)]
     for scale in np.linspace(scales[0], scales[-1], 37):
