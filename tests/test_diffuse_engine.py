@@ -16,6 +16,7 @@ from acoustisim.propagation.diffuse import (
     diffuse_paths,
     receiver_wedges,
     sample_directions,
+    shared_wedges,
     trace_diffuse,
 )
 from acoustisim.propagation.directivity import piston_directivity
@@ -113,13 +114,20 @@ def test_receiver_wedges_hold_every_leg_crossing_a_box():
     wedges = receiver_wedges(lo, hi, receivers)
     points = rng.uniform(-3.0, 3.0, (20_000, 3))
     rejected, misses, inside = 0, 0, 0
-    for j, q in enumerate(receivers):
+    # a sonar-like cluster (receivers 65 mm apart) for the wedges the receivers share
+    cluster = receivers[0] + np.array([[0.0, 0.065, 0.0], [0.0, 0.0, 0.0], [0.0, -0.065, 0.0]])
+    shared = shared_wedges(lo, hi, cluster)
+    any_crosses = np.zeros((lo.shape[0], points.shape[0]), dtype=bool)
+    for j, q in enumerate(np.concatenate([receivers, cluster])):
         e = points - q
         with np.errstate(divide="ignore", invalid="ignore"):
             t1, t2 = (lo[:, None, :] - q) / e, (hi[:, None, :] - q) / e  # (k, n, 3): the ray q + t e
         enter = np.maximum(np.nanmax(np.minimum(t1, t2), axis=2), 0.0)
         leave = np.minimum(np.nanmin(np.maximum(t1, t2), axis=2), 1.0)
         crosses = enter <= leave  # (k, n)
+        if j >= receivers.shape[0]:
+            any_crosses |= crosses
+            continue
         for b in range(lo.shape[0]):
             w = wedges[j, b]
             inside += int(not np.any(w))
@@ -129,6 +137,11 @@ def test_receiver_wedges_hold_every_leg_crossing_a_box():
             misses += int(np.sum(~crosses[b]))
     assert 0 < inside < 60  # both cases occur
     assert rejected > 0.5 * misses
+    # a point from which a leg to any receiver of the cluster crosses a box passes its shared
+    # wedge; most others do not
+    passes = (points @ shared[:, 0:3].T >= shared[:, 3]) & (points @ shared[:, 4:7].T >= shared[:, 7])  # (n, k)
+    assert np.all(passes.T[any_crosses])
+    assert np.sum(~passes.T & ~any_crosses) > 0.5 * np.sum(~any_crosses)
 
 
 def test_per_leg_screen_skips_only_clear_legs(tank):

@@ -351,6 +351,9 @@ class ObjectScreen:
     wedges : ndarray, shape (n_rx, k, 6)
         :func:`receiver_wedges` of the boxes: a leg outside a box's wedge does not cross it
         (tested before the box itself, at two dot products).
+    shared : ndarray, shape (k, 8)
+        :func:`shared_wedges`: a point outside a box's shared wedge has no leg to any receiver
+        crossing the box (tested once per point, before the receivers' own wedges).
     planes : ConvexPlanes
         Face planes of the rows of ``lo``, ``hi`` (row 0, the union, has none): a leg crossing
         the box of an object with planes is decided exactly by them
@@ -366,6 +369,7 @@ class ObjectScreen:
     wedges: NDArray[np.float64] | None = None
     planes: ConvexPlanes = field(default_factory=lambda: ConvexPlanes(np.zeros(1, dtype=np.int64), np.zeros((0, 3)),
                                                                       np.zeros(0)))
+    shared: NDArray[np.float64] | None = None
 
     @classmethod
     def create(cls, scene: Any, receivers_m: NDArray[np.float64],
@@ -402,7 +406,7 @@ class ObjectScreen:
         else:  # prepend the union's empty row
             rows = ConvexPlanes(np.concatenate([[0], planes.start]).astype(np.int64), planes.normal, planes.offset)
         lo, hi = np.concatenate([union_lo, lo]), np.concatenate([union_hi, hi])
-        return cls(receivers, lo, hi, own_box, receiver_wedges(lo, hi, receivers), rows)
+        return cls(receivers, lo, hi, own_box, receiver_wedges(lo, hi, receivers), rows, shared_wedges(lo, hi, receivers))
 
     def near(self, points_m: NDArray[np.float64], receiver: int | None = None,
              surface: NDArray[np.int64] | None = None) -> NDArray[np.bool_]:
@@ -425,20 +429,21 @@ class ObjectScreen:
         return near
 
     def kernel_arguments(self) -> tuple[Any, ...]:
-        """(mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset) for
+        """(mode, lo, hi, own_box, wedges, point_wedges, plane_start, plane_normal, plane_offset) for
         :func:`~acoustisim.propagation.diffuse_kernels.scatter_and_pair`: mode 0 when no leg can
         be blocked, 1 to screen with the boxes and decide with the convex objects' planes, 2
         when every leg may be blocked (Embree tests each)."""
         p = self.planes
         if self.lo is None or self.lo.shape[0] == 0:
             none = np.zeros((1, 3))
-            return (2 if self.lo is None else 0, none, none, self.own_box, np.zeros((1, 1, 6)),
+            return (2 if self.lo is None else 0, none, none, self.own_box, np.zeros((1, 1, 6)), np.zeros((1, 8)),
                     np.zeros(2, dtype=np.int64), none, np.zeros(1))
         start = p.start if p.start.size == self.lo.shape[0] + 1 else np.zeros(self.lo.shape[0] + 1, dtype=np.int64)
         normal = p.normal if p.normal.shape[0] else np.zeros((1, 3))
         offset = p.offset if p.offset.shape[0] else np.zeros(1)
         wedges = self.wedges if self.wedges is not None else receiver_wedges(self.lo, self.hi, self.receivers)
-        return 1, self.lo, self.hi, self.own_box, wedges, start, normal, offset
+        shared = self.shared if self.shared is not None else shared_wedges(self.lo, self.hi, self.receivers)
+        return 1, self.lo, self.hi, self.own_box, wedges, shared, start, normal, offset
 
 
 def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
@@ -494,6 +499,31 @@ def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
     # N1 . e = R_u e_v - R_v e_u;  N2 . e = e_u L_v - e_v L_u
     out[receiver_index, box_index, v3], out[receiver_index, box_index, u3] = right[..., 0], -right[..., 1]
     out[receiver_index, box_index, 3 + u3], out[receiver_index, box_index, 3 + v3] = left[..., 1], -left[..., 0]
+    return out
+
+
+def shared_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
+                  receivers: NDArray[np.float64]) -> NDArray[np.float64]:
+    """One wedge per box for all the receivers: the points from which a leg to any receiver may
+    cross the box, a superset tested once per point before the receivers' own wedges.
+
+    With c the receivers' centroid and g the largest offset |q - c| of a receiver along each
+    axis: a leg from a receiver q to a point p crossing the box at x has p = q + t (x - q),
+    t >= 1, so p - c = t (y - c) with y = x - (1 - 1/t)(q - c) in the box grown by g; p lies
+    in the wedge seen from c of the grown box (:func:`receiver_wedges`).
+
+    Returns
+    -------
+    ndarray, shape (k, 8)
+        (N1, N1 . c, N2, N2 . c) per box: the point p passes iff ``N1 . p >= N1 . c`` and
+        ``N2 . p >= N2 . c``.
+    """
+    centre = receivers.mean(axis=0)
+    grow = np.max(np.abs(receivers - centre), axis=0) + 1e-9
+    normals = receiver_wedges(lo - grow, hi + grow, centre[None, :])[0]  # (k, 6)
+    out = np.empty((lo.shape[0], 8))
+    out[:, 0:3], out[:, 4:7] = normals[:, 0:3], normals[:, 3:6]
+    out[:, 3], out[:, 7] = normals[:, 0:3] @ centre, normals[:, 3:6] @ centre
     return out
 
 
@@ -739,11 +769,11 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         legs_max = pairs if tracer.queues else 0  # no Embree buffers when every leg is decided here
         leg_start, leg_unit = np.empty((legs_max, 3), dtype=np.float32), np.empty((legs_max, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(legs_max, dtype=np.float32), np.empty(legs_max, dtype=np.int64)
-        mode, lo, hi, own_box, wedges, plane_start, plane_normal, plane_offset = tracer.screen
+        mode, lo, hi, own_box, wedges, point_wedges, plane_start, plane_normal, plane_offset = tracer.screen
         n_hits, n_legs, n_exact, count = kernels.scatter_and_pair(
             triangle, directions, origins, weight, travelled, parent, departure, tracer.mu, tracer.normal,
             tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash,
-            rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, plane_start, plane_normal,
+            rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, point_wedges, plane_start, plane_normal,
             plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep,
             points, normal, hit_departure, hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
             hit_triangle, state, leg_start, leg_unit, leg_length, leg_pair,
@@ -838,7 +868,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         receivers=np.ascontiguousarray(rx),
         screen=screen,
         queues=screen[0] == 2 or (screen[0] == 1 and (screen[1].shape[0] == 1 or bool(np.any(
-            screen[5][1:-1] == screen[5][2:])))),
+            screen[6][1:-1] == screen[6][2:])))),
         tested=tested,
         shared=visibility == "centre",
         seed_hash=_seed_hash(int(config.seed)),
@@ -968,4 +998,6 @@ __all__ = [
     "CHUNK_RAYS",
     "VISIBILITY_MODES",
     "ObjectScreen",
+    "receiver_wedges",
+    "shared_wedges",
 ]

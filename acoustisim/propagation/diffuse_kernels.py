@@ -162,7 +162,8 @@ def scatter_and_pair(
     departure: NDArray[np.float64], tri_mu: NDArray[np.float64], tri_normal: NDArray[np.float64],
     tri_offset: NDArray[np.float64], tri_surface: NDArray[np.int64], cell: float, seed_hash: np.uint64,
     receivers: NDArray[np.float64], tested: NDArray[np.bool_], screen: int, lo: NDArray[np.float64],
-    hi: NDArray[np.float64], own_box: NDArray[np.int64], wedges: NDArray[np.float64], plane_start: NDArray[np.int64],
+    hi: NDArray[np.float64], own_box: NDArray[np.int64], wedges: NDArray[np.float64],
+    point_wedges: NDArray[np.float64], plane_start: NDArray[np.int64],
     plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64], shift: NDArray[np.float64], eps: float,
     shared: bool, keep: bool,
     points: NDArray[np.float64], normal: NDArray[np.float64],
@@ -204,6 +205,9 @@ def scatter_and_pair(
     wedges : ndarray, shape (n_rx, k, 6)
         Each receiver's wedges of the boxes
         (:func:`~acoustisim.propagation.diffuse.receiver_wedges`).
+    point_wedges : ndarray, shape (k, 8)
+        The boxes' wedges shared by all the receivers
+        (:func:`~acoustisim.propagation.diffuse.shared_wedges`), tested once per point.
     plane_start, plane_normal, plane_offset
         Face planes of the box rows (row b's are ``plane_start[b]:plane_start[b + 1]``, see
         :class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes`).
@@ -231,7 +235,8 @@ def scatter_and_pair(
     With one box only (the union of too many objects to screen one by one), a leg crossing it
     goes to Embree. Otherwise each object's box (rows 1:, skipping the convex object the point
     lies on: a leg towards a receiver in front of the face cannot re-enter it) is tested: the
-    leg's direction against the box's wedge seen from the receiver, then the slab test; a leg
+    point against the box's wedge shared by the receivers (once per point), then the leg's
+    direction against the box's wedge seen from the receiver, then the slab test; a leg
     crossing the box of an object with face planes is decided exactly on the leg shrunk by
     ``eps`` at both ends (:func:`~acoustisim.propagation.convex_occlusion.segment_crosses_convex`);
     one crossing the box of any other object, unless a convex one blocks it, goes to Embree.
@@ -287,6 +292,17 @@ def scatter_and_pair(
         i = h
         own = own_box[s]
         hidden = False  # a leg of this point blocked by a convex object
+        # the boxes a leg from this point to some receiver may cross, as a bit mask (not the
+        # convex object the point lies on)
+        candidates = 0
+        if screen == 1:
+            for b in range(1, n_boxes):
+                if (b != own
+                        and point_wedges[b, 0] * px + point_wedges[b, 1] * py + point_wedges[b, 2] * pz
+                        >= point_wedges[b, 3]
+                        and point_wedges[b, 4] * px + point_wedges[b, 5] * py + point_wedges[b, 6] * pz
+                        >= point_wedges[b, 7]):
+                    candidates |= np.int64(1) << b
         for j in range(n_rx):
             pair = i * n_rx + j
             qx, qy, qz = receivers[j, 0], receivers[j, 1], receivers[j, 2]
@@ -308,8 +324,8 @@ def scatter_and_pair(
                     if _slab(px, py, pz, 1.0 / dx, 1.0 / dy, 1.0 / dz, lo[0, 0], lo[0, 1], lo[0, 2], hi[0, 0],
                              hi[0, 1], hi[0, 2]):  # +-inf for a zero component
                         verdict = 2
-                for b in range(1, n_boxes):
-                    if b == own:
+                for b in range(1, n_boxes if candidates else 1):
+                    if not (candidates >> b) & 1:
                         continue
                     # the wedge seen from the receiver: e = -(dx, dy, dz), receiver -> point
                     if (wedges[j, b, 0] * dx + wedges[j, b, 1] * dy + wedges[j, b, 2] * dz > 0.0
