@@ -28,65 +28,80 @@ from numpy.typing import NDArray
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _block_power(row: NDArray[np.float64], first_block: int, energy: NDArray[np.float64], tone: NDArray[np.float64],
-                 offset_re: float, offset_im: float) -> None:
-    """|z_b|^2 of blocks first_block + 0 .. energy.size - 1 of one row.
+def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[np.float64], tone: NDArray[np.float64],
+                  offset_re: NDArray[np.float64], offset_im: NDArray[np.float64]) -> None:
+    """|z_b|^2 of blocks first_block + 0 .. energy.shape[1] - 1 of every row.
 
     Four blocks at a time: eight independent multiply-add chains over the tone table, with no
-    reduction inside a block, so each sample is read once and the pass runs at about the speed
-    of a plain read of the row (1.15x measured; one block at a time, a horizontal sum per
-    block, 1.6x; BLAS's (n_blocks, block) @ (block, 2), 1.15x but with its own threads).
+    reduction inside a block, so each sample is read once (one block at a time, a horizontal
+    sum per block, ran at 1.6x a read; BLAS's (n_blocks, block) @ (block, 2) as fast but with
+    its own threads). The rows advance together, four blocks of each in turn: several memory
+    streams keep more of the record's cache misses in flight than one row after another, which
+    matters when the record is not in cache (a new ping; measured 0.84 against 1.0 ms for 3 x
+    250,000 samples after an FFT of another array, 0.46 against 0.58 ms when cached).
     fastmath is safe here: finite sums only.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    first_block : int
+    energy : ndarray, shape (n_rows, n_blocks), written
+    tone : ndarray, shape (block, 2)
+    offset_re, offset_im : ndarray, shape (n_rows,)
+        Block correlation of each row's DC offset (dc times the tone's column sums), subtracted.
     """
     block = tone.shape[0]
-    n_blocks = energy.size
+    n_rows = rows.shape[0]
+    n_blocks = energy.shape[1]
     c = np.ascontiguousarray(tone[:, 0])
     s = np.ascontiguousarray(tone[:, 1])
     j = 0
     while j < n_blocks:
         count = min(4, n_blocks - j)
         base = (first_block + j) * block
-        if count == 4:
-            x0 = row[base: base + block]
-            x1 = row[base + block: base + 2 * block]
-            x2 = row[base + 2 * block: base + 3 * block]
-            x3 = row[base + 3 * block: base + 4 * block]
-            r0 = r1 = r2 = r3 = 0.0
-            i0 = i1 = i2 = i3 = 0.0
-            for q in range(block):
-                cq = c[q]
-                sq = s[q]
-                r0 += x0[q] * cq
-                r1 += x1[q] * cq
-                r2 += x2[q] * cq
-                r3 += x3[q] * cq
-                i0 += x0[q] * sq
-                i1 += x1[q] * sq
-                i2 += x2[q] * sq
-                i3 += x3[q] * sq
-            r0 -= offset_re
-            r1 -= offset_re
-            r2 -= offset_re
-            r3 -= offset_re
-            i0 -= offset_im
-            i1 -= offset_im
-            i2 -= offset_im
-            i3 -= offset_im
-            energy[j] = r0 * r0 + i0 * i0
-            energy[j + 1] = r1 * r1 + i1 * i1
-            energy[j + 2] = r2 * r2 + i2 * i2
-            energy[j + 3] = r3 * r3 + i3 * i3
-        else:
-            for u in range(count):
-                x = row[base + u * block: base + (u + 1) * block]
-                re = 0.0
-                im = 0.0
+        for r in range(n_rows):
+            row = rows[r]
+            if count == 4:
+                x0 = row[base: base + block]
+                x1 = row[base + block: base + 2 * block]
+                x2 = row[base + 2 * block: base + 3 * block]
+                x3 = row[base + 3 * block: base + 4 * block]
+                r0 = r1 = r2 = r3 = 0.0
+                i0 = i1 = i2 = i3 = 0.0
                 for q in range(block):
-                    re += x[q] * c[q]
-                    im += x[q] * s[q]
-                re -= offset_re
-                im -= offset_im
-                energy[j + u] = re * re + im * im
+                    cq = c[q]
+                    sq = s[q]
+                    r0 += x0[q] * cq
+                    r1 += x1[q] * cq
+                    r2 += x2[q] * cq
+                    r3 += x3[q] * cq
+                    i0 += x0[q] * sq
+                    i1 += x1[q] * sq
+                    i2 += x2[q] * sq
+                    i3 += x3[q] * sq
+                r0 -= offset_re[r]
+                r1 -= offset_re[r]
+                r2 -= offset_re[r]
+                r3 -= offset_re[r]
+                i0 -= offset_im[r]
+                i1 -= offset_im[r]
+                i2 -= offset_im[r]
+                i3 -= offset_im[r]
+                energy[r, j] = r0 * r0 + i0 * i0
+                energy[r, j + 1] = r1 * r1 + i1 * i1
+                energy[r, j + 2] = r2 * r2 + i2 * i2
+                energy[r, j + 3] = r3 * r3 + i3 * i3
+            else:
+                for u in range(count):
+                    x = row[base + u * block: base + (u + 1) * block]
+                    re = 0.0
+                    im = 0.0
+                    for q in range(block):
+                        re += x[q] * c[q]
+                        im += x[q] * s[q]
+                    re -= offset_re[r]
+                    im -= offset_im[r]
+                    energy[r, j + u] = re * re + im * im
         j += count
 
 
@@ -147,7 +162,7 @@ def coarse_stretches(
     first = min(max(-(-(lag_lo - centre) // block), 0), n_windows - 1)
     last = max(min((lag_hi - centre) // block + 1, n_windows), first + 1)
     n_searched = last - first
-    energy = np.empty(n_searched + sp - 1)
+    energies = np.empty((n_rows, n_searched + sp - 1))
     window = np.empty(n_searched)
     n_groups = -(-n_searched // _GROUP)
     group_max = np.empty(n_groups)
@@ -158,9 +173,10 @@ def coarse_stretches(
         sum_sin += tone[q, 1]
     width = 2 * half + 1
     n_fft = segments.shape[1]
+    _block_powers(rows, first, energies, tone, dc * sum_cos, dc * sum_sin)
     for r in range(n_rows):
         d = dc[r]
-        _block_power(rows[r], first, energy, tone, d * sum_cos, d * sum_sin)
+        energy = energies[r]
         for w in range(n_searched):
             total = 0.0
             for t in range(sp):
