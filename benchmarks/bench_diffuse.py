@@ -8,7 +8,11 @@ Usage
 ``--threads``: worker threads of the threaded stages (default: every core available).
 ``--before FILE``: an older ``acoustisim/propagation/diffuse.py`` (e.g. from ``git show
 REV:acoustisim/propagation/diffuse.py > /tmp/diffuse_before.py``) whose ``trace_diffuse`` is
-timed interleaved with the current one on one thread (same context, config and load).
+timed interleaved with the current one on one thread (same context, config and load). It
+imports the current ``diffuse_kernels``, so it works only for a revision whose kernels have
+the same signatures; for older ones run this script in a separate checkout of that revision
+(``git archive REV | tar -x -C /tmp/old && cd /tmp/old && PYTHONPATH=/tmp/old python
+benchmarks/bench_diffuse.py``) alternately with the current one.
 
 All measured in this run, on the thesis tank (``scenes.builtin.builtin_scene("thesis-tank")``)
 at its default sonar pose, with the tracer's own ray directions for the seed:
