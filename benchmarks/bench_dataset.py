@@ -3,7 +3,8 @@
 Usage
 -----
     python benchmarks/bench_dataset.py [--samples 24] [--spec examples/dataset_spec.toml]
-    python benchmarks/bench_dataset.py --memory 10000 --csv /tmp/rss.csv   # slow: RSS over a long run
+    python benchmarks/bench_dataset.py --memory 10000 --tiny   # driver/worker RSS over 10k samples, ~5 min
+    python benchmarks/bench_dataset.py --memory 10000 --csv /tmp/rss.csv   # the default spec: ~75 min
 
 Default mode, all measured in this run on the same samples of the spec:
   - baseline: build + simulate each sample in a plain Python loop (no Dask, no Zarr), run
@@ -12,7 +13,9 @@ Default mode, all measured in this run on the same samples of the spec:
   - in-process generate (``--workers 0``): the baseline plus labels, checksums, Zarr writes;
   - Dask LocalCluster with 1 and 2 worker processes (as ``generate --workers N`` starts it),
     each warmed up first on one chunk per worker (imports, caches: cluster start-up is not
-    per-sample cost).
+    per-sample cost). With 2 workers the last 2 chunks run as one task per sample plus a write
+    (``acoustisim.datasets.generate.split_tail``): 24 samples are 6 chunks, and whole-chunk
+    tasks alone would leave one worker idle for up to a chunk's time at the end.
 For each mode: samples per second (wall); CPU per sample of the driver (client, scheduler,
 nannies: one process) plus the workers, during the run; its overhead against the baseline's
 CPU and against the simulate CPU its own tasks reported (same run, same machine state: the
@@ -31,9 +34,13 @@ Speed-up of 2 workers over 1 (goal >= 1.8x), two ways:
     measured assignment of tasks to workers follows the CPU share the OS gave each, so it
     is replayed rather than taken as measured.)
 
-Memory mode: generates N samples of the spec on a LocalCluster of ``--workers`` workers and
-samples the resident set size of the driver and of each worker every ``--interval`` seconds
-into ``--csv`` (and prints it at each tenth of the run).
+Memory mode: generates N samples of the spec on a LocalCluster of ``--workers`` workers (as
+``generate --workers N`` starts it) and samples the resident set size of the driver and of
+each worker every ``--interval`` seconds into ``--csv``; prints it at 1,000, 3,000 and N
+samples and at each tenth of the run. ``--tiny`` uses :data:`TINY_SPEC` instead of ``--spec``:
+a 0.5 ms record, direct path only, at most one object (~50 ms a sample), in chunks of 4 like the
+default spec, so that the run has as many tasks (what the driver handles) as a default-spec run
+of the same N, in minutes instead of an hour.
 """
 
 from __future__ import annotations
@@ -61,6 +68,34 @@ N_CORES = 2
 """Cores of the machine the CPU projection is for (the issue's 2-core machine)."""
 IDLE_S = 2.0
 """Seconds the warmed-up cluster is left idle to measure its background CPU."""
+MEMORY_CHECKPOINTS = (1000, 3000)
+"""Completed-sample counts (and N) at which the memory mode prints the resident memory."""
+TINY_SPEC = """
+[dataset]
+name = "memory-tiny"
+n_samples = 10000
+seed = 1
+max_arrivals = 8
+samples_per_chunk = 4
+[sonar]
+x_m = [0.8, 1.2]
+y_m = [1.2, 1.8]
+record_length_s = 0.0005
+[solver]
+max_order = 1
+mechanisms = ["direct"]
+diffuse_rays = 0
+[placement]
+min_range_m = 0.3
+max_range_m = 1.2
+half_angle_deg = 15.0
+[[objects]]
+kind = "sphere"
+count = [0, 1]
+radius_m = [0.02, 0.05]
+"""
+"""The memory mode's cheap spec (``--tiny``): the driver's work per task is the same as with the
+default spec; the simulator's is ~5x less."""
 
 
 def _worker_cpu_s(client) -> dict[str, float]:
@@ -237,8 +272,14 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
     r1, r2 = runs[1], runs[2]
     print(f"ceiling of a 2-process speed-up here (2 x one loop's CPU per sample / two loops' CPU per sample): "
           f"{2 * loop_cpu / n / pair_cpu:.2f}x; 2 plain loops / 1 plain loop, wall: {pair_rate / base_rate:.2f}x")
-    print(f"speed-up 2 workers / 1 worker: wall {r2.samples_per_s / r1.samples_per_s:.2f}x, CPU projection for an "
-          f"idle {N_CORES}-core machine {r1.projected_wall_s() / r2.projected_wall_s():.2f}x (goal >= 1.8x); samples "
+    sim1, sim2 = r1.simulate_cpu_s / r1.n, r2.simulate_cpu_s / r2.n
+    print(f"simulator's own CPU per sample (inside the tasks): {sim1 * 1e3:.1f} ms (1 worker), {sim2 * 1e3:.1f} ms "
+          f"(2 workers, {(sim2 / sim1 - 1) * 100:+.1f} % vs 1 worker); two plain loops side by side "
+          f"{(pair_cpu * n / loop_cpu - 1) * 100:+.1f} % vs one loop")
+    wall_ratio = r2.samples_per_s / r1.samples_per_s
+    print(f"speed-up 2 workers / 1 worker: wall {wall_ratio:.2f}x ({wall_ratio / (pair_rate / base_rate) * 100:.0f} % "
+          f"of the 2-plain-loop wall ratio), CPU projection for an idle {N_CORES}-core machine "
+          f"{r1.projected_wall_s() / r2.projected_wall_s():.2f}x (goal >= 1.8x); samples "
           f"per worker-CPU-s {r1.n / sum(r1.worker_cpu_s):.3f} (1 worker) vs {r2.n / sum(r2.worker_cpu_s):.3f} "
           "(2 workers)")
     print(f"overhead Dask+Zarr vs plain loop, CPU: {(r1.cpu_s / loop_cpu - 1) * 100:+.1f} % (1 worker), "
@@ -252,10 +293,15 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
     print(f"benchmark wall time {time.perf_counter() - t_start:.0f} s")
 
 
-def memory(spec_path: Path, n: int, workdir: Path, workers: int, csv_path: Path | None, interval_s: float) -> None:
+def memory(spec_path: Path | None, n: int, workdir: Path, workers: int, csv_path: Path | None,
+           interval_s: float) -> None:
+    """RSS over an ``n``-sample run of the spec at ``spec_path`` (None: :data:`TINY_SPEC`)."""
     import psutil
 
-    spec = dataclasses.replace(load_spec(spec_path), n_samples=n)
+    from acoustisim.datasets.spec import loads_spec
+
+    base = loads_spec(TINY_SPEC, "TINY_SPEC") if spec_path is None else load_spec(spec_path)
+    spec = dataclasses.replace(base, n_samples=n)
     out = workdir / "memory.zarr"
     shutil.rmtree(out, ignore_errors=True)
     me = psutil.Process()
@@ -266,8 +312,11 @@ def memory(spec_path: Path, n: int, workdir: Path, workers: int, csv_path: Path 
     if writer:
         writer.writerow(["elapsed_s", "n_complete", "rss_driver_mib", "rss_worker_max_mib", "rss_workers_mib",
                          "rss_total_mib"])
-    print(f"spec {spec_path.name}, {n} samples, {workers} workers: completed samples -> resident memory (MiB) of "
-          "the driver, the largest worker, all processes", flush=True)
+    print(f"spec {'TINY_SPEC' if spec_path is None else spec_path.name}, {n} samples in chunks of "
+          f"{spec.samples_per_chunk}, {workers} workers: completed samples -> resident memory (MiB) of the driver "
+          "(client, scheduler, nannies), the largest worker, all processes", flush=True)
+    checkpoints = sorted({c for c in MEMORY_CHECKPOINTS if c < n} | {n})
+    at_checkpoint: dict[int, tuple[float, int, float, float, float]] = {}
     t0 = time.perf_counter()
 
     def watch() -> None:
@@ -293,9 +342,16 @@ def memory(spec_path: Path, n: int, workdir: Path, workers: int, csv_path: Path 
                 writer.writerow([f"{row[0]:.0f}", done, f"{row[2]:.1f}", f"{row[3]:.1f}", f"{sum(worker_rss) / mib:.1f}",
                                  f"{row[4]:.1f}"])
                 handle.flush()
+            printed = False
             while next_tenth <= 10 and done >= next_tenth * n // 10:
-                print(f"  {done:6d}  driver {row[2]:7.1f}  worker max {row[3]:7.1f}  total {row[4]:7.1f}", flush=True)
                 next_tenth += 1
+                printed = True
+            for c in checkpoints:
+                if done >= c and c not in at_checkpoint:
+                    at_checkpoint[c] = row
+                    printed = True
+            if printed:
+                print(f"  {done:6d}  driver {row[2]:7.1f}  worker max {row[3]:7.1f}  total {row[4]:7.1f}", flush=True)
             stop.wait(interval_s)
 
     thread = threading.Thread(target=watch, daemon=True)
@@ -308,6 +364,17 @@ def memory(spec_path: Path, n: int, workdir: Path, workers: int, csv_path: Path 
         if handle:
             handle.close()
     print(f"{n} samples on {report.workers} worker(s): {report.samples_per_s:.2f} samples/s, {report.elapsed_s:.0f} s")
+    if at_checkpoint:
+        first = at_checkpoint[min(at_checkpoint)]
+        print("RSS (MiB) at completed samples: " + "; ".join(
+            f"{c}: driver {r[2]:.1f}, largest worker {r[3]:.1f}, total {r[4]:.1f}"
+            for c, r in sorted(at_checkpoint.items())))
+        last_c = max(at_checkpoint)
+        if last_c > min(at_checkpoint):
+            last = at_checkpoint[last_c]
+            per = 1000.0 / (last[1] - first[1]) if last[1] > first[1] else float("nan")
+            print(f"driver growth from {first[1]} to {last[1]} samples: {(last[2] - first[2]) * per:+.2f} MiB per 1000 "
+                  f"samples; largest worker {(last[3] - first[3]) * per:+.2f} MiB per 1000 samples")
     running = [r for r in rows if 0 < r[1] < n]
     if len(running) >= 8:
         q = len(running) // 4
@@ -323,12 +390,13 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=24)
     parser.add_argument("--memory", type=int, default=0, metavar="N", help="memory mode with N samples of the spec")
     parser.add_argument("--workers", type=int, default=2, help="workers of the memory mode")
+    parser.add_argument("--tiny", action="store_true", help="memory mode: the cheap TINY_SPEC instead of --spec")
     parser.add_argument("--csv", type=Path, default=None, help="memory mode: write the RSS samples to this CSV")
     parser.add_argument("--interval", type=float, default=5.0, help="memory mode: seconds between RSS samples")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_dataset_") as tmp:
         if args.memory:
-            memory(args.spec, args.memory, Path(tmp), args.workers, args.csv, args.interval)
+            memory(None if args.tiny else args.spec, args.memory, Path(tmp), args.workers, args.csv, args.interval)
         else:
             throughput(args.spec, args.samples, Path(tmp))
 

@@ -14,7 +14,8 @@ from acoustisim.datasets.spec import loads_spec
 from acoustisim.datasets.store import ARRIVAL_FIELDS, OBJECT_FIELDS, SAMPLE_FIELDS, DatasetStore
 from dataset_specs import small_spec
 
-SPEC = small_spec(name="tiny", n_samples=5, seed=11, samples_per_chunk=2)  # chunks [0, 1], [2, 3], [4]: a short last chunk too
+# Chunks [0, 1], [2, 3], [4]: a short last chunk too.
+SPEC = small_spec(name="tiny", n_samples=5, seed=11, samples_per_chunk=2)
 
 
 @pytest.fixture(scope="module")

@@ -722,4 +722,5 @@ def generate(
 
 
 __all__ = ["ChunkResult", "GenerateReport", "SampleResult", "SpecError", "TaskCost", "code_version", "generate",
-           "make_chunk", "make_chunk_range", "make_sample", "simulate_rows", "simulate_sample", "split_tail", "write_chunk"]
+           "make_chunk", "make_chunk_range", "make_sample", "simulate_rows", "simulate_sample", "split_tail",
+           "write_chunk"]
