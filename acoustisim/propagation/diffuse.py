@@ -558,18 +558,22 @@ class DiffuseEvents:
         Scattering order (1 = first hit).
     departure_dir : ndarray, shape (m, 3)
         Unit direction in which the event's ray left the transmitter.
+    travelled_m : ndarray, shape (m,)
+        Path length transmitter -> ... -> hit of each event (m).
+    event_phase_rad : ndarray, shape (m,)
+        arg X of each event's speckle factor (rad).
     event : ndarray of int32, shape (n,)
         Event of each reception.
     channel : ndarray of int8 (int32 beyond 127 receivers), shape (n,)
         Receiver of each reception.
-    path_length_m : ndarray, shape (n,)
-        Transmitter -> ... -> hit -> receiver (m).
     gain : ndarray, shape (n,)
         |X| sqrt(mu sin(g_s) dOmega_eff) / r2 (relative to the source's pressure at 1 m), >= 0.
-    phase_rad : ndarray, shape (n,)
-        arg X (rad).
     receivers_m : ndarray, shape (n_rx, 3)
         The receivers (m).
+
+    The receptions' path lengths, phases and arrival directions are derived from their event
+    and receiver on demand (:attr:`path_length_m`, :attr:`phase_rad`, :attr:`arrival_dir`),
+    as the row packing derives them: the tracer writes 13 bytes per reception, not 53.
     embree_legs : int
         Legs hit -> receiver the tracer sent to Embree's occlusion query (crossing the box of
         an object without face planes, or all legs when a receiver is outside the water).
@@ -582,22 +586,36 @@ class DiffuseEvents:
     parent: NDArray[np.int32]
     bounce: NDArray[np.int32]
     departure_dir: NDArray[np.float64]
+    travelled_m: NDArray[np.float64]
+    event_phase_rad: NDArray[np.float64]
     event: NDArray[np.int32]
     channel: NDArray[np.int8]
-    path_length_m: NDArray[np.float64]
     gain: NDArray[np.float64]
-    phase_rad: NDArray[np.float64]
     receivers_m: NDArray[np.float64]
     embree_legs: int = 0
     convex_legs: int = 0
 
+    def _columns(self, length: bool, phase: bool, arrival: bool) -> tuple[NDArray[np.float64], ...]:
+        n = self.event.size
+        out = (np.empty(n if length else 0), np.empty(n if phase else 0), np.empty((n if arrival else 0, 3)))
+        kernels.reception_columns(self.points_m, self.travelled_m, self.event_phase_rad, self.event, self.channel,
+                                  self.receivers_m, *out)
+        return out
+
+    @cached_property
+    def path_length_m(self) -> NDArray[np.float64]:
+        """Transmitter -> ... -> hit -> receiver of each reception, shape (n,) (m)."""
+        return self._columns(True, False, False)[0]
+
+    @cached_property
+    def phase_rad(self) -> NDArray[np.float64]:
+        """arg X of each reception (its event's), shape (n,) (rad)."""
+        return self._columns(False, True, False)[1]
+
     @cached_property
     def arrival_dir(self) -> NDArray[np.float64]:
-        """Unit direction hit -> receiver of each reception, shape (n, 3) (derived on demand:
-        the tracer does not store 24 bytes per reception that the row packing recomputes)."""
-        out = np.empty((self.event.size, 3))
-        kernels.arrival_directions(self.points_m, self.event, self.channel, self.receivers_m, out)
-        return out
+        """Unit direction hit -> receiver of each reception, shape (n, 3)."""
+        return self._columns(False, False, True)[2]
 
 
 CHUNK_RAYS = 1 << 14
@@ -705,6 +723,8 @@ class _ChunkEvents:
     parent: NDArray[np.int32]
     bounce: NDArray[np.int32]
     departure: NDArray[np.float64]
+    travelled: NDArray[np.float64]
+    phase: NDArray[np.float64]
     pending: tuple[_Pending, ...]
     legs: tuple[int, int] = (0, 0)
 
@@ -745,7 +765,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
     parent = np.full(n, -1, dtype=np.int32)
-    ev: dict[str, list[NDArray[Any]]] = {k: [] for k in ("points", "surface", "parent", "bounce", "departure")}
+    ev: dict[str, list[NDArray[Any]]] = {
+        k: [] for k in ("points", "surface", "parent", "bounce", "departure", "travelled", "phase")}
     pending: list[_Pending] = []
     next_event = 0
     legs = [0, 0]  # sent to Embree, decided by the convex objects' planes
@@ -786,6 +807,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         ev["parent"].append(hit_parent[:n_hits])
         ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int32))
         ev["departure"].append(departure)
+        ev["travelled"].append(hit_travelled[:n_hits])
+        ev["phase"].append(phase[:n_hits])
         legs[0] += n_legs
         legs[1] += n_exact
         if n_legs:
@@ -814,10 +837,11 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
     if not ev["points"]:
         i0, v0 = np.zeros(0, np.int32), np.zeros((3, 0))
-        return _ChunkEvents(v0, i0, i0, i0, v0, ())
+        return _ChunkEvents(v0, i0, i0, i0, v0, np.zeros(0), np.zeros(0), ())
     return _ChunkEvents(
         points=_join(ev["points"], axis=1), surface=_join(ev["surface"]), parent=_join(ev["parent"]),
-        bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), pending=tuple(pending),
+        bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), travelled=_join(ev["travelled"]),
+        phase=_join(ev["phase"]), pending=tuple(pending),
         legs=(legs[0], legs[1]),
     )
 
@@ -917,24 +941,25 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
     m, n = int(event_start[-1]), int(reception_start[-1])
     points, departure = np.empty((m, 3)), np.empty((m, 3))
     surface, parent, bounce = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
+    travelled, event_phase = np.empty(m), np.empty(m)
     rx = np.ascontiguousarray(context.receivers_m, dtype=float)
     event, channel = np.empty(n, dtype=np.int32), np.empty(n, dtype=np.int8 if rx.shape[0] < 128 else np.int32)
-    length, gain, phase = np.empty(n), np.empty(n), np.empty(n)
+    gain = np.empty(n)
 
     def place(index: int) -> None:
         """Write chunk ``index``'s events and receptions at their final place."""
         chunk, first = chunks[index], int(event_start[index])
-        kernels.place_events(chunk.points, chunk.departure, chunk.surface, chunk.parent, chunk.bounce, first, points,
-                             departure, surface, parent, bounce)
+        kernels.place_events(chunk.points, chunk.departure, chunk.surface, chunk.parent, chunk.bounce, chunk.travelled,
+                             chunk.phase, first, points, departure, surface, parent, bounce, travelled, event_phase)
         start = int(reception_start[index])
         for p in chunk.pending:  # the bounces
             start = kernels.write_receptions(
-                p.n_hits, rx.shape[0], p.state, p.triangle, tri_normal, p.points, rx, p.amplitude, p.travelled, p.phase,
-                first + p.first_event, start, event, channel, length, gain, phase,
+                p.n_hits, rx.shape[0], p.state, p.triangle, tri_normal, p.points, rx, p.amplitude,
+                first + p.first_event, start, event, channel, gain,
             )
 
     run_in_order(place, range(len(chunks)), workers)
-    return DiffuseEvents(points, surface, parent, bounce, departure, event, channel, length, gain, phase, rx,
+    return DiffuseEvents(points, surface, parent, bounce, departure, travelled, event_phase, event, channel, gain, rx,
                          sum(c.legs[0] for c in chunks), sum(c.legs[1] for c in chunks))
 
 
@@ -977,7 +1002,7 @@ def diffuse_paths(context: SolveContext, config: SolverConfig, *, threads: int |
 
     def pack(a: int) -> None:
         kernels.pack_rows(rows, a, min(a + _PACK_ROWS, n), first, int(PathKind.DIFFUSE), e.event, e.channel,
-                          e.path_length_m, e.gain, e.phase_rad, e.receivers_m, e.points_m, e.surface, e.parent,
+                          e.gain, e.travelled_m, e.event_phase_rad, e.receivers_m, e.points_m, e.surface, e.parent,
                           e.bounce, e.departure_dir)
 
     run_in_order(pack, range(0, n, _PACK_ROWS), resolve_threads(threads))

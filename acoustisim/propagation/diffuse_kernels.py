@@ -16,8 +16,12 @@ passes over temporary arrays, is compiled here:
    see :class:`~acoustisim.propagation.diffuse.ObjectScreen`), written as Embree's float32
    buffers;
 4. :func:`clear_blocked` and :func:`write_receptions`: the pairs left in view, point-major,
-   with their path length, gain, phase and arrival direction, written straight into the
-   tracer's output at their final place (the chunks are counted first).
+   with their event, receiver and gain, written straight into the tracer's output at their
+   final place (the chunks are counted first); :func:`place_events` does the same for the
+   events;
+5. :func:`reception_columns` and :func:`pack_rows`: the receptions' path lengths, phases and
+   arrival directions, derived from their event and receiver, and the rows of the arrivals
+   table.
 
 Every loop runs in order over its inputs, so the output is deterministic; ``nogil=True`` lets
 the tracer's threads run them in parallel; ``error_model="numpy"`` drops the per-division
@@ -472,9 +476,11 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int32],
-                 parent: NDArray[np.int32], bounce: NDArray[np.int32], first: int, out_points: NDArray[np.float64],
+                 parent: NDArray[np.int32], bounce: NDArray[np.int32], travelled: NDArray[np.float64],
+                 phase: NDArray[np.float64], first: int, out_points: NDArray[np.float64],
                  out_departure: NDArray[np.float64], out_surface: NDArray[np.int32], out_parent: NDArray[np.int32],
-                 out_bounce: NDArray[np.int32]) -> None:
+                 out_bounce: NDArray[np.int32], out_travelled: NDArray[np.float64],
+                 out_phase: NDArray[np.float64]) -> None:
     """Copy one chunk's events (vectors as components (3, m), chunk-local parents) into the
     tracer's output from row ``first`` on (vectors as rows (M, 3), global parents)."""
     for i in range(surface.size):
@@ -485,22 +491,22 @@ def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], su
         out_surface[row] = surface[i]
         out_parent[row] = parent[i] + first if parent[i] >= 0 else -1
         out_bounce[row] = bounce[i]
+        out_travelled[row] = travelled[i]
+        out_phase[row] = phase[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def write_receptions(
     h: int, n_rx: int, state: NDArray[np.int8], triangle: NDArray[np.int32], tri_normal: NDArray[np.float64],
     points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
-    travelled: NDArray[np.float64], phase: NDArray[np.float64], first_event: int, start: int,
-    event: NDArray[np.int32], channel: NDArray[np.int8], length: NDArray[np.float64], gain: NDArray[np.float64],
-    out_phase: NDArray[np.float64],
+    first_event: int, start: int, event: NDArray[np.int32], channel: NDArray[np.int8], gain: NDArray[np.float64],
 ) -> int:
     """The pairs in view (state > 0), point-major, as receptions written from index ``start``.
 
-    Each gives event ``first_event + point``, its channel, the path length (travelled + r2, m),
-    the gain |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega))
-    and the speckle phase (the arrival direction is derived when needed, see
-    :func:`arrival_directions`). r2 and r2 sin(g_s) are recomputed from the point, the receiver
+    Each gives event ``first_event + point``, its channel and the gain
+    |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega)); the path
+    length, the speckle phase and the arrival direction follow from the event and the receiver
+    (:func:`reception_columns`). r2 and r2 sin(g_s) are recomputed from the point, the receiver
     and the normal of the point's ``triangle`` (rows of ``tri_normal``, (3, n_triangles)) as
     :func:`scatter_and_pair` computed them (the same operations: the same values), rather than
     kept per pair between the two passes.
@@ -522,36 +528,45 @@ def write_receptions(
             c = dx * tri_normal[0, t] + dy * tri_normal[1, t] + dz * tri_normal[2, t]
             event[k] = first_event + i
             channel[k] = j
-            length[k] = travelled[i] + r
             gain[k] = amplitude[i] * math.sqrt(c / (r * r * r))
-            out_phase[k] = phase[i]
             k += 1
     return k
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _arrival(px: float, py: float, pz: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:
-    """The unit direction p -> q, computed as the tracer computes the leg's length."""
+def _leg(px: float, py: float, pz: float, qx: float, qy: float, qz: float) -> tuple[float, float, float, float]:
+    """The length r2 (m) and unit direction of the leg p -> q, computed as the tracer computes
+    them (the same operations: the same values)."""
     dx, dy, dz = qx - px, qy - py, qz - pz
-    inverse = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
-    return dx * inverse, dy * inverse, dz * inverse
+    r = math.sqrt(dx * dx + dy * dy + dz * dz)
+    inverse = 1.0 / r
+    return r, dx * inverse, dy * inverse, dz * inverse
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def arrival_directions(points: NDArray[np.float64], event: NDArray[np.int32], channel: NDArray[np.int8],
-                       receivers: NDArray[np.float64], out: NDArray[np.float64]) -> None:
-    """Unit directions (n, 3) scattering point -> receiver of the receptions (n,), from the
-    events' points (m, 3) and the receivers (n_rx, 3), into ``out``."""
+def reception_columns(points: NDArray[np.float64], travelled: NDArray[np.float64], event_phase: NDArray[np.float64],
+                      event: NDArray[np.int32], channel: NDArray[np.int8], receivers: NDArray[np.float64],
+                      length: NDArray[np.float64], phase: NDArray[np.float64], arrival: NDArray[np.float64]) -> None:
+    """Per reception (n,): the path length travelled + r2 (m), the speckle phase (rad) and the
+    unit arrival direction (n, 3) point -> receiver, from the events' points (m, 3), path
+    lengths to the point and phases (m,) and the receivers (n_rx, 3); an output of size 0 is
+    skipped."""
     for k in range(event.size):
         e, j = event[k], channel[k]
-        out[k, 0], out[k, 1], out[k, 2] = _arrival(points[e, 0], points[e, 1], points[e, 2], receivers[j, 0],
-                                                   receivers[j, 1], receivers[j, 2])
+        r, ax, ay, az = _leg(points[e, 0], points[e, 1], points[e, 2], receivers[j, 0], receivers[j, 1],
+                             receivers[j, 2])
+        if length.size:
+            length[k] = travelled[e] + r
+        if phase.size:
+            phase[k] = event_phase[e]
+        if arrival.size:
+            arrival[k, 0], arrival[k, 1], arrival[k, 2] = ax, ay, az
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def pack_rows(
     rows: NDArray, start: int, stop: int, first_path_id: int, kind: int, event: NDArray[np.int32],
-    channel: NDArray[np.int8], length: NDArray[np.float64], gain: NDArray[np.float64], phase: NDArray[np.float64],
+    channel: NDArray[np.int8], gain: NDArray[np.float64], travelled: NDArray[np.float64], phase: NDArray[np.float64],
     receivers: NDArray[np.float64], points: NDArray[np.float64], surface: NDArray[np.int32],
     parent: NDArray[np.int32], bounce: NDArray[np.int32], departure: NDArray[np.float64],
 ) -> None:
@@ -568,10 +583,13 @@ def pack_rows(
     Parameters
     ----------
     rows : structured ndarray of PATH_DTYPE, shape (>= stop,)
-    event, channel, length, gain, phase : ndarray, shape (n,)
+    event, channel, gain : ndarray, shape (n,)
         The receptions (:class:`~acoustisim.propagation.diffuse.DiffuseEvents`).
+    travelled, phase : ndarray, shape (m,)
+        The events' path lengths to the point (m) and speckle phases (rad).
     receivers : ndarray, shape (n_rx, 3)
-        For the arrival directions (as :func:`arrival_directions` computes them).
+        For the path lengths and arrival directions (as :func:`reception_columns` computes
+        them).
     points, departure : ndarray, shape (m, 3)
     surface, parent, bounce : ndarray of int32, shape (m,)
         The scattering events.
@@ -587,17 +605,17 @@ def pack_rows(
         row.kind = kind
         row.order = order
         row.delay_s = 0.0
-        row.path_length_m = length[i]
+        r, ax, ay, az = _leg(points[e, 0], points[e, 1], points[e, 2], receivers[j, 0], receivers[j, 1],
+                             receivers[j, 2])
+        row.path_length_m = travelled[e] + r
         row.geometric_gain = gain[i]
-        row.phase_rad = phase[i]
+        row.phase_rad = phase[e]
         row.angle_tx_rad = 0.0
         row.angle_rx_rad = 0.0
         row.directivity_tx = 0.0
         row.directivity_rx = 0.0
         row.absorption_db = 0.0
         row.amplitude = 0.0
-        ax, ay, az = _arrival(points[e, 0], points[e, 1], points[e, 2], receivers[j, 0], receivers[j, 1],
-                              receivers[j, 2])
         row.arrival_dir[0], row.arrival_dir[1], row.arrival_dir[2] = ax, ay, az
         for k in range(3):
             row.departure_dir[k] = departure[e, k]
@@ -616,7 +634,7 @@ def pack_rows(
 
 
 __all__ = [
-    "arrival_directions",
+    "reception_columns",
     "guide_table",
     "pack_rows",
     "place_events",
