@@ -37,9 +37,10 @@ from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
 IN_PLACE_MAX_BYTES = 8 << 20
 """Rows up to this size (bytes; 34 000 rows) are sorted in place (:func:`permute_records`), larger
 sets are scattered into a new buffer (:func:`scatter_records`): the in-place permutation reads
-and writes at random, which stays fast only while the rows fit in the last-level cache (on the
-2-core test machine: 16 000 rows 1.5 ms faster in place, counting the page faults saved;
-60 000 rows, 14 MB, 2.7 times slower in place than scattered)."""
+and writes at random, which stays fast only while the rows fit in the last-level cache
+(measured on the shared 2-core machine under load: a deterministic pose of 16 000 rows about
+1.5 ms faster in place, the page faults saved included; 60 000 rows, 14 MB, 2.7 times slower in
+place than scattered)."""
 
 
 @njit(cache=True, nogil=True)
