@@ -33,8 +33,10 @@ at its default sonar pose, with the tracer's own ray directions for the seed:
 * ``+ columns``: that plus :func:`~acoustisim.propagation.columns.complete_columns` (what
   :func:`~acoustisim.propagation.solve` adds to every mechanism's rows).
 
-Printed: the median wall-clock and CPU (process, all threads) seconds and rays per second of
-each, and the ratios of the tracer to the raw baselines measured the same way (goals:
+Every repeat times each stage once, in turn (round-robin: on a shared machine the load
+changes between blocks of repeats). Printed: the median wall-clock and CPU (process, all
+threads) seconds and rays per second of each stage, and the medians of the per-repeat
+ratios of the tracer to the raw baselines measured the same way (goals:
 >= 5 million rays/s; within 2x of raw intersect); the legs hit -> receiver (first bounce)
 that cross an object's box (the ones the box screen alone would send to Embree), those the
 tracer decided with the convex objects' face planes, and those it still sent to Embree. The
@@ -132,8 +134,10 @@ def main() -> int:
                        axis=1)
     tested[:, np.all(context.receivers_m == context.transmitter_m, axis=1)] = False
     box_legs = int(tested.sum())
+    # (a tracer without the face-plane test, before this counter, sent every such leg to Embree)
+    embree_legs, convex_legs = getattr(events, "embree_legs", box_legs), getattr(events, "convex_legs", 0)
     hi, ri = np.nonzero(tested)
-    hi, ri = hi[: events.embree_legs], ri[: events.embree_legs]
+    hi, ri = hi[:embree_legs], ri[:embree_legs]
     seg = to_rx[hi, ri]
     length = np.linalg.norm(seg, axis=1)
     unit = seg / length[:, None]
@@ -170,7 +174,18 @@ def main() -> int:
         f"diffuse_paths x{t}": lambda: diffuse_paths(context, config, threads=t),
         f"+ columns x{t}": lambda: complete_columns(diffuse_paths(context, config, threads=t), context),
     }
-    results = {name: median_time(function, args.repeats) for name, function in stages.items()}
+    # round-robin: each repeat times every stage once, so that the per-repeat ratios compare
+    # stages measured under the same load (this machine is shared)
+    samples: dict[str, list[tuple[float, float]]] = {name: [] for name in stages}
+    for _ in range(args.repeats):
+        for name, function in stages.items():
+            samples[name].append(median_time(function, 1))
+    results = {name: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
+               for name, v in samples.items()}
+
+    def ratio(a: str, b: str, index: int) -> float:
+        """Median over the repeats of stage a's time over stage b's (wall: 0, CPU: 1)."""
+        return statistics.median(x[index] / y[index] for x, y in zip(samples[a], samples[b]))
     before_note = None
     if args.before:
         import importlib.util
@@ -199,20 +214,25 @@ def main() -> int:
     print(f"thesis tank: {raycaster.triangle_count} triangles, {n} rays, {args.bounces} bounce(s), {t} thread(s), "
           f"{exact.event.size} rows; medians of {args.repeats}")
     print(f"  legs hit -> receiver crossing an object's box (first bounce): {box_legs}; decided by the convex "
-          f"objects' face planes: {events.convex_legs}; sent to Embree: {events.embree_legs} "
-          f"({exact.embree_legs} over {args.bounces} bounce(s))")
+          f"objects' face planes: {convex_legs}; sent to Embree: {embree_legs} "
+          f"({getattr(exact, 'embree_legs', '?')} over {args.bounces} bounce(s))")
     print("  wall-clock medians; CPU-time medians (process, all threads) in brackets")
     for name, (wall, cpu) in results.items():
         print(f"  {name:20s} {wall * 1e3:9.2f} ms [{cpu * 1e3:8.2f}]   {n / wall / 1e6:7.3f} M rays/s "
               f"[{n / cpu / 1e6:7.3f}]")
+    print("  ratios: medians over the repeats of the per-repeat ratios")
     for index, label in ((0, "wall"), (1, "CPU")):
         r = {name: value[index] for name, value in results.items()}
         print(f"  {label}: tracer x{t} {n / r[f'tracer x{t}'] / 1e6:.2f} M rays/s (goal >= 5); tracer x{t} / raw "
-              f"intersect x{t} = {r[f'tracer x{t}'] / r[f'raw intersect x{t}']:.2f}x (goal <= 2x), / raw same work "
-              f"x{t} = {r[f'tracer x{t}'] / r[f'raw same work x{t}']:.2f}x; tracer x1 / raw intersect x1 = "
-              f"{r['tracer x1'] / r['raw intersect x1']:.2f}x; centre visibility x{t} / raw intersect x{t} = "
-              f"{r[f'tracer centre x{t}'] / r[f'raw intersect x{t}']:.2f}x; diffuse_paths / tracer = "
-              f"{r[f'diffuse_paths x{t}'] / r[f'tracer x{t}']:.2f}x")
+              f"intersect x{t} = {ratio(f'tracer x{t}', f'raw intersect x{t}', index):.2f}x (goal <= 2x), / raw "
+              f"same work x{t} = {ratio(f'tracer x{t}', f'raw same work x{t}', index):.2f}x; tracer x1 / raw "
+              f"intersect x1 = {ratio('tracer x1', 'raw intersect x1', index):.2f}x; "
+              + (f"tracer x1 / tracer x{t} = {ratio('tracer x1', f'tracer x{t}', index):.2f} (the threads' speed-up)"
+                 if index == 0 else
+                 f"tracer x{t} / tracer x1 = {ratio(f'tracer x{t}', 'tracer x1', index):.2f} (the threads' CPU cost)")
+              + f"; centre visibility x{t} / raw "
+              f"intersect x{t} = {ratio(f'tracer centre x{t}', f'raw intersect x{t}', index):.2f}x; diffuse_paths / "
+              f"tracer = {ratio(f'diffuse_paths x{t}', f'tracer x{t}', index):.2f}x")
     print("  diffuse energy change with visibility='centre' per channel (left, centre, right): "
           + ", ".join(f"{100 * c:+.3f} %" for c in change))
     if before_note:
