@@ -707,8 +707,6 @@ class _Pending:
     triangle: NDArray[np.int32]
     points: NDArray[np.float64]
     amplitude: NDArray[np.float64]
-    travelled: NDArray[np.float64]
-    phase: NDArray[np.float64]
     first_event: int
     count: int
 
@@ -814,7 +812,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         if n_legs:
             blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
             count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
-        pending.append(_Pending(n_hits, state, hit_triangle, points, amplitude, hit_travelled, phase, next_event, count))
+        pending.append(_Pending(n_hits, state, hit_triangle, points, amplitude, next_event, count))
         parent = np.arange(next_event, next_event + n_hits, dtype=np.int32)
         next_event += n_hits
         if bounce + 1 >= tracer.bounces:
