@@ -800,6 +800,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         if n_hits == 0:
             break
         points, normal, departure = points[:, :n_hits], normal[:, :n_hits], hit_departure[:, :n_hits]
+        if keep:  # the next bounce's input: contiguous, as the first's (one compiled specialisation)
+            departure = np.ascontiguousarray(departure)
         ev["points"].append(points)
         ev["surface"].append(surface[:n_hits])
         ev["parent"].append(hit_parent[:n_hits])
