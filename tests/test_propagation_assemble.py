@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from acoustisim.propagation import SolverConfig, assemble, prepare
-from acoustisim.propagation.assemble import assemble_rows, compact_records, permute_records, scatter_records
+from acoustisim.propagation.assemble import (
+    assemble_rows,
+    compact_records,
+    merge_destinations,
+    permute_records,
+    scatter_records,
+    spread_records,
+)
 from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import diffuse_paths
@@ -100,3 +107,64 @@ def test_permute_records_is_the_scatter():
         expected[destination] = records
         permute_records(records, destination)
         np.testing.assert_array_equal(records, expected)
+
+
+@pytest.fixture(scope="module")
+def sorted_parts() -> tuple[SolveContext, list[np.ndarray]]:
+    """The parts of a deterministic pose as the solver makes them: edge rows already sorted."""
+    prepared = prepare(builtin_scene("thesis-tank"))
+    context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
+    config = SolverConfig(max_order=3)
+    direct = direct_rows(context)
+    specular = specular_rows(context.with_first_path_id(1), prepared, 3)
+    edge = edge_paths(context.with_first_path_id(int(specular["path_id"].max()) + 1), config,
+                      prepared.diffracting_edges, sort_rows=True)
+    return context, [direct, specular, edge]
+
+
+def test_sorted_edge_rows_are_the_default_rows_in_solve_order(sorted_parts):
+    context, (_, specular, edge) = sorted_parts
+    prepared = prepare(builtin_scene("thesis-tank"))
+    first = int(specular["path_id"].max()) + 1
+    default = edge_paths(context.with_first_path_id(first), SolverConfig(max_order=3), prepared.diffracting_edges)
+    delay = default["path_length_m"] / context.sound_speed_m_s
+    assert edge.tobytes() == default[np.lexsort((delay, default["channel"]))].tobytes()
+
+
+@pytest.mark.parametrize("floor_db", [None, -60.0])
+def test_merging_into_the_sorted_edge_rows_is_the_plain_recipe(sorted_parts, floor_db):
+    context, pieces = sorted_parts
+    expected = _reference(pieces, context, floor_db)
+    got = assemble_rows([part.copy() for part in pieces], context, floor_db)
+    assert got.flags.owndata and got.base is None
+    assert got.tobytes() == expected.tobytes()
+
+
+def test_merge_destinations_is_the_stable_sort():
+    """Random keys with many ties, within and across parts: the merge gives lexsort's places."""
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        sizes = rng.integers(0, 40, 4)
+        host = int(np.argmax(sizes))
+        channel = rng.integers(0, 3, sizes.sum()).astype(np.int8)
+        delay = rng.integers(0, 6, sizes.sum()).astype(float)  # ties galore
+        offsets = np.cumsum(np.r_[0, sizes])
+        lo, hi = offsets[host], offsets[host + 1]
+        inside = np.lexsort((delay[lo:hi], channel[lo:hi]))
+        channel[lo:hi], delay[lo:hi] = channel[lo:hi][inside], delay[lo:hi][inside]
+        order = np.lexsort((delay, channel))
+        expected = np.empty(order.size, dtype=np.int64)
+        expected[order] = np.arange(order.size)
+        canonical = np.r_[np.arange(lo), np.arange(hi, offsets[-1])].astype(np.int64)
+        other_channel = np.concatenate([channel[:lo], channel[hi:]])
+        other_delay = np.concatenate([delay[:lo], delay[hi:]])
+        host_destination, destination = merge_destinations(
+            channel[lo:hi], delay[lo:hi], int(lo), other_channel, other_delay, canonical,
+            np.lexsort((other_delay, other_channel)).astype(np.int64))
+        np.testing.assert_array_equal(host_destination, expected[lo:hi])
+        np.testing.assert_array_equal(destination, np.r_[expected[:lo], expected[hi:]])
+        # the host's records spread to their places in one buffer, in place
+        records = np.zeros((sizes.sum(), 3), dtype=np.uint8)
+        records[:hi - lo, 0] = np.arange(hi - lo) + 1
+        spread_records(records, host_destination)
+        np.testing.assert_array_equal(records[host_destination, 0], np.arange(hi - lo) + 1)

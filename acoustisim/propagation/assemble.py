@@ -11,9 +11,13 @@ so the steps work in place where they can:
    part in place (it is row by row: the same values as on the joined array);
 2. the rows are ordered by channel, then delay, then their place in the mechanisms' order (the
    order a stable sort of the joined parts gives). Up to :data:`IN_PLACE_MAX_BYTES` of rows
-   (a deterministic pose), the largest part's buffer is grown (realloc) and the rows permuted
-   there (:func:`permute_records`): no new buffer at all. Beyond, each part's records are
-   copied straight to their sorted places in one new buffer (:func:`scatter_records`);
+   (a deterministic pose), the largest part's buffer is grown (realloc) and the rows put in
+   order there, without a new buffer: when that part is sorted already (the edge rows, which
+   :func:`~acoustisim.propagation.edges.edge_paths` writes in this order for the solver), the
+   other rows are sorted and merged in (:func:`merge_destinations`), its own rows moved once,
+   backwards, to make room (:func:`spread_records`); otherwise the rows are permuted
+   (:func:`permute_records`). Beyond, each part's records are copied straight to their sorted
+   places in one new buffer (:func:`scatter_records`);
 3. the amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`) judges the sorted
    rows; the kept ones are moved to the front in place (:func:`compact_records`) and the
    buffer is shrunk (``ndarray.resize``: the allocator's realloc, no copy of the kept rows).
@@ -120,6 +124,108 @@ def _bytes(rows: NDArray[Any]) -> NDArray[np.uint8]:
     return rows.view(np.uint8).reshape(rows.size, PATH_DTYPE.itemsize)
 
 
+@njit(cache=True, nogil=True)
+def merge_destinations(host_channel: NDArray[np.int8], host_delay: NDArray[np.float64], host_first: int,
+                       channel: NDArray[np.int8], delay: NDArray[np.float64], canonical: NDArray[np.int64],
+                       order: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Sorted places of the rows of a sorted part and of the other rows, by merging.
+
+    The order is by channel, then delay, then canonical index (the row's place in the joined
+    parts), as a stable sort of the joined parts by (channel, delay) gives.
+
+    Parameters
+    ----------
+    host_channel, host_delay : ndarray, shape (h,)
+        The sorted part's keys, non-decreasing; its canonical indices are
+        ``host_first .. host_first + h - 1``.
+    channel, delay, canonical : ndarray, shape (o,)
+        The other rows' keys and canonical indices.
+    order : ndarray of int64, shape (o,)
+        The other rows in sorted order (a stable sort of them by (channel, delay), their
+        canonical indices increasing along their arrays).
+
+    Returns
+    -------
+    host_destination : ndarray of int64, shape (h,)
+        Increasing, ``host_destination[i] >= i``.
+    destination : ndarray of int64, shape (o,)
+    """
+    h = host_channel.size
+    o = order.size
+    host_destination = np.empty(h, dtype=np.int64)
+    destination = np.empty(o, dtype=np.int64)
+    i = 0
+    j = 0
+    for place in range(h + o):
+        take_host = j >= o
+        if not take_host and i < h:
+            k = order[j]
+            if host_channel[i] != channel[k]:
+                take_host = host_channel[i] < channel[k]
+            elif host_delay[i] != delay[k]:
+                take_host = host_delay[i] < delay[k]
+            else:
+                take_host = host_first + i < canonical[k]
+        if take_host:
+            host_destination[i] = place
+            i += 1
+        else:
+            destination[order[j]] = place
+            j += 1
+    return host_destination, destination
+
+
+@njit(cache=True, nogil=True)
+def spread_records(records: NDArray[np.uint8], destination: NDArray[np.int64]) -> None:
+    """Move records 0 .. h-1 to ``destination`` (increasing, ``destination[i] >= i``), in place:
+    from the last one back, so that no record is overwritten before it is moved.
+
+    Parameters
+    ----------
+    records : ndarray of uint8, shape (n, itemsize), n >= destination[-1] + 1
+    destination : ndarray of int64, shape (h,)
+    """
+    width = records.shape[1]
+    for i in range(destination.size - 1, -1, -1):
+        d = destination[i]
+        if d != i:
+            for b in range(width):
+                records[d, b] = records[i, b]
+
+
+def _is_sorted(channel: NDArray[np.int8], delay: NDArray[np.float64]) -> bool:
+    """Whether rows with these keys are sorted by channel, then delay."""
+    step = np.diff(channel.astype(np.int64))
+    return bool(np.all((step > 0) | ((step == 0) & (delay[1:] >= delay[:-1]))))
+
+
+def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64], channel: NDArray[np.int8]
+                     ) -> NDArray[Any] | None:
+    """The rows sorted in the buffer of part ``host``, already sorted itself: the other rows are
+    sorted and merged in, the host's rows spread out to make room for them (each moved once,
+    backwards). None when that buffer cannot be taken over."""
+    rows = parts[host]
+    if not (rows.flags.owndata and rows.base is None and rows.flags.writeable and rows.flags.c_contiguous):
+        return None
+    offsets = np.cumsum([0] + [part.size for part in parts])
+    lo, hi = int(offsets[host]), int(offsets[host + 1])
+    canonical = np.r_[np.arange(lo), np.arange(hi, int(offsets[-1]))].astype(np.int64)
+    other_channel = np.concatenate([channel[:lo], channel[hi:]])
+    other_delay = np.concatenate([delay[:lo], delay[hi:]])
+    order = np.lexsort((other_delay, other_channel)).astype(np.int64)
+    host_destination, destination = merge_destinations(channel[lo:hi], delay[lo:hi], lo, other_channel, other_delay,
+                                                       canonical, order)
+    rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
+    records = _bytes(rows)
+    spread_records(records, host_destination)
+    at = 0
+    for i, part in enumerate(parts):
+        if i != host:
+            scatter_records(_bytes(part), destination[at:at + part.size], records)
+            at += part.size
+    return rows
+
+
 def _sorted_in_place(parts: list[NDArray[Any]], destination: NDArray[np.int64]) -> NDArray[Any] | None:
     """The rows sorted in the largest part's own buffer, grown in place (``ndarray.resize``:
     realloc, which keeps the pages of a large buffer), or None when that part's buffer cannot
@@ -175,12 +281,22 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
         complete_columns(part, context)
     delay = np.concatenate([part["delay_s"] for part in parts])
     channel = np.concatenate([part["channel"] for part in parts])
-    order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
-    destination = np.empty(order.size, dtype=np.int64)
-    destination[order] = np.arange(order.size)
-    rows = _sorted_in_place(parts, destination) if order.size * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES else None
+    total = delay.size
+    rows = None
+    if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES:
+        host = max(range(len(parts)), key=lambda i: parts[i].size)
+        start = sum(part.size for part in parts[:host])
+        stop = start + parts[host].size
+        if _is_sorted(channel[start:stop], delay[start:stop]):
+            rows = _merged_in_place(parts, host, delay, channel)
     if rows is None:
-        rows = np.empty(order.size, dtype=PATH_DTYPE)
+        order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
+        destination = np.empty(total, dtype=np.int64)
+        destination[order] = np.arange(total)
+        if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES:
+            rows = _sorted_in_place(parts, destination)
+    if rows is None:
+        rows = np.empty(total, dtype=PATH_DTYPE)
         out = _bytes(rows)
         start = 0
         for part in parts:
@@ -196,4 +312,5 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     return rows
 
 
-__all__ = ["IN_PLACE_MAX_BYTES", "assemble_rows", "compact_records", "permute_records", "scatter_records"]
+__all__ = ["IN_PLACE_MAX_BYTES", "assemble_rows", "compact_records", "merge_destinations", "permute_records",
+           "scatter_records", "spread_records"]

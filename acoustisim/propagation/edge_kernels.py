@@ -421,7 +421,7 @@ def fill_edge_rows(
         ``departure_dir`` (k, 3), ``arrival_dir`` (k, 3), ``object_ids`` (k, I) and
         ``points_m`` (k, I, 3), written in place.
     keep : ndarray of int64, shape (k,)
-        Indices of the kept points, increasing.
+        Indices of the kept points, in the order of the rows to write.
     point_pair, gains, path_length, z_point : ndarray, shape (n,)
         Every point's pair, gain (1/m), m + l (m) and position along its edge (m).
     pair_edge, pair_rx : ndarray of int64, shape (p,)

@@ -209,7 +209,7 @@ class DiffractingEdges:
 
 
 def edge_paths(context: SolveContext, config: SolverConfig,
-               edges: DiffractingEdges | SharpEdges | None = None) -> NDArray[Any]:
+               edges: DiffractingEdges | SharpEdges | None = None, *, sort_rows: bool = False) -> NDArray[Any]:
     """Edge-diffraction rows for one sonar pose.
 
     Parameters
@@ -221,6 +221,11 @@ def edge_paths(context: SolveContext, config: SolverConfig,
         The scene's diffracting edges (:attr:`PreparedScene.diffracting_edges
         <acoustisim.propagation.prepared.PreparedScene.diffracting_edges>`, reused across
         poses), or its sharp edges, or None (extracted from ``context``).
+    sort_rows : bool, optional
+        True: the rows in the order :func:`~acoustisim.propagation.solve` returns them
+        (channel, then delay ``path_length_m / c``, ties in the default order), so that it
+        need not move them (:func:`~acoustisim.propagation.assemble.assemble_rows`). False
+        (default): ordered by (edge, receiver) pair, then along the edge.
 
     Returns
     -------
@@ -311,6 +316,8 @@ def edge_paths(context: SolveContext, config: SolverConfig,
     keep = np.flatnonzero(np.abs(gains) > ELEMENT_FLOOR * np.max(np.abs(gains)))
     if keep.size == 0:
         return empty_paths_array(0)
+    if sort_rows:  # stable: ties keep the default order
+        keep = keep[np.lexsort((path_length[keep] / float(c), pair_rx[pair[keep]]))]
     # zeroed rows; the kernel writes the mechanism's columns and the padding of empty_paths_array
     rows = np.zeros(keep.size, dtype=PATH_DTYPE)
     fill_edge_rows(

@@ -139,7 +139,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     if "specular" in config.mechanisms:
         add(specular_rows(context.with_first_path_id(next_id), prepared, config.max_order))
     if "edge" in config.mechanisms:
-        add(edge_paths(context.with_first_path_id(next_id), config, prepared.diffracting_edges))
+        add(edge_paths(context.with_first_path_id(next_id), config, prepared.diffracting_edges, sort_rows=True))
     if "diffuse" in config.mechanisms:
         add(diffuse_paths(context.with_first_path_id(next_id), config, threads=config.threads,
                           visibility=config.diffuse_visibility))
