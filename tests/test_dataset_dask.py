@@ -156,3 +156,22 @@ def test_only_the_last_chunks_are_split_and_only_with_several_workers(n_chunks: 
     from acoustisim.datasets.generate import split_tail
 
     assert split_tail(n_chunks, n_workers) == expected
+
+
+def test_the_scheduler_logs_no_samples_per_task(client, tmp_path: Path) -> None:
+    """Regression test of the driver's growth over long runs (~10 MiB per 1000 default-spec
+    samples): the scheduler (in the driver's process with a LocalCluster) keeps the last
+    batches it sent to each worker, and a batch held the drawn samples of its chunk tasks. A
+    task now carries its sample range (the worker draws the samples again), and those logs
+    keep 100 batches instead of 1000."""
+    import pickle
+
+    generate(loads_spec(SPEC), tmp_path / "logs.zarr", client=client, progress=False)
+    logs = [stream.recent_message_log for stream in client.cluster.scheduler.stream_comms.values()]
+    assert logs and all(log.maxlen == 100 for log in logs)
+    tasks = [message for log in logs for batch in log if isinstance(batch, list) for message in batch
+             if isinstance(message, dict) and message.get("op") == "compute-task"]
+    sizes = [len(pickle.dumps(message)) for message in tasks]
+    # A task's message is ~1.1 kB with its sample range; with its 4 drawn samples instead, as
+    # before, 2.9-3.5 kB with this spec (checked).
+    assert sizes and max(sizes) < 2000, sizes
