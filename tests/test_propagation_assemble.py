@@ -168,3 +168,19 @@ def test_merge_destinations_is_the_stable_sort():
         records[:hi - lo, 0] = np.arange(hi - lo) + 1
         spread_records(records, host_destination)
         np.testing.assert_array_equal(records[host_destination, 0], np.arange(hi - lo) + 1)
+
+
+def test_parts_that_cannot_be_taken_over_are_copied(sorted_parts):
+    """A read-only largest part is copied (left as it was); a borrowed one (a view) gets its
+    derived columns filled but is not resized. The result is the same."""
+    context, pieces = sorted_parts
+    expected = _reference(pieces, context, None)
+    read_only = pieces[2].copy()
+    read_only.setflags(write=False)
+    before = read_only.tobytes()
+    got = assemble_rows([pieces[0].copy(), pieces[1].copy(), read_only], context, None)
+    assert got.tobytes() == expected.tobytes() and read_only.tobytes() == before
+    base = np.concatenate([pieces[2], pieces[2]])
+    view = base[:pieces[2].size]
+    got = assemble_rows([pieces[0].copy(), pieces[1].copy(), view], context, None)
+    assert got.tobytes() == expected.tobytes() and view.size == pieces[2].size and base.size == 2 * view.size

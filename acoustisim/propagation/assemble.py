@@ -274,7 +274,7 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
         (the rows of ``np.concatenate(parts)`` sorted stably by channel and delay).
     """
     parts = [np.ascontiguousarray(part, dtype=PATH_DTYPE) for part in parts]
-    parts = [part for part in parts if part.size]
+    parts = [part if part.flags.writeable else part.copy() for part in parts if part.size]
     if not parts:
         return empty_paths_array(0)
     for part in parts:
