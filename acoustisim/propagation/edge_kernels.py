@@ -405,21 +405,24 @@ def fill_edge_rows(
     rows_path_id: NDArray[np.int64], rows_channel: NDArray[np.int64], rows_kind: NDArray[np.int64],
     rows_order: NDArray[np.int64], rows_path_length: NDArray[np.float64], rows_gain: NDArray[np.float64],
     rows_departure: NDArray[np.float64], rows_arrival: NDArray[np.float64], rows_objects: NDArray[np.int16],
-    rows_points: NDArray[np.float64],
+    rows_points: NDArray[np.float64], rows_zero: tuple[NDArray[np.float64], ...],
     keep: NDArray[np.int64], point_pair: NDArray[np.int64], gains: NDArray[np.float64],
     path_length: NDArray[np.float64], z_point: NDArray[np.float64],
     pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], chain: NDArray[np.int64],
     surface: NDArray[np.int64], start: NDArray[np.float64], direction: NDArray[np.float64],
     tx: NDArray[np.float64], rx: NDArray[np.float64], first_path_id: int, kind: int,
 ) -> None:
-    """Fill zeroed ``PATH_DTYPE`` field views with the kept points' rows.
+    """Fill a ``PATH_DTYPE`` row array (uninitialised) with the kept points' rows: every field
+    written, those the mechanism leaves to the solver zero.
 
     Parameters
     ----------
-    rows_* : ndarray views of a zeroed row array's fields, first axis (k,)
+    rows_* : ndarray views of the row array's fields, first axis (k,)
         ``path_id``, ``channel``, ``kind``, ``order``, ``path_length_m``, ``geometric_gain``,
         ``departure_dir`` (k, 3), ``arrival_dir`` (k, 3), ``object_ids`` (k, I) and
         ``points_m`` (k, I, 3), written in place.
+    rows_zero : tuple of ndarray views, each shape (k,)
+        The row array's other (float) fields, set to 0.
     keep : ndarray of int64, shape (k,)
         Indices of the kept points, in the order of the rows to write.
     point_pair, gains, path_length, z_point : ndarray, shape (n,)
@@ -473,6 +476,8 @@ def fill_edge_rows(
         m0, m1, m2 = rx[ch, 0] - x0, rx[ch, 1] - x1, rx[ch, 2] - x2
         norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
         rows_arrival[r, 0], rows_arrival[r, 1], rows_arrival[r, 2] = m0 / norm, m1 / norm, m2 / norm
+        for field in rows_zero:
+            field[r] = 0.0
         rows_objects[r, 0] = surface[e]
         rows_points[r, 0, 0], rows_points[r, 0, 1], rows_points[r, 0, 2] = x0, x1, x2
         for j in range(1, n_int):

@@ -99,6 +99,11 @@ MAX_ELEMENTS = 20_000_000
 """Most edge elements one solve may make (about 4 GB of rows): beyond it the configuration is
 refused rather than exhausting memory."""
 
+_ZEROED_FIELDS = ("delay_s", "phase_rad", "angle_tx_rad", "angle_rx_rad", "directivity_tx", "directivity_rx",
+                  "absorption_db", "amplitude")
+"""The PATH_DTYPE fields edge rows leave zero (no extra phase; the derived columns, which the
+solver fills)."""
+
 _MIN_DISTANCE_M = 1e-6
 _ON_PLANE_M = 1e-6
 
@@ -318,11 +323,13 @@ def edge_paths(context: SolveContext, config: SolverConfig,
         return empty_paths_array(0)
     if sort_rows:  # stable: ties keep the default order
         keep = keep[np.lexsort((path_length[keep] / float(c), pair_rx[pair[keep]]))]
-    # zeroed rows; the kernel writes the mechanism's columns and the padding of empty_paths_array
-    rows = np.zeros(keep.size, dtype=PATH_DTYPE)
+    # the kernel writes every field: the mechanism's columns, the padding of empty_paths_array
+    # and zeros in the others (no separate zeroing pass over the buffer)
+    rows = np.empty(keep.size, dtype=PATH_DTYPE)
     fill_edge_rows(
         rows["path_id"], rows["channel"], rows["kind"], rows["order"], rows["path_length_m"],
         rows["geometric_gain"], rows["departure_dir"], rows["arrival_dir"], rows["object_ids"], rows["points_m"],
+        tuple(rows[name] for name in _ZEROED_FIELDS),
         keep, pair, gains, path_length, z_point, pair_edge, pair_rx, edges.chain, edges.surface,
         edges.start_m, edges.direction, tx, rx, int(context.first_path_id), int(PathKind.EDGE),
     )
