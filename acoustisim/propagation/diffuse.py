@@ -487,9 +487,7 @@ class _Pending:
 
     n_hits: int
     state: NDArray[np.int8]
-    triangle: NDArray[np.int32]
-    points: NDArray[np.float64]
-    amplitude: NDArray[np.float64]
+    pair_gain: NDArray[np.float64]
     first_event: int
     count: int
 
@@ -561,13 +559,12 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         points, hit_departure = np.empty((3, m)), np.empty((3, m))
         normal = np.empty((3, m if keep else 0))  # written for continuing rays only
         hit_weight, mu = np.empty(m if keep else 0), np.empty(m if keep else 0)
-        amplitude, hit_travelled, phase = (np.empty(m) for _ in range(3))
+        hit_travelled, phase = np.empty(m), np.empty(m)
         hit_parent, surface = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
         # next-event estimation to every receiver; Embree tests the legs that may be blocked
         # by a non-convex object
         pairs = m * n_rx
-        state = np.empty(pairs, dtype=np.int8)
-        hit_triangle = np.empty(m, dtype=np.int32)
+        state, pair_gain = np.empty(pairs, dtype=np.int8), np.empty(pairs)
         legs_max = pairs if tracer.queues else 0  # no Embree buffers when every leg is decided here
         leg_start, leg_unit = np.empty((legs_max, 3), dtype=np.float32), np.empty((legs_max, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(legs_max, dtype=np.float32), np.empty(legs_max, dtype=np.int64)
@@ -577,8 +574,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
             tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash,
             rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, point_wedges, plane_start, plane_normal,
             plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep,
-            points, normal, hit_departure, hit_weight, amplitude, hit_travelled, hit_parent, surface, mu, phase,
-            hit_triangle, state, leg_start, leg_unit, leg_length, leg_pair,
+            points, normal, hit_departure, hit_weight, hit_travelled, hit_parent, surface, mu, phase,
+            state, pair_gain, leg_start, leg_unit, leg_length, leg_pair,
         )
         if n_hits == 0:
             break
@@ -597,7 +594,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         if n_legs:
             blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
             count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
-        pending.append(_Pending(n_hits, state, hit_triangle, points, amplitude, next_event, count))
+        pending.append(_Pending(n_hits, state, pair_gain, next_event, count))
         parent = np.arange(next_event, next_event + n_hits, dtype=np.int32)
         next_event += n_hits
         if bounce + 1 >= tracer.bounces:
@@ -630,9 +627,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
 
 
 def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | None,
-                  visibility: str) -> tuple[list[_ChunkEvents], NDArray[np.float64]]:
-    """Validate the knobs, set up the tracer and trace every chunk (in chunk order); return
-    them and the triangles' normals as components (3, n_triangles)."""
+                  visibility: str) -> list[_ChunkEvents]:
+    """Validate the knobs, set up the tracer and trace every chunk (in chunk order)."""
     n_rays = int(config.diffuse_rays)
     if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
         raise InputError(
@@ -649,7 +645,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
     )
     # No surface scatters (e.g. an empty free field): nothing to trace.
     if n_rays <= 0 or raycaster.triangle_count == 0 or not np.any(mu_of_surface > 0.0):
-        return [], np.zeros((3, 0))
+        return []
     tx = np.asarray(context.transmitter_m, dtype=float)
     rx = np.asarray(context.receivers_m, dtype=float)
     boresight = np.asarray(context.boresight, dtype=float)
@@ -685,7 +681,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         buffers=threading.local(),
     )
     n_chunks = -(-n_rays // CHUNK_RAYS)
-    return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers), tracer.normal
+    return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers)
 
 
 def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
@@ -715,7 +711,7 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`, or ``threads`` or
         ``visibility`` is invalid.
     """
-    chunks, tri_normal = _trace_chunks(context, config, threads, visibility)
+    chunks = _trace_chunks(context, config, threads, visibility)
     workers = resolve_threads(threads)
     n_events = [c.surface.size for c in chunks]
     n_receptions = [c.receptions for c in chunks]
@@ -736,10 +732,8 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
                              chunk.phase, first, points, departure, surface, parent, bounce, travelled, event_phase)
         start = int(reception_start[index])
         for p in chunk.pending:  # the bounces
-            start = kernels.write_receptions(
-                p.n_hits, rx.shape[0], p.state, p.triangle, tri_normal, p.points, rx, p.amplitude,
-                first + p.first_event, start, event, channel, gain,
-            )
+            start = kernels.write_receptions(p.n_hits, rx.shape[0], p.state, p.pair_gain, first + p.first_event, start,
+                                             event, channel, gain)
 
     run_in_order(place, range(len(chunks)), workers)
     return DiffuseEvents(points, surface, parent, bounce, departure, travelled, event_phase, event, channel, gain, rx,

@@ -171,10 +171,10 @@ def scatter_and_pair(
     plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64], shift: NDArray[np.float64], eps: float,
     shared: bool, keep: bool,
     points: NDArray[np.float64], normal: NDArray[np.float64],
-    out_departure: NDArray[np.float64], out_weight: NDArray[np.float64], amplitude: NDArray[np.float64],
+    out_departure: NDArray[np.float64], out_weight: NDArray[np.float64],
     out_travelled: NDArray[np.float64], out_parent: NDArray[np.int32], surface: NDArray[np.int32],
-    mu: NDArray[np.float64], phase: NDArray[np.float64], hit_triangle: NDArray[np.int32],
-    state: NDArray[np.int8], leg_start: NDArray[np.float32],
+    mu: NDArray[np.float64], phase: NDArray[np.float64],
+    state: NDArray[np.int8], pair_gain: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
 ) -> tuple[int, int, int, int]:
     """Compact the rays that scatter, solve their hits, and decide every (hit, receiver) pair:
@@ -225,12 +225,16 @@ def scatter_and_pair(
         :func:`clear_blocked`).
     keep : bool
         The rays continue (another bounce follows): write ``normal``, ``out_weight`` and ``mu``.
-    points ... hit_triangle : outputs, first axis (or second for the (3, m) ones) of length >= m
-        The kept rays' hit points, normals, departures, weights, |X| sqrt(mu weight), path
-        lengths to the hit, parents, surfaces, mu, speckle phase and triangle.
+    points ... phase : outputs, first axis (or second for the (3, m) ones) of length >= m
+        The kept rays' hit points, normals, departures, weights, path lengths to the hit,
+        parents, surfaces, mu and speckle phase.
     state : output, shape (>= m n_rx,), point-major
         Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
         2 (leg queued for Embree).
+    pair_gain : output, shape (>= m n_rx,), point-major
+        Per pair in front of the face (state > 0 on return): the reception's gain
+        |X| sqrt(mu weight) sqrt(r2 sin(g_s) / r2^3) (other entries are left unwritten), for
+        :func:`write_receptions`.
     leg_start, leg_unit : outputs of float32, shape (>= m n_rx, 3)
     leg_length : output of float32, shape (>= m n_rx,)
     leg_pair : output of int64, shape (>= m n_rx,)
@@ -282,12 +286,11 @@ def scatter_and_pair(
         w = weight[ray]
         magnitude, angle = _speckle(px, py, pz, cell, seed_hash)
         phase[h] = angle
-        amplitude[h] = magnitude * math.sqrt(w * m)
+        point_amplitude = magnitude * math.sqrt(w * m)  # |X| sqrt(mu dOmega)
         out_travelled[h] = (travelled[0] if travelled.size == 1 else travelled[ray]) + distance
         out_parent[h] = parent[ray]
         s = tri_surface[t]
         surface[h] = s
-        hit_triangle[h] = t
         if keep:
             normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
             out_weight[h] = w
@@ -317,6 +320,7 @@ def scatter_and_pair(
                 state[pair] = 0
                 continue
             state[pair] = 1
+            pair_gain[pair] = point_amplitude * math.sqrt(c / (length * length * length))
             in_view += 1
             if not tested[j] or screen == 0 or not length > 2.0 * eps:
                 continue
@@ -496,20 +500,15 @@ def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], su
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def write_receptions(
-    h: int, n_rx: int, state: NDArray[np.int8], triangle: NDArray[np.int32], tri_normal: NDArray[np.float64],
-    points: NDArray[np.float64], receivers: NDArray[np.float64], amplitude: NDArray[np.float64],
-    first_event: int, start: int, event: NDArray[np.int32], channel: NDArray[np.int8], gain: NDArray[np.float64],
-) -> int:
+def write_receptions(h: int, n_rx: int, state: NDArray[np.int8], pair_gain: NDArray[np.float64], first_event: int,
+                     start: int, event: NDArray[np.int32], channel: NDArray[np.int8],
+                     gain: NDArray[np.float64]) -> int:
     """The pairs in view (state > 0), point-major, as receptions written from index ``start``.
 
     Each gives event ``first_event + point``, its channel and the gain
-    |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) (``amplitude`` = |X| sqrt(mu dOmega)); the path
-    length, the speckle phase and the arrival direction follow from the event and the receiver
-    (:func:`reception_columns`). r2 and r2 sin(g_s) are recomputed from the point, the receiver
-    and the normal of the point's ``triangle`` (rows of ``tri_normal``, (3, n_triangles)) as
-    :func:`scatter_and_pair` computed them (the same operations: the same values), rather than
-    kept per pair between the two passes.
+    |X| sqrt(mu dOmega) sqrt(r2 sin(g_s) / r2^3) that :func:`scatter_and_pair` computed for the
+    pair (``pair_gain``); the path length, the speckle phase and the arrival direction follow
+    from the event and the receiver (:func:`reception_columns`).
 
     Returns
     -------
@@ -522,13 +521,9 @@ def write_receptions(
             pair = i * n_rx + j
             if state[pair] == 0:
                 continue
-            dx, dy, dz = receivers[j, 0] - points[0, i], receivers[j, 1] - points[1, i], receivers[j, 2] - points[2, i]
-            r = math.sqrt(dx * dx + dy * dy + dz * dz)
-            t = triangle[i]
-            c = dx * tri_normal[0, t] + dy * tri_normal[1, t] + dz * tri_normal[2, t]
             event[k] = first_event + i
             channel[k] = j
-            gain[k] = amplitude[i] * math.sqrt(c / (r * r * r))
+            gain[k] = pair_gain[pair]
             k += 1
     return k
 
