@@ -52,8 +52,10 @@ def test_candidates_and_stretch_correlations_match_the_numpy_definitions(dc, bou
     # whose statistics differ by the noise's scatter).
     assert np.array_equal(start, expected_start)
     expected = segment_correlation(plan, rows, np.repeat(np.arange(3), k), expected_start, offsets)
-    # Same FFTs of the same stretches: equal to rounding (1e-12 of the peak |z|).
-    assert np.max(np.abs(z[:, :width] - expected)) < 1e-12 * np.max(np.abs(expected))
+    # The same FFTs of the same stretches, the kernel's in single precision: float32 rounding
+    # (6e-8) of the samples and of ~10 FFT stages leaves errors well below 1e-6 of the peak |z|
+    # (measured 1.5e-7); a wrong stretch, lag or weight would be wrong by O(1).
+    assert np.max(np.abs(z[:, :width] - expected)) < 1e-6 * np.max(np.abs(expected))
 
 
 @pytest.mark.parametrize("dc", [False, True])

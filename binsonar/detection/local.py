@@ -145,6 +145,11 @@ class LocalPlan:
     (taps in the first m_a columns of rows 0-1, running sums in rows 2-3)."""
     exclusion: int
     """Coarse windows blanked each side of a pick: ceil(m / block), at least 1 (a template length)."""
+    tone_lanes: NDArray[np.float64] = field(repr=False)
+    """``tone`` transposed, shape (2, L), zero padded to L = the next multiple of 8 >= block
+    (``local_kernels._block_powers``: whole vectors per block)."""
+    segment_weights32: NDArray[np.complex64] = field(repr=False)
+    """``segment_weights`` in single precision (the candidates' short FFTs, ``_candidate_correlations``)."""
 
     @property
     def template_length(self) -> int:
@@ -238,6 +243,8 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         tap_partial=partial,
         tap_parts=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0), partial.real, partial.imag]),
         exclusion=max(1, -(-m // block)),
+        tone_lanes=np.ascontiguousarray(np.pad(tone.T, ((0, 0), (0, -block % 8)))),
+        segment_weights32=weights.astype(np.complex64),
     )
 
 
@@ -379,14 +386,21 @@ def _candidate_correlations(
     candidates: int,
     lag_bounds: tuple[int, int],
     dc: NDArray[np.float64] | None = None,
-) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+) -> tuple[NDArray[np.complex64], NDArray[np.int64]]:
     """z around each row's ``candidates`` coarse picks: what ``coarse_lags`` then
     ``segment_correlation`` give, from one compiled pass (``local_kernels.coarse_stretches``)
     and one batched short FFT pair over all rows' stretches.
 
+    The short FFTs run in single precision (the stretches rounded to float32): z then carries
+    relative errors of ~1e-6 of its largest value, which only choose the integer lag of the
+    largest |z|; the TOF and amplitude come from the direct float64 correlations around that lag
+    (``local_kernels.local_peaks``), whose largest of 2 R + 1 values is the same unless two lags
+    R or more apart have |z| within ~1e-6 of each other. Half the bytes and about half the time
+    of the float64 FFTs (measured ~0.12 against ~0.25 ms for 9 stretches of 625 samples).
+
     Returns
     -------
-    z : ndarray, shape (n_rows * candidates, segment_fft), complex
+    z : ndarray, shape (n_rows * candidates, segment_fft), complex64
         Row r's pick k at r * candidates + k; its first 2 half + 1 entries are z at lags
         ``start + 0 .. 2 half``.
     start : ndarray of int, shape (n_rows * candidates,)
@@ -396,14 +410,17 @@ def _candidate_correlations(
     from binsonar.detection import local_kernels
 
     n_rows = rows.shape[0]
-    segments = np.empty((n_rows * candidates, plan.segment_fft))
-    start = np.empty(n_rows * candidates, dtype=np.int64)
+    count = n_rows * candidates
+    segments = np.empty((count, plan.segment_fft), dtype=np.float32)
+    start = np.empty(count, dtype=np.int64)
     settings = np.array([plan.span, plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
-                         plan.segment_length], dtype=np.int64)
-    local_kernels.coarse_stretches(rows, _offsets(dc, n_rows), plan.tone, settings, segments, start)
-    spectrum = sfft.rfft(segments, axis=-1)[:, : plan.segment_weights.size]
-    spectrum *= plan.segment_weights
-    return sfft.ifft(spectrum, plan.segment_fft, axis=-1), start
+                         plan.segment_length, plan.block], dtype=np.int64)
+    local_kernels.coarse_stretches(rows, _offsets(dc, n_rows), plan.tone_lanes, settings, segments, start)
+    spectrum = sfft.rfft(segments, axis=-1, overwrite_x=True)
+    band = plan.segment_weights32.size
+    weighted = np.zeros((count, plan.segment_fft), dtype=np.complex64)  # the band, zero above it
+    np.multiply(spectrum[:, :band], plan.segment_weights32, out=weighted[:, :band])
+    return sfft.ifft(weighted, axis=-1, overwrite_x=True), start
 
 
 def detect_local_matched(
