@@ -456,6 +456,8 @@ class _Tracer:
     buffers : threading.local
         Each tracing thread's :class:`_DrawBuffers` (attribute ``draw``), made on its first
         chunk of this solve.
+    output : _Output
+        The solve's output arrays, into which the chunks write.
     """
 
     raycaster: RayCaster
@@ -477,44 +479,84 @@ class _Tracer:
     n_rays: int
     totals: tuple[int, int]
     buffers: threading.local
+    output: "_Output"
 
 
-@dataclass(frozen=True, eq=False)
-class _Pending:
-    """One bounce of one chunk: its (hit, receiver) pairs, occlusion applied, before they are
-    written as receptions at their final place (see
-    :func:`~acoustisim.propagation.diffuse_kernels.write_receptions`)."""
+class _Output:
+    """The solve's output arrays, sized for the most events and receptions the rays can make,
+    and where each chunk writes into them.
 
-    n_hits: int
-    state: NDArray[np.int8]
-    pair_gain: NDArray[np.float64]
-    first_event: int
-    count: int
+    Chunk ``c`` writes its events from row ``base`` on, bounce after bounce, and its receptions
+    likewise: at their final place when every earlier chunk was placed before it started (always
+    on one thread: no copy at all), else ahead of it, in its own slot (rows ``c`` x the most
+    events, or receptions, a chunk can make). A finished chunk is placed once every earlier one
+    is: a chunk written in its slot is then moved down to its final place by
+    :func:`~acoustisim.propagation.diffuse_kernels.move_chunk` (which never overwrites a row
+    another chunk still owns: a final place lies below the slots of the chunks not yet placed).
+    The chunks' final places depend on their counts only, so the arrays are the same for any
+    thread count. Pages of the arrays that no chunk touches cost no memory; :meth:`result`
+    shrinks the arrays to the rows written.
 
+    Parameters
+    ----------
+    n_rays, bounces, n_rx : int
+        The solve's rays, bounces and receivers.
+    """
 
-@dataclass(frozen=True, eq=False)
-class _ChunkEvents:
-    """The scattering events of one chunk of rays (chunk-local indices, vectors as components
-    (3, m)) and its pending receptions, bounce by bounce."""
+    def __init__(self, n_rays: int, bounces: int, n_rx: int) -> None:
+        capacity = n_rays * bounces  # one event per ray and bounce at most
+        self.slot_events = CHUNK_RAYS * bounces
+        self.slot_receptions = self.slot_events * n_rx
+        self.points, self.departure = np.empty((capacity, 3)), np.empty((capacity, 3))
+        self.surface, self.parent = np.empty(capacity, dtype=np.int32), np.empty(capacity, dtype=np.int32)
+        self.bounce = np.empty(capacity, dtype=np.int32)
+        self.travelled, self.phase = np.empty(capacity), np.empty(capacity)
+        self.event = np.empty(capacity * n_rx, dtype=np.int32)
+        self.channel = np.empty(capacity * n_rx, dtype=np.int8 if n_rx < 128 else np.int32)
+        self.gain = np.empty(capacity * n_rx)
+        self._lock = threading.Lock()
+        self._placed = 0  # chunks placed (every one before it too)
+        self._events = 0  # their events and receptions
+        self._receptions = 0
+        self._finished: dict[int, tuple[int, int, int, int]] = {}  # finished, not yet placed
 
-    points: NDArray[np.float64]
-    surface: NDArray[np.int32]
-    parent: NDArray[np.int32]
-    bounce: NDArray[np.int32]
-    departure: NDArray[np.float64]
-    travelled: NDArray[np.float64]
-    phase: NDArray[np.float64]
-    pending: tuple[_Pending, ...]
-    legs: tuple[int, int] = (0, 0)
+    def start(self, chunk: int) -> tuple[int, int]:
+        """The rows from which chunk ``chunk`` writes its events and receptions."""
+        with self._lock:
+            if chunk == self._placed:
+                return self._events, self._receptions
+        return chunk * self.slot_events, chunk * self.slot_receptions
 
-    @property
-    def receptions(self) -> int:
-        """Number of receptions of the chunk."""
-        return sum(p.count for p in self.pending)
+    def finish(self, chunk: int, base: tuple[int, int], events: int, receptions: int) -> None:
+        """Record chunk ``chunk``'s counts, written from rows ``base``; place every finished
+        chunk whose predecessors are placed."""
+        with self._lock:
+            self._finished[chunk] = (base[0], events, base[1], receptions)
+            while self._placed in self._finished:
+                first_event, n_events, first_reception, n_receptions = self._finished.pop(self._placed)
+                if first_event != self._events or first_reception != self._receptions:
+                    kernels.move_chunk(first_event, self._events, n_events, first_reception, self._receptions,
+                                       n_receptions, self.points, self.departure, self.surface, self.parent,
+                                       self.bounce, self.travelled, self.phase, self.event, self.channel, self.gain)
+                self._events += n_events
+                self._receptions += n_receptions
+                self._placed += 1
 
-
-def _join(parts: list[NDArray[Any]], axis: int = 0) -> NDArray[Any]:
-    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=axis)
+    def result(self, receivers: NDArray[np.float64], legs: tuple[int, int]) -> "DiffuseEvents":
+        """The events and receptions of every chunk (all placed), the arrays shrunk in place to
+        them (no copy: the memory beyond is returned to the allocator)."""
+        if self._finished:
+            raise RuntimeError("diffuse tracer: a chunk was left unplaced")
+        m, n = self._events, self._receptions
+        # the chunks' views are gone: nothing else refers to these arrays
+        for a in (self.points, self.departure):
+            a.resize((m, 3), refcheck=False)
+        for a in (self.surface, self.parent, self.bounce, self.travelled, self.phase):
+            a.resize(m, refcheck=False)
+        for a in (self.event, self.channel, self.gain):
+            a.resize(n, refcheck=False)
+        return DiffuseEvents(self.points, self.surface, self.parent, self.bounce, self.departure, self.travelled,
+                             self.phase, self.event, self.channel, self.gain, receivers, legs[0], legs[1])
 
 
 def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | None, n: int) -> NDArray[np.float32]:
@@ -528,14 +570,19 @@ def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | 
     return out
 
 
-def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
-    """Trace chunk ``chunk`` (rays ``chunk CHUNK_RAYS`` onwards) through every bounce."""
+def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int]:
+    """Trace chunk ``chunk`` (rays ``chunk CHUNK_RAYS`` onwards) through every bounce, writing
+    its events and receptions into ``tracer.output``; return the legs it sent to Embree and
+    those the convex objects' planes decided."""
     n = min(CHUNK_RAYS, tracer.n_rays - chunk * CHUNK_RAYS)
     rng = np.random.default_rng([tracer.seed_hash, chunk])
     raycaster = tracer.raycaster
     shift = raycaster.shift_m
     rx = tracer.receivers
     n_rx = rx.shape[0]
+    out = tracer.output
+    base = out.start(chunk)
+    event_row, reception_row = base  # where the next bounce's events and receptions go
     buffers = getattr(tracer.buffers, "draw", None)  # this thread's, reused chunk after chunk
     if buffers is None:
         buffers = tracer.buffers.draw = _DrawBuffers.create(min(tracer.n_rays, CHUNK_RAYS))
@@ -544,10 +591,6 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
     parent = np.full(n, -1, dtype=np.int32)
-    ev: dict[str, list[NDArray[Any]]] = {
-        k: [] for k in ("points", "surface", "parent", "bounce", "departure", "travelled", "phase")}
-    pending: list[_Pending] = []
-    next_event = 0
     legs = [0, 0]  # sent to Embree, decided by the convex objects' planes
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
@@ -556,11 +599,9 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         origins32 = tracer.origins32[:m] if bounce == 0 else _float32_rows(origins, shift, m)
         triangle = raycaster.first_hit_triangles32(origins32, directions32)
         keep = bounce + 1 < tracer.bounces  # the rays continue
-        points, hit_departure = np.empty((3, m)), np.empty((3, m))
+        # the events go straight to the output, from row event_row on
         normal = np.empty((3, m if keep else 0))  # written for continuing rays only
         hit_weight, mu = np.empty(m if keep else 0), np.empty(m if keep else 0)
-        hit_travelled, phase = np.empty(m), np.empty(m)
-        hit_parent, surface = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
         # next-event estimation to every receiver; Embree tests the legs that may be blocked
         # by a non-convex object
         pairs = m * n_rx
@@ -573,33 +614,29 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
             triangle, directions, origins, weight, travelled, parent, departure, tracer.mu, tracer.normal,
             tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash,
             rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, point_wedges, plane_start, plane_normal,
-            plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep,
-            points, normal, hit_departure, hit_weight, hit_travelled, hit_parent, surface, mu, phase,
+            plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep, event_row,
+            out.points, normal, out.departure, hit_weight, out.travelled, out.parent, out.surface, mu, out.phase,
             state, pair_gain, leg_start, leg_unit, leg_length, leg_pair,
         )
         if n_hits == 0:
             break
-        points, normal, departure = points[:, :n_hits], normal[:, :n_hits], hit_departure[:, :n_hits]
-        if keep:  # the next bounce's input: contiguous, as the first's (one compiled specialisation)
-            departure = np.ascontiguousarray(departure)
-        ev["points"].append(points)
-        ev["surface"].append(surface[:n_hits])
-        ev["parent"].append(hit_parent[:n_hits])
-        ev["bounce"].append(np.full(n_hits, bounce + 1, dtype=np.int32))
-        ev["departure"].append(departure)
-        ev["travelled"].append(hit_travelled[:n_hits])
-        ev["phase"].append(phase[:n_hits])
+        out.bounce[event_row:event_row + n_hits] = bounce + 1
         legs[0] += n_legs
         legs[1] += n_exact
         if n_legs:
             blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
-            count = kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
-        pending.append(_Pending(n_hits, state, pair_gain, next_event, count))
-        parent = np.arange(next_event, next_event + n_hits, dtype=np.int32)
-        next_event += n_hits
+            kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
+        reception_row = kernels.write_receptions(n_hits, n_rx, state, pair_gain, event_row, reception_row, out.event,
+                                                 out.channel, out.gain)
+        rows = slice(event_row, event_row + n_hits)
+        parent = np.arange(event_row, event_row + n_hits, dtype=np.int32)
+        event_row += n_hits
         if bounce + 1 >= tracer.bounces:
             break
         # continue in a cosine-weighted direction about the normal: weight x (pi mu)
+        points, normal = out.points[rows].T, normal[:, :n_hits]
+        # the next bounce's input: contiguous, as the first's (one compiled specialisation)
+        departure = np.ascontiguousarray(out.departure[rows].T)
         u = rng.random((2, n_hits))
         radius = np.sqrt(u[0])
         along_1, along_2 = _unit_circle(u[1])
@@ -613,29 +650,22 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> _ChunkEvents:
         directions += t2
         directions += normal * along_n
         weight = hit_weight[:n_hits] * math.pi * mu[:n_hits]
-        travelled = hit_travelled[:n_hits]
+        travelled = out.travelled[rows]
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
-    if not ev["points"]:
-        i0, v0 = np.zeros(0, np.int32), np.zeros((3, 0))
-        return _ChunkEvents(v0, i0, i0, i0, v0, np.zeros(0), np.zeros(0), ())
-    return _ChunkEvents(
-        points=_join(ev["points"], axis=1), surface=_join(ev["surface"]), parent=_join(ev["parent"]),
-        bounce=_join(ev["bounce"]), departure=_join(ev["departure"], axis=1), travelled=_join(ev["travelled"]),
-        phase=_join(ev["phase"]), pending=tuple(pending),
-        legs=(legs[0], legs[1]),
-    )
+    out.finish(chunk, base, event_row - base[0], reception_row - base[1])
+    return legs[0], legs[1]
 
 
-def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | None,
-                  visibility: str) -> list[_ChunkEvents]:
-    """Validate the knobs, set up the tracer and trace every chunk (in chunk order)."""
+def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
+           visibility: str) -> _Tracer | None:
+    """Validate the knobs and set up the tracer (None: nothing to trace)."""
     n_rays = int(config.diffuse_rays)
     if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
         raise InputError(
             f"solver.diffuse_rays = {config.diffuse_rays!r} with diffuse_bounces = {config.diffuse_bounces!r}: "
             f"more than {MAX_RAY_EVENTS} scattering events; use fewer rays"
         )
-    workers = resolve_threads(threads)
+    resolve_threads(threads)
     if visibility not in VISIBILITY_MODES:
         raise InputError(f"diffuse visibility = {visibility!r}: must be one of {', '.join(VISIBILITY_MODES)}")
     scene = context.scene
@@ -645,7 +675,7 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
     )
     # No surface scatters (e.g. an empty free field): nothing to trace.
     if n_rays <= 0 or raycaster.triangle_count == 0 or not np.any(mu_of_surface > 0.0):
-        return []
+        return None
     tx = np.asarray(context.transmitter_m, dtype=float)
     rx = np.asarray(context.receivers_m, dtype=float)
     boresight = np.asarray(context.boresight, dtype=float)
@@ -658,7 +688,8 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
     sizes = [CHUNK_RAYS] * (n_rays // CHUNK_RAYS) + ([n_rays % CHUNK_RAYS] if n_rays % CHUNK_RAYS else [])
     n_uniform = sum(_LobeTable.uniform_count(size) for size in sizes)
     screen = ObjectScreen.create(scene, rx, raycaster.convex_planes).kernel_arguments()
-    tracer = _Tracer(
+    bounces = int(config.diffuse_bounces)
+    return _Tracer(
         raycaster=raycaster,
         lobe=_LobeTable.create(context),
         mu=mu_of_surface[raycaster.surface_index],
@@ -675,13 +706,12 @@ def _trace_chunks(context: SolveContext, config: SolverConfig, threads: int | No
         tested=tested,
         shared=visibility == "centre",
         seed_hash=_seed_hash(int(config.seed)),
-        bounces=int(config.diffuse_bounces),
+        bounces=bounces,
         n_rays=n_rays,
         totals=(n_uniform, n_rays - n_uniform),
         buffers=threading.local(),
+        output=_Output(n_rays, bounces, n_rx),
     )
-    n_chunks = -(-n_rays // CHUNK_RAYS)
-    return run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), workers)
 
 
 def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
@@ -711,33 +741,13 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`, or ``threads`` or
         ``visibility`` is invalid.
     """
-    chunks = _trace_chunks(context, config, threads, visibility)
-    workers = resolve_threads(threads)
-    n_events = [c.surface.size for c in chunks]
-    n_receptions = [c.receptions for c in chunks]
-    event_start = np.cumsum([0] + n_events)
-    reception_start = np.cumsum([0] + n_receptions)
-    m, n = int(event_start[-1]), int(reception_start[-1])
-    points, departure = np.empty((m, 3)), np.empty((m, 3))
-    surface, parent, bounce = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
-    travelled, event_phase = np.empty(m), np.empty(m)
+    tracer = _setup(context, config, threads, visibility)
     rx = np.ascontiguousarray(context.receivers_m, dtype=float)
-    event, channel = np.empty(n, dtype=np.int32), np.empty(n, dtype=np.int8 if rx.shape[0] < 128 else np.int32)
-    gain = np.empty(n)
-
-    def place(index: int) -> None:
-        """Write chunk ``index``'s events and receptions at their final place."""
-        chunk, first = chunks[index], int(event_start[index])
-        kernels.place_events(chunk.points, chunk.departure, chunk.surface, chunk.parent, chunk.bounce, chunk.travelled,
-                             chunk.phase, first, points, departure, surface, parent, bounce, travelled, event_phase)
-        start = int(reception_start[index])
-        for p in chunk.pending:  # the bounces
-            start = kernels.write_receptions(p.n_hits, rx.shape[0], p.state, p.pair_gain, first + p.first_event, start,
-                                             event, channel, gain)
-
-    run_in_order(place, range(len(chunks)), workers)
-    return DiffuseEvents(points, surface, parent, bounce, departure, travelled, event_phase, event, channel, gain, rx,
-                         sum(c.legs[0] for c in chunks), sum(c.legs[1] for c in chunks))
+    if tracer is None:
+        return _Output(0, 1, rx.shape[0]).result(rx, (0, 0))
+    n_chunks = -(-tracer.n_rays // CHUNK_RAYS)
+    legs = run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), resolve_threads(threads))
+    return tracer.output.result(rx, (sum(a for a, _ in legs), sum(b for _, b in legs)))
 
 
 _PACK_ROWS = 1 << 15

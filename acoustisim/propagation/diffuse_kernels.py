@@ -16,9 +16,9 @@ passes over temporary arrays, is compiled here:
    see :class:`~acoustisim.propagation.diffuse.ObjectScreen`), written as Embree's float32
    buffers;
 4. :func:`clear_blocked` and :func:`write_receptions`: the pairs left in view, point-major,
-   with their event, receiver and gain, written straight into the tracer's output at their
-   final place (the chunks are counted first); :func:`place_events` does the same for the
-   events;
+   with their event, receiver and gain, written straight into the tracer's output (as
+   :func:`scatter_and_pair` writes the events); :func:`move_chunk` moves a chunk written
+   ahead of its final place (on another thread) down to it;
 5. :func:`reception_columns` and :func:`pack_rows`: the receptions' path lengths, phases and
    arrival directions, derived from their event and receiver, and the rows of the arrivals
    table.
@@ -169,7 +169,7 @@ def scatter_and_pair(
     hi: NDArray[np.float64], own_box: NDArray[np.int64], wedges: NDArray[np.float64],
     point_wedges: NDArray[np.float64], plane_start: NDArray[np.int64],
     plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64], shift: NDArray[np.float64], eps: float,
-    shared: bool, keep: bool,
+    shared: bool, keep: bool, first_row: int,
     points: NDArray[np.float64], normal: NDArray[np.float64],
     out_departure: NDArray[np.float64], out_weight: NDArray[np.float64],
     out_travelled: NDArray[np.float64], out_parent: NDArray[np.int32], surface: NDArray[np.int32],
@@ -225,9 +225,17 @@ def scatter_and_pair(
         :func:`clear_blocked`).
     keep : bool
         The rays continue (another bounce follows): write ``normal``, ``out_weight`` and ``mu``.
-    points ... phase : outputs, first axis (or second for the (3, m) ones) of length >= m
-        The kept rays' hit points, normals, departures, weights, path lengths to the hit,
-        parents, surfaces, mu and speckle phase.
+    first_row : int
+        The row of ``points``, ``out_departure``, ``out_travelled``, ``out_parent``,
+        ``surface`` and ``phase`` (the tracer's output arrays) where the first kept ray goes.
+    points, out_departure : outputs, shape (>= first_row + m, 3)
+        The kept rays' hit points and departure directions, from row ``first_row`` on.
+    normal : output, shape (3, >= m)
+    out_weight, mu : outputs, shape (>= m,)
+        The kept rays' normals, weights and mu, from index 0 (with ``keep`` only).
+    out_travelled, out_parent, surface, phase : outputs, shape (>= first_row + m,)
+        The kept rays' path lengths to the hit, parents, surfaces and speckle phases, from
+        row ``first_row`` on.
     state : output, shape (>= m n_rx,), point-major
         Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
         2 (leg queued for Embree).
@@ -280,17 +288,18 @@ def scatter_and_pair(
         # the hit on the triangle's plane, in float64 (Embree only chose the triangle)
         distance = (tri_offset[t] - (nx * ox + ny * oy + nz * oz)) / cos_in
         px, py, pz = ox + distance * dx, oy + distance * dy, oz + distance * dz
-        points[0, h], points[1, h], points[2, h] = px, py, pz
-        out_departure[0, h], out_departure[1, h], out_departure[2, h] = (
+        row = first_row + h
+        points[row, 0], points[row, 1], points[row, 2] = px, py, pz
+        out_departure[row, 0], out_departure[row, 1], out_departure[row, 2] = (
             departure[0, ray], departure[1, ray], departure[2, ray])
         w = weight[ray]
         magnitude, angle = _speckle(px, py, pz, cell, seed_hash)
-        phase[h] = angle
+        phase[row] = angle
         point_amplitude = magnitude * math.sqrt(w * m)  # |X| sqrt(mu dOmega)
-        out_travelled[h] = (travelled[0] if travelled.size == 1 else travelled[ray]) + distance
-        out_parent[h] = parent[ray]
+        out_travelled[row] = (travelled[0] if travelled.size == 1 else travelled[ray]) + distance
+        out_parent[row] = parent[ray]
         s = tri_surface[t]
-        surface[h] = s
+        surface[row] = s
         if keep:
             normal[0, h], normal[1, h], normal[2, h] = nx, ny, nz
             out_weight[h] = w
@@ -479,24 +488,36 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def place_events(points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int32],
-                 parent: NDArray[np.int32], bounce: NDArray[np.int32], travelled: NDArray[np.float64],
-                 phase: NDArray[np.float64], first: int, out_points: NDArray[np.float64],
-                 out_departure: NDArray[np.float64], out_surface: NDArray[np.int32], out_parent: NDArray[np.int32],
-                 out_bounce: NDArray[np.int32], out_travelled: NDArray[np.float64],
-                 out_phase: NDArray[np.float64]) -> None:
-    """Copy one chunk's events (vectors as components (3, m), chunk-local parents) into the
-    tracer's output from row ``first`` on (vectors as rows (M, 3), global parents)."""
-    for i in range(surface.size):
-        row = first + i
+def move_chunk(src_event: int, dst_event: int, n_events: int, src_reception: int, dst_reception: int,
+               n_receptions: int, points: NDArray[np.float64], departure: NDArray[np.float64],
+               surface: NDArray[np.int32], parent: NDArray[np.int32], bounce: NDArray[np.int32],
+               travelled: NDArray[np.float64], phase: NDArray[np.float64], event: NDArray[np.int32],
+               channel: NDArray[np.int8], gain: NDArray[np.float64]) -> None:
+    """Move one chunk's events (rows ``src_event`` onwards, ``n_events`` of them) and receptions
+    down to rows ``dst_event`` and ``dst_reception`` of the same output arrays, in place
+    (``dst <= src``: a forward copy never reads a row it has overwritten), shifting the event
+    indices they hold (parents >= 0, the receptions' events) by ``dst_event - src_event``.
+
+    ``points``, ``departure``: shape (M, 3); the others (M,) for the events, (N,) for the
+    receptions.
+    """
+    shift = dst_event - src_event
+    for i in range(n_events):
+        a, b = src_event + i, dst_event + i
         for k in range(3):
-            out_points[row, k] = points[k, i]
-            out_departure[row, k] = departure[k, i]
-        out_surface[row] = surface[i]
-        out_parent[row] = parent[i] + first if parent[i] >= 0 else -1
-        out_bounce[row] = bounce[i]
-        out_travelled[row] = travelled[i]
-        out_phase[row] = phase[i]
+            points[b, k] = points[a, k]
+            departure[b, k] = departure[a, k]
+        surface[b] = surface[a]
+        p = parent[a]
+        parent[b] = p + shift if p >= 0 else p
+        bounce[b] = bounce[a]
+        travelled[b] = travelled[a]
+        phase[b] = phase[a]
+    for i in range(n_receptions):
+        a, b = src_reception + i, dst_reception + i
+        event[b] = event[a] + shift
+        channel[b] = channel[a]
+        gain[b] = gain[a]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -632,7 +653,7 @@ __all__ = [
     "reception_columns",
     "guide_table",
     "pack_rows",
-    "place_events",
+    "move_chunk",
     "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64",
     "transmit_directions", "write_receptions",
 ]
