@@ -11,16 +11,19 @@ Order of work
    arguments are its sample range, not the samples), build and simulate each, then write the
    chunk of every data array, then its checksums, then its completion flags (each chunk
    file atomically). The workers write their own chunks: the driver only schedules tasks and
-   counts their results, so it is no serial bottleneck. Tasks run on a
+   counts their results, so it is no serial bottleneck. With several workers the last chunks
+   (one per worker, :func:`split_tail`) run as one task per sample and one writing the chunk,
+   so that the workers finish together. Tasks run on a
    ``distributed.LocalCluster`` of ``workers`` single-threaded processes (default), on the
    scheduler at ``scheduler`` (its workers must see the store's path), or, with
    ``workers=0``, in this process without Dask.
 4. A run killed at any moment leaves no sample flagged complete that is not fully written;
    running the same command again redoes the unfinished chunks only, identically.
 
-At most ``2 x workers`` tasks (one chunk each) are in flight, each future is released once its
-result is counted, and what the scheduler logs per task is a few hundred bytes, so memory stays
-flat however many samples (``benchmarks/bench_dataset.py --memory N --tiny``).
+At most ``2 x workers`` chunks are in flight, each future is released once its result is
+counted, and what the scheduler logs per task is about a kilobyte (100 batches per stream), so
+the driver's memory stays flat however many samples; the workers keep no Python objects from
+one task to the next (``benchmarks/bench_dataset.py --memory N --tiny``).
 """
 
 from __future__ import annotations
@@ -494,7 +497,7 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]]
 
     The scheduler then holds a few tasks per worker, and everything it logs per task
     (transitions, messages to the workers, one event per submit: all bounded deques of
-    ``distributed.admin.low-level-log-length`` entries) is a few hundred bytes: the driver's
+    ``distributed.admin.low-level-log-length`` entries) is about a kilobyte: the driver's
     memory does not grow with the number of samples.
     """
     from distributed import as_completed
