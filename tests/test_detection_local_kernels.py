@@ -171,3 +171,29 @@ def test_candidate_search_in_groups_keeps_ties_and_exhausted_windows(bounds, fla
     width = 2 * plan.half + 1
     expected = np.maximum(np.minimum(coarse - plan.half, bounds[1] - (width - 1)), bounds[0]).reshape(-1)
     assert np.array_equal(start, expected)
+
+
+@pytest.mark.parametrize("n", [260, 700, 4 * 42 + 47, 4 * 42 + 48, 60_000, 60_001])
+@pytest.mark.parametrize("first_block", [0, 1, 3])
+def test_block_powers_with_padded_taps_equal_the_numpy_definition(n, first_block):
+    # The kernel reads each group of four blocks with the tone zero padded to a multiple of 8
+    # taps wherever the row holds the extra samples, and the last blocks with their own taps:
+    # both must give block_tone_power's |z_b|^2 (the padded taps multiply the next block's
+    # samples by exactly 0; the sums' order differs, 1e-12 of the largest block power). Lengths
+    # around the split (the last padded read ending exactly at, or one sample past, the row's end)
+    # and every first block.
+    from binsonar.detection import local_kernels
+
+    plan = plan_local(_template(), 60_000, FS)
+    assert plan.tone_lanes.shape[1] % 8 == 0 and plan.tone_lanes.shape[1] > plan.block
+    rows, offsets = _rows(7, True)
+    rows = np.ascontiguousarray(rows[:, :n])
+    n_blocks = n // plan.block - first_block
+    energy = np.empty((3, n_blocks))
+    tone_sum = plan.tone.sum(axis=0)
+    local_kernels._block_powers(rows, first_block, energy, plan.block, plan.tone_lanes, offsets * tone_sum[0],
+                                offsets * tone_sum[1])
+    from binsonar.detection.local import block_tone_power
+
+    expected = block_tone_power(plan, rows, offsets)[:, first_block:]
+    assert np.max(np.abs(energy - expected)) < 1e-12 * np.max(expected)

@@ -221,6 +221,8 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     k = np.arange(block)
     phase = 2.0 * np.pi * centre / fs * k
     tone = np.stack([np.cos(phase), -np.sin(phase)], axis=1)
+    lanes = np.zeros((2, block + (-block % 8)))  # the tone, zero padded (``LocalPlan.tone_lanes``)
+    lanes[:, :block] = tone.T
     taps = matched.analytic_template_conj
     reference = int(np.argmax(np.abs(taps))) - matched.analytic_offset
     tail = np.cumsum(spectrum_power[::-1])[::-1] / total  # energy fraction at bins >= k
@@ -243,7 +245,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         tap_partial=partial,
         tap_parts=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0), partial.real, partial.imag]),
         exclusion=max(1, -(-m // block)),
-        tone_lanes=np.ascontiguousarray(np.pad(tone.T, ((0, 0), (0, -block % 8)))),
+        tone_lanes=lanes,
         segment_weights32=weights.astype(np.complex64),
     )
 
@@ -498,8 +500,5 @@ def detect_local_matched(
     noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
     factor = matched.threshold_factor(pfa, lag_hi - lag_lo)  # pfa over the searched lags, as detect_matched
     values_out = echo_values(matched, lag, peak, noise_mean, factor, t0_s)
-    out: list[list[tuple[float, float, float, float, float]]] = []
-    for row in range(n_rows):
-        echo = tuple(float(v[row]) for v in values_out)
-        out.append([echo] if echo[3] >= 1.0 else [])  # type: ignore[list-item]
-    return out
+    # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
+    return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in np.stack(values_out, axis=1).tolist()]
