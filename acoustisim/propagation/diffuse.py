@@ -236,14 +236,24 @@ class _LobeTable:
         """Rays drawn uniformly among ``n`` of one chunk (at least one: a lone ray is uniform)."""
         return max(1, int(round(UNIFORM_FRACTION * n))) if n else 0
 
+    def cells(self, totals: tuple[int, int]) -> NDArray[np.float64]:
+        """Per cell (n_cells, 2): its upper edge in cos(theta) and the solid angle of a ray drawn
+        in it, for ``totals`` = (N_u, N_l) rays drawn uniformly and from the lobe over the solve
+        (see :func:`~acoustisim.propagation.diffuse_kernels.cell_table`)."""
+        n_u, n_l = totals
+        out = np.empty((self.lobe_pdf.size, 2))
+        kernels.cell_table(self.edges, self.lobe_pdf, n_u / (4.0 * np.pi), float(n_l), out)
+        return out
+
     def draw(self, n: int, totals: tuple[int, int], frame: tuple[NDArray[np.float64], ...],
-             rng: np.random.Generator, workspace: "_DrawBuffers | None" = None) -> tuple[
+             rng: np.random.Generator, workspace: "_DrawBuffers | None" = None,
+             cells: NDArray[np.float64] | None = None) -> tuple[
                  NDArray[np.float64], NDArray[np.float32], NDArray[np.float64]]:
         """Directions of ``n`` rays as components (3, n) and as float32 rows (n, 3) (Embree's
         buffer), and their solid angles (n,) (sr).
 
         ``workspace``: buffers for at least ``n`` rays, overwritten and returned (views); None:
-        new arrays.
+        new arrays. ``cells``: :meth:`cells` of ``totals`` (None: made here).
 
         ``frame`` = (e1, e2, boresight): the transmitter's orthonormal frame (see :func:`_basis`).
 
@@ -265,11 +275,11 @@ class _LobeTable:
         sin32 = np.sin(phi32, out=phi32)
         directions = w.directions[: 3 * n].reshape(3, n)
         directions32, solid_angle = w.directions32[:n], w.solid_angle[:n]
-        n_u, n_l = totals
         e1, e2, axis = frame
-        kernels.transmit_directions(u[0], cos32, sin32, n_uniform, self.guide, self.edges, self.lobe_pdf,
-                                    n_u / (4.0 * np.pi), float(n_l), e1, e2, axis, directions, directions32,
-                                    solid_angle)
+        kernels.transmit_directions(u[0], cos32, sin32, n_uniform, self.guide,
+                                    self.cells(totals) if cells is None else cells,
+                                    (self.edges[0] - self.edges[-1]) / self.lobe_pdf.size, e1, e2, axis, directions,
+                                    directions32, solid_angle)
         return directions, directions32, solid_angle
 
 
@@ -423,6 +433,8 @@ class _Tracer:
     ----------
     raycaster : RayCaster
     lobe : _LobeTable
+    cells : ndarray, shape (n_cells, 2)
+        ``lobe.cells(totals)``: each cell's edge and its rays' solid angle.
     mu : ndarray, shape (n_triangles,)
         Lambert mu of each triangle's surface.
     plane_offset : ndarray, shape (n_triangles,)
@@ -462,6 +474,7 @@ class _Tracer:
 
     raycaster: RayCaster
     lobe: _LobeTable
+    cells: NDArray[np.float64]
     mu: NDArray[np.float64]
     plane_offset: NDArray[np.float64]
     normal: NDArray[np.float64]
@@ -586,7 +599,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int]:
     buffers = getattr(tracer.buffers, "draw", None)  # this thread's, reused chunk after chunk
     if buffers is None:
         buffers = tracer.buffers.draw = _DrawBuffers.create(min(tracer.n_rays, CHUNK_RAYS))
-    directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng, buffers)
+    directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng, buffers, tracer.cells)
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
@@ -689,9 +702,12 @@ def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
     n_uniform = sum(_LobeTable.uniform_count(size) for size in sizes)
     screen = ObjectScreen.create(scene, rx, raycaster.convex_planes).kernel_arguments()
     bounces = int(config.diffuse_bounces)
+    lobe = _LobeTable.create(context)
+    totals = (n_uniform, n_rays - n_uniform)
     return _Tracer(
         raycaster=raycaster,
-        lobe=_LobeTable.create(context),
+        lobe=lobe,
+        cells=lobe.cells(totals),
         mu=mu_of_surface[raycaster.surface_index],
         plane_offset=raycaster.plane_offset,
         normal=np.ascontiguousarray(raycaster.face_normals.T),
@@ -708,7 +724,7 @@ def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
         seed_hash=_seed_hash(int(config.seed)),
         bounces=bounces,
         n_rays=n_rays,
-        totals=(n_uniform, n_rays - n_uniform),
+        totals=totals,
         buffers=threading.local(),
         output=_Output(n_rays, bounces, n_rx),
     )

@@ -107,11 +107,27 @@ def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int32]) -> None:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def cell_table(edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float, lobe_count: float,
+               out: NDArray[np.float64]) -> None:
+    """Per cell of the lobe table, its upper edge in cos(theta) and the solid angle
+    1 / (N_u / 4 pi + N_l p_lobe) of a ray drawn in it, into ``out`` (n_cells, 2) (one cache
+    line serves both for a ray of :func:`transmit_directions`).
+
+    ``edges`` (n_cells + 1,), ``lobe_pdf`` (n_cells,): as in
+    :class:`~acoustisim.propagation.diffuse._LobeTable`; ``uniform_density`` = N_u / (4 pi),
+    ``lobe_count`` = N_l.
+    """
+    for cell in range(lobe_pdf.size):
+        out[cell, 0] = edges[cell]
+        out[cell, 1] = 1.0 / (uniform_density + lobe_count * lobe_pdf[cell])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def transmit_directions(
     u: NDArray[np.float64], cos_phi: NDArray[np.float32], sin_phi: NDArray[np.float32], n_uniform: int,
-    guide: NDArray[np.int32], edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float,
-    lobe_count: float, e1: NDArray[np.float64], e2: NDArray[np.float64], axis: NDArray[np.float64],
-    directions: NDArray[np.float64], directions32: NDArray[np.float32], solid_angle: NDArray[np.float64],
+    guide: NDArray[np.int32], cells: NDArray[np.float64], width: float, e1: NDArray[np.float64],
+    e2: NDArray[np.float64], axis: NDArray[np.float64], directions: NDArray[np.float64],
+    directions32: NDArray[np.float32], solid_angle: NDArray[np.float64],
 ) -> None:
     """Directions of the transmitted rays from their random numbers, and their solid angles.
 
@@ -119,15 +135,18 @@ def transmit_directions(
     ----------
     u : ndarray, shape (n,)
         Uniform numbers in [0, 1): cos(theta) = 1 - 2u for the first ``n_uniform`` rays; for
-        the others the integer part of u len(guide) picks a guide bin, hence a cell of
-        ``edges`` (cos(theta), descending), and the fractional part the place in the cell.
+        the others the integer part of u len(guide) picks a guide bin, hence a cell (cos(theta)
+        descending from 1), and the fractional part the place in the cell.
     cos_phi, sin_phi : ndarray of float32, shape (n,)
         The azimuth's cosine and sine of each ray, in float32: rescaled here to unit length in
         float64 (``diffuse._unit_circle``'s arithmetic).
-    guide, edges, lobe_pdf
+    guide : ndarray of int32
         As in :class:`~acoustisim.propagation.diffuse._LobeTable`.
-    uniform_density, lobe_count : float
-        N_u / (4 pi) and N_l: the ray's solid angle is 1 / (N_u / 4 pi + N_l p_lobe).
+    cells : ndarray, shape (n_cells, 2)
+        Each cell's upper edge in cos(theta) and the solid angle of its rays
+        (:func:`cell_table`).
+    width : float
+        The cells' width in cos(theta) (2 / n_cells).
     e1, e2, axis : ndarray, shape (3,)
         The transmitter's orthonormal frame.
     directions : output, shape (3, n)
@@ -135,9 +154,8 @@ def transmit_directions(
         The same, as Embree's buffer.
     solid_angle : output, shape (n,)
     """
-    n_cells = lobe_pdf.size
+    n_cells = cells.shape[0]
     bins = guide.size
-    width = (edges[0] - edges[n_cells]) / n_cells
     for i in range(u.size):
         if i < n_uniform:
             cos_t = 1.0 - 2.0 * u[i]
@@ -146,7 +164,7 @@ def transmit_directions(
             x = u[i] * bins  # exact for a power of two
             b = int(x)
             cell = guide[b]
-            cos_t = edges[cell] - (x - b) * width
+            cos_t = cells[cell, 0] - (x - b) * width
         sin_t = math.sqrt(max(1.0 - cos_t * cos_t, 0.0))
         cp, sp = np.float64(cos_phi[i]), np.float64(sin_phi[i])
         scale = math.sqrt(cp * cp + sp * sp)
@@ -156,7 +174,7 @@ def transmit_directions(
             d = a * e1[k] + c * e2[k] + cos_t * axis[k]
             directions[k, i] = d
             directions32[i, k] = d
-        solid_angle[i] = 1.0 / (uniform_density + lobe_count * lobe_pdf[cell])
+        solid_angle[i] = cells[cell, 1]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -654,6 +672,6 @@ __all__ = [
     "guide_table",
     "pack_rows",
     "move_chunk",
-    "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64",
+    "cell_table", "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64",
     "transmit_directions", "write_receptions",
 ]
