@@ -284,3 +284,58 @@ def test_complete_rows_are_finite_and_seeded(tank):
     for column in ("delay_s", "amplitude", "geometric_gain", "phase_rad"):
         assert np.all(np.isfinite(a[column]))
     assert np.all((a["phase_rad"] >= -np.pi) & (a["phase_rad"] < np.pi))
+
+
+def test_chunks_written_ahead_of_their_place_are_moved_down_exactly():
+    # The output placement the threads rely on, driven by hand (a thread schedule cannot be
+    # forced): chunk 0 starts first and writes in place; chunks 1 and 2 start before it is
+    # placed and write in their slots; they finish out of order. The arrays must equal the
+    # chunks' events and receptions concatenated in chunk order, event indices (parents, the
+    # receptions' events) shifted to the final rows. A chunk starting once every earlier one
+    # is placed writes in place again.
+    from acoustisim.propagation.diffuse import _Output
+
+    n_rx, counts = 2, [(5, 7), (3, 0), (4, 6), (2, 3)]  # (events, receptions) per chunk
+    out = _Output(CHUNK_RAYS * 4, 2, n_rx)
+    bases = [out.start(c) for c in range(3)]
+    assert bases == [(0, 0), (out.slot_events, out.slot_receptions), (2 * out.slot_events, 2 * out.slot_receptions)]
+    expected = {k: [] for k in ("points", "parent", "event", "gain")}
+    first = 0
+
+    def write(c, base):
+        (e0, r0), (n_e, n_r) = base, counts[c]
+        rows, recs = slice(e0, e0 + n_e), slice(r0, r0 + n_r)
+        points = np.arange(3 * n_e, dtype=float).reshape(n_e, 3) + 100.0 * c
+        out.points[rows], out.departure[rows] = points, -points
+        out.surface[rows], out.bounce[rows] = c, 1
+        out.travelled[rows], out.phase[rows] = points[:, 0], points[:, 1]
+        parent = np.where(np.arange(n_e) % 2 == 1, e0 + np.arange(n_e) - 1, -1)  # links inside the chunk
+        out.parent[rows] = parent
+        event = e0 + np.arange(n_r) % max(n_e, 1)
+        out.event[recs], out.channel[recs], out.gain[recs] = event, np.arange(n_r) % n_rx, 1.0 + c + np.arange(n_r)
+        return points, parent - e0, event - e0, 1.0 + c + np.arange(n_r)
+
+    written = {c: write(c, bases[c]) for c in (2, 1, 0)}
+    out.finish(2, bases[2], *counts[2])
+    out.finish(1, bases[1], *counts[1])
+    assert out.start(3) == (3 * out.slot_events, 3 * out.slot_receptions)  # chunk 0 still unplaced
+    out.finish(0, bases[0], *counts[0])
+    base3 = out.start(3)
+    assert base3 == (sum(e for e, _ in counts[:3]), sum(r for _, r in counts[:3]))  # in place
+    written[3] = write(3, base3)
+    out.finish(3, base3, *counts[3])
+    for c in range(4):
+        points, parent, event, gain = written[c]
+        expected["points"].append(points)
+        expected["parent"].append(np.where(parent >= 0, parent + first, -1))
+        expected["event"].append(event + first)
+        expected["gain"].append(gain)
+        first += counts[c][0]
+    events = out.result(np.zeros((n_rx, 3)), (0, 0))
+    np.testing.assert_array_equal(events.points_m, np.concatenate(expected["points"]))
+    np.testing.assert_array_equal(events.departure_dir, -np.concatenate(expected["points"]))
+    np.testing.assert_array_equal(events.parent, np.concatenate(expected["parent"]))
+    np.testing.assert_array_equal(events.event, np.concatenate(expected["event"]))
+    np.testing.assert_array_equal(events.gain, np.concatenate(expected["gain"]))
+    np.testing.assert_array_equal(events.surface, np.repeat(np.arange(4), [e for e, _ in counts]))
+    assert events.points_m.shape == (first, 3) and events.channel.size == sum(r for _, r in counts)

@@ -34,7 +34,11 @@ Embree's, in float32, differs only for legs grazing a face within its rounding (
 The rays are traced in fixed chunks of :data:`CHUNK_RAYS`, each with its own random stream
 (seeded by the solver seed and the chunk index), on a small thread pool (Embree, the compiled
 per-hit loops of :mod:`~acoustisim.propagation.diffuse_kernels` and numpy's large-array passes
-release the GIL): the rows are the same for any number of threads. An
+release the GIL): the rows are the same for any number of threads. Each chunk writes its
+events and receptions straight into the solve's output arrays (sized for the most events the
+rays can make): at their final place when every earlier chunk is placed before it starts
+(always on one thread), else in a slot of its own, moved down once the chunks before it are
+placed (see :class:`_Output`). An
 approximate visibility mode (``visibility="centre"``, off by default) tests only the leg to
 the centre receiver and shares the answer with the side receivers: on the thesis tank at its
 default pose it changes the side channels' diffuse energy by 0.003 %, but over 12 random
