@@ -634,17 +634,21 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int]:
             plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep, event_row,
             out.points, normal, out.departure, hit_weight, out.travelled, out.parent, out.surface, mu, out.phase,
             state, pair_gain, leg_start, leg_unit, leg_length, leg_pair,
+            -1 if tracer.queues else reception_row, out.event, out.channel, out.gain,
         )
         if n_hits == 0:
             break
         out.bounce[event_row:event_row + n_hits] = bounce + 1
         legs[0] += n_legs
         legs[1] += n_exact
-        if n_legs:
-            blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
-            kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
-        reception_row = kernels.write_receptions(n_hits, n_rx, state, pair_gain, event_row, reception_row, out.event,
-                                                 out.channel, out.gain)
+        if not tracer.queues:  # the kernel wrote the receptions
+            reception_row += count
+        else:
+            if n_legs:
+                blocked = raycaster.occluded_segments32(leg_start[:n_legs], leg_unit[:n_legs], leg_length[:n_legs])
+                kernels.clear_blocked(state, leg_pair[:n_legs], blocked, tracer.shared, n_rx, n_hits)
+            reception_row = kernels.write_receptions(n_hits, n_rx, state, pair_gain, event_row, reception_row,
+                                                     out.event, out.channel, out.gain)
         rows = slice(event_row, event_row + n_hits)
         parent = np.arange(event_row, event_row + n_hits, dtype=np.int32)
         event_row += n_hits

@@ -194,6 +194,7 @@ def scatter_and_pair(
     mu: NDArray[np.float64], phase: NDArray[np.float64],
     state: NDArray[np.int8], pair_gain: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
+    reception_row: int, event: NDArray[np.int32], channel: NDArray[np.int8], gain: NDArray[np.float64],
 ) -> tuple[int, int, int, int]:
     """Compact the rays that scatter, solve their hits, and decide every (hit, receiver) pair:
     its geometry, exact occlusion by the convex objects, and the legs Embree must test.
@@ -265,6 +266,13 @@ def scatter_and_pair(
     leg_length : output of float32, shape (>= m n_rx,)
     leg_pair : output of int64, shape (>= m n_rx,)
         The queued legs (Embree buffers) and their pair index.
+    reception_row : int
+        >= 0 when no leg can be left to Embree (no leg buffers): each point's pairs in view are
+        written as receptions (event ``first_row + point``, channel, gain; as
+        :func:`write_receptions` would write them) into ``event``, ``channel`` and ``gain``
+        from this index on, as soon as the point is decided (-1: left to
+        :func:`write_receptions`, after Embree's answers).
+    event, channel, gain : outputs, shape (>= reception_row + in_view,)
 
     With one box only (the union of too many objects to screen one by one), a leg crossing it
     goes to Embree. Otherwise each object's box (rows 1:, skipping the convex object the point
@@ -404,6 +412,14 @@ def scatter_and_pair(
                 if state[i * n_rx + j] != 0:
                     state[i * n_rx + j] = 0
                     in_view -= 1
+        if reception_row >= 0:  # every pair of this point is decided: its receptions, as write_receptions
+            for j in range(n_rx):
+                pair = i * n_rx + j
+                if state[pair] != 0:
+                    event[reception_row] = row
+                    channel[reception_row] = j
+                    gain[reception_row] = pair_gain[pair]
+                    reception_row += 1
         h += 1
     return h, n_legs, n_exact, in_view
 
