@@ -197,3 +197,28 @@ def test_block_powers_with_padded_taps_equal_the_numpy_definition(n, first_block
 
     expected = block_tone_power(plan, rows, offsets)[:, first_block:]
     assert np.max(np.abs(energy - expected)) < 1e-12 * np.max(expected)
+
+
+@pytest.mark.parametrize("t0_s, pfa", [(0.0, 1e-3), (-2.5e-4, 1e-6)])
+def test_compiled_echo_values_equal_the_matched_filters(t0_s, pfa):
+    # ``local_kernels.echo_rows`` is ``matched.echo_values`` with ``white_noise_power`` for the
+    # noise, compiled: the same operations in the same order, so the same values up to the last
+    # bit of the library's log10/sqrt (1e-15 relative leaves that room, and nothing else: a
+    # wrong constant or order of terms would be off by far more). Rows: an echo, a noise-free
+    # row (SNR capped), a weak peak (score < 1).
+    from binsonar.detection import local_kernels
+    from binsonar.detection.matched import echo_values, white_noise_power
+
+    plan = plan_local(_template(), N, FS)
+    refined = np.array([[1234.37, 5.2e3], [40_000.0, 2.0e2], [7.5, 3.1]])
+    sigma = np.array([0.1, 0.0, 0.2])
+    constants = plan.echo_constants.copy()
+    constants[0] = t0_s
+    constants[-1] = plan.threshold_factor(pfa, N - 201)
+    assert constants[-1] == plan.matched.threshold_factor(pfa, N - 201)
+    echoes = np.empty((3, 5))
+    local_kernels.echo_rows(refined, sigma, constants, echoes)
+    expected = np.stack(echo_values(plan.matched, refined[:, 0], refined[:, 1], white_noise_power(plan.matched, sigma),
+                                    constants[-1], t0_s), axis=1)
+    assert np.all(np.abs(echoes - expected) <= 1e-15 * np.abs(expected))
+    assert echoes[2, 3] < 1.0 < echoes[0, 3]

@@ -73,7 +73,6 @@ from binsonar.detection.matched import (
     MatchedPlan,
     check_pfa,
     dc_correlation,  # noqa: F401  (the DC folding's definition; tests import it from here)
-    echo_values,
     lag_range,
     plan_matched,
     white_noise_power,
@@ -150,6 +149,21 @@ class LocalPlan:
     (``local_kernels._block_powers``: whole vectors per block)."""
     segment_weights32: NDArray[np.complex64] = field(repr=False)
     """``segment_weights`` in single precision (the candidates' short FFTs, ``_candidate_correlations``)."""
+    echo_constants: NDArray[np.float64] = field(repr=False)
+    """``local_kernels.echo_rows``'s constants but the first (t0_s) and last (threshold factor),
+    shape (8,): sample rate, template t0_s, ``white_noise_power`` of 1 V, peak response, the
+    template's largest |sample|, RMS bandwidth."""
+    _factors: dict = field(default_factory=dict, init=False, repr=False)
+    """Memo of ``matched.threshold_factor`` by (pfa, searched lags): a pure function of the plan,
+    a fixed-point iteration of ~20-50 Python steps (~20-50 us per ping) otherwise."""
+
+    def threshold_factor(self, pfa: float, searched_lags: int) -> float:
+        """``self.matched.threshold_factor(pfa, searched_lags)``, computed once per pair."""
+        key = (pfa, searched_lags)
+        factor = self._factors.get(key)
+        if factor is None:
+            factor = self._factors[key] = self.matched.threshold_factor(pfa, searched_lags)
+        return factor
 
     @property
     def template_length(self) -> int:
@@ -247,6 +261,9 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         exclusion=max(1, -(-m // block)),
         tone_lanes=lanes,
         segment_weights32=weights.astype(np.complex64),
+        echo_constants=np.array([0.0, fs, matched.template.t0_s, float(white_noise_power(matched, 1.0)),
+                                 matched.peak_response, float(np.max(np.abs(matched.template.samples))),
+                                 matched.rms_bandwidth_hz, 0.0]),
     )
 
 
@@ -496,9 +513,13 @@ def detect_local_matched(
     # ``matched.refine``'s log-parabolic vertex, compiled: tests/test_detection_local_kernels.py).
     local_kernels.local_peaks(z, start, rows, _offsets(dc, n_rows), plan.tap_parts, settings,
                               values, refined)
-    lag, peak = refined[:, 0], refined[:, 1]
-    noise_mean = white_noise_power(matched, sigma)  # 2 sigma^2 sum s^2: white noise through the filter
-    factor = matched.threshold_factor(pfa, lag_hi - lag_lo)  # pfa over the searched lags, as detect_matched
-    values_out = echo_values(matched, lag, peak, noise_mean, factor, t0_s)
+    # ``matched.echo_values`` of the vertex, the noise as ``white_noise_power`` (2 sigma^2 sum s^2:
+    # white noise through the filter), compiled (one call, not some twenty small numpy ones);
+    # pfa over the searched lags, as detect_matched.
+    constants = plan.echo_constants.copy()
+    constants[0] = t0_s
+    constants[-1] = plan.threshold_factor(pfa, lag_hi - lag_lo)
+    echoes = np.empty((n_rows, 5))
+    local_kernels.echo_rows(refined, np.ascontiguousarray(sigma, dtype=float), constants, echoes)
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
-    return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in np.stack(values_out, axis=1).tolist()]
+    return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in echoes.tolist()]
