@@ -37,8 +37,8 @@ Speed-up of 2 workers over 1 (goal >= 1.8x), two ways:
 Memory mode: generates N samples of the spec on a LocalCluster of ``--workers`` workers (as
 ``generate --workers N`` starts it) and samples the resident set size of the driver and of
 each worker every ``--interval`` seconds into ``--csv``; prints it at 1,000, 3,000 and N
-samples and at each tenth of the run. ``--tiny`` uses :data:`TINY_SPEC` instead of ``--spec``:
-a 0.5 ms record, direct path only, at most one object (~50 ms a sample), in chunks of 4 like the
+samples (the last poll before the cluster closes) and at each tenth of the run. ``--tiny``
+uses :data:`TINY_SPEC` instead of ``--spec``: a 0.5 ms record, direct path only, at most one object (~50 ms a sample), in chunks of 4 like the
 default spec, so that the run has as many tasks (what the driver handles) as a default-spec run
 of the same N, in minutes instead of an hour.
 """
@@ -315,7 +315,7 @@ def memory(spec_path: Path | None, n: int, workdir: Path, workers: int, csv_path
     print(f"spec {'TINY_SPEC' if spec_path is None else spec_path.name}, {n} samples in chunks of "
           f"{spec.samples_per_chunk}, {workers} workers: completed samples -> resident memory (MiB) of the driver "
           "(client, scheduler, nannies), the largest worker, all processes", flush=True)
-    checkpoints = sorted({c for c in MEMORY_CHECKPOINTS if c < n} | {n})
+    checkpoints = sorted(c for c in MEMORY_CHECKPOINTS if c < n)
     at_checkpoint: dict[int, tuple[float, int, float, float, float]] = {}
     t0 = time.perf_counter()
 
@@ -347,7 +347,7 @@ def memory(spec_path: Path | None, n: int, workdir: Path, workers: int, csv_path
                 next_tenth += 1
                 printed = True
             for c in checkpoints:
-                if done >= c and c not in at_checkpoint:
+                if done >= c and c not in at_checkpoint and worker_rss:
                     at_checkpoint[c] = row
                     printed = True
             if printed:
@@ -364,6 +364,9 @@ def memory(spec_path: Path | None, n: int, workdir: Path, workers: int, csv_path
         if handle:
             handle.close()
     print(f"{n} samples on {report.workers} worker(s): {report.samples_per_s:.2f} samples/s, {report.elapsed_s:.0f} s")
+    alive = [r for r in rows if r[3] > 0]  # polls while the workers ran (not the card's final read-back)
+    if alive and alive[-1][1] > max(at_checkpoint, default=0):
+        at_checkpoint[alive[-1][1]] = alive[-1]  # the last poll before the cluster closed, ~N samples
     if at_checkpoint:
         first = at_checkpoint[min(at_checkpoint)]
         print("RSS (MiB) at completed samples: " + "; ".join(
