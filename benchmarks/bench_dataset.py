@@ -38,9 +38,10 @@ Memory mode: generates N samples of the spec on a LocalCluster of ``--workers`` 
 ``generate --workers N`` starts it) and samples the resident set size of the driver and of
 each worker every ``--interval`` seconds into ``--csv``; prints it at 1,000, 3,000 and N
 samples (the last poll before the cluster closes) and at each tenth of the run. ``--tiny``
-uses :data:`TINY_SPEC` instead of ``--spec``: a 0.5 ms record, direct path only, at most one object (~50 ms a sample), in chunks of 4 like the
-default spec, so that the run has as many tasks (what the driver handles) as a default-spec run
-of the same N, in minutes instead of an hour.
+uses :data:`TINY_SPEC` instead of ``--spec``: a 0.5 ms record, direct path only, at most one
+object (~50 ms a sample), in chunks of 4 like the default spec, so that the run has as many
+tasks (what the driver handles) as a default-spec run of the same N, in minutes instead of an
+hour.
 """
 
 from __future__ import annotations
