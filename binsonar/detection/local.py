@@ -43,15 +43,24 @@ then work on a few candidates only: ``candidates`` short FFTs of ~3 template len
 (2 R + 1) dot products of the analytic template's length.
 
 How it runs (``detect_local_matched``): everything but the FFTs is compiled
-(``local_kernels``, numba, imported on first use), in two calls for all rows of a record:
-``coarse_stretches`` (steps 1 and the stretches' gathering: each searched sample read once)
-and ``local_peaks`` (the largest |z| of step 2, the direct z of step 3 and its vertex); between
-them, one batched real FFT of all rows' stretches and one inverse FFT
-(``_candidate_correlations``). The numpy functions below (``block_tone_power``,
-``coarse_lags``, ``segment_correlation``) are the same steps written with numpy: the tests
-check the kernels against them (``tests/test_detection_local_kernels.py``). Measured with
-``benchmarks/bench_detection.py --methods local-matched``: prepared ``run`` ~3.4x one read of
-the record on the team's loaded machine, against ~4.5-5x for the all-numpy version.
+(``local_kernels``, numba, imported on first use), in three calls for all rows of a record:
+``coarse_stretches`` (steps 1 and the stretches' gathering: each searched sample read once),
+``local_peaks`` (the largest |z| of step 2, the direct z of step 3 and its vertex) and
+``echo_rows`` (``matched.echo_values`` of the vertices); between the first two, one batched
+single-precision real FFT of all rows' stretches and one inverse FFT
+(``_candidate_correlations``: they only choose the integer lag that step 3 starts from). The
+numpy functions below (``block_tone_power``, ``coarse_lags``, ``segment_correlation``) are the
+same steps written with numpy: the tests check the kernels against them
+(``tests/test_detection_local_kernels.py``). Measured with ``benchmarks/bench_detection.py
+--methods local-matched`` on the team's loaded machine (each call after an FFT of the record, so
+that the record and the code arrive cold, as a new ping does): prepared ``run`` ~2.7-3.0x one
+read of the record (~0.13-0.14x the record's rfft), against ~3.0-3.5x (0.16-0.19x) before the
+padded tone table, the float32 FFTs and the compiled echo values (alternating runs), and
+~4.5-5x for the all-numpy version. What remains, cold, for 3 x 250,000 samples, in units of
+one (cold) read of the record: the block correlations ~1.15 (the coarse kernel as a whole
+~1.3), the robust DC and noise estimate (``inputs.robust_offsets``: two numpy partitions of
+4,096 samples per row, which numpy's SIMD selection does faster than a compiled quickselect)
+~0.6, the short FFTs ~0.45, the rest (Python between the kernels, the refinement) ~0.3.
 
 A row's DC offset (``dc_v``, still in the samples) is folded in rather than removed from a
 copy of the record: the block correlations of x - dc are those of x minus dc times the sum of

@@ -1,7 +1,7 @@
 """Compiled loops of the local matched filter (numba, cached on disk, GIL released).
 
 Imported by :mod:`binsonar.detection.local` when a local matched filter runs (never by
-``import binsonar``). Two kernels, each one call for all rows of a record, replace what numpy
+``import binsonar``). Three kernels, each one call for all rows of a record, replace what numpy
 could only do in many small calls per ping:
 
 1. :func:`coarse_stretches`: the coarse stage (each sample of the searched blocks read once:
@@ -11,9 +11,11 @@ could only do in many small calls per ping:
 2. :func:`local_peaks`: the largest |z| over all candidates' lags, then z at the
    ``2 R + 1`` integer lags around it by direct dot products with the analytic template (the
    same evaluation as ``matched.lags_time_domain``, and ``matched.dc_correlation`` for the
-   folded DC), ready for the log-parabolic vertex of ``matched.refine``.
+   folded DC), ready for the log-parabolic vertex of ``matched.refine``;
+3. :func:`echo_rows`: the TOF, amplitude, SNR, score and TOF std of each row's vertex
+   (``matched.echo_values``' operations in its order).
 
-Both follow :mod:`binsonar.detection.local`'s numpy definitions step for step (same ties:
+All follow :mod:`binsonar.detection.local`'s numpy definitions step for step (same ties:
 first maximum; same bounds); only the order of the floating-point sums differs, i.e. results
 agree to rounding (``tests/test_detection_local_kernels.py``). ``cache=True`` stores the
 compiled code in ``__pycache__`` beside this file (or numba's per-user cache directory): the
