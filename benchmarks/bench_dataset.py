@@ -61,7 +61,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from acoustisim.datasets.generate import _local_cluster, generate, simulate_sample  # noqa: E402
+from acoustisim.datasets.generate import _local_cluster, generate, simulate_sample, split_tail  # noqa: E402
 from acoustisim.datasets.sampling import plan_samples  # noqa: E402
 from acoustisim.datasets.spec import load_spec  # noqa: E402
 
@@ -110,15 +110,33 @@ def _worker_cpu_s(client) -> dict[str, float]:
     return client.run(cpu)
 
 
-def plain_loop(spec, samples) -> tuple[float, float, list[float]]:
-    """Wall (s), CPU (s) and per-sample wall times of building + simulating every sample."""
-    times = []
+def plain_loop(spec, samples) -> tuple[float, float, list[float], list[float]]:
+    """Wall (s), CPU (s), per-sample wall times and per-sample CPU times of building +
+    simulating every sample."""
+    times, cpu_times = [], []
     t0, c0 = time.perf_counter(), time.process_time()
     for sample in samples:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         simulate_sample(spec, sample)
         times.append(time.perf_counter() - t)
-    return time.perf_counter() - t0, time.process_time() - c0, times
+        cpu_times.append(time.process_time() - c)
+    return time.perf_counter() - t0, time.process_time() - c0, times, cpu_times
+
+
+def balance_bound(costs: list[float], chunk: int, workers: int, split: int) -> float:
+    """Speed-up over one worker that the task granularity alone allows ``workers`` workers.
+
+    ``costs`` are the samples' CPU times in order; the tasks are whole chunks of ``chunk``
+    samples except the last ``split`` chunks, one task per sample (writes neglected), handed
+    in order to the worker free first, as the scheduler does.
+    """
+    starts = list(range(0, len(costs), chunk))
+    whole = starts[:len(starts) - split] if split else starts
+    tasks = [sum(costs[a:a + chunk]) for a in whole] + costs[len(whole) * chunk:]
+    free = [0.0] * workers
+    for cost in tasks:
+        free[free.index(min(free))] += cost
+    return sum(costs) / max(free)
 
 
 def _loop_part(spec_path: str, n: int, part: int, parts: int, barrier) -> tuple[float, float, int]:
@@ -128,7 +146,7 @@ def _loop_part(spec_path: str, n: int, part: int, parts: int, barrier) -> tuple[
     samples = plan_samples(spec)
     simulate_sample(spec, samples[0])  # imports, caches
     barrier.wait()
-    wall, cpu, _ = plain_loop(spec, samples[part::parts])
+    wall, cpu, _, _ = plain_loop(spec, samples[part::parts])
     return cpu, wall, len(samples[part::parts])
 
 
@@ -271,6 +289,7 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
     print(f"{'2 plain loops side by side':26s}: {pair_rate:6.3f} samples/s, {pair_cpu * 1e3:6.1f} ms CPU/sample "
           f"({(pair_cpu * n / loop_cpu - 1) * 100:+.1f} % vs one loop: the machine's own cost of running two at once)")
     r1, r2 = runs[1], runs[2]
+    n_chunks = -(-n // spec.samples_per_chunk)
     print(f"ceiling of a 2-process speed-up here (2 x one loop's CPU per sample / two loops' CPU per sample): "
           f"{2 * loop_cpu / n / pair_cpu:.2f}x; 2 plain loops / 1 plain loop, wall: {pair_rate / base_rate:.2f}x")
     sim1, sim2 = r1.simulate_cpu_s / r1.n, r2.simulate_cpu_s / r2.n
@@ -283,6 +302,11 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
           f"{r1.projected_wall_s() / r2.projected_wall_s():.2f}x (goal >= 1.8x); samples "
           f"per worker-CPU-s {r1.n / sum(r1.worker_cpu_s):.3f} (1 worker) vs {r2.n / sum(r2.worker_cpu_s):.3f} "
           "(2 workers)")
+    costs = [min(a, b) for a, b in zip(first[3], last[3])]  # the baseline's per-sample CPU, less noisy of two
+    print(f"bound from the task granularity alone (the baseline's per-sample CPU, tasks to the worker free first): "
+          f"2 workers / 1 worker {balance_bound(costs, spec.samples_per_chunk, 2, split_tail(n_chunks, 2)):.2f}x with "
+          f"the last {split_tail(n_chunks, 2)} chunks split into sample tasks (as generate does), "
+          f"{balance_bound(costs, spec.samples_per_chunk, 2, 0):.2f}x with whole-chunk tasks only")
     print(f"overhead Dask+Zarr vs plain loop, CPU: {(r1.cpu_s / loop_cpu - 1) * 100:+.1f} % (1 worker), "
           f"{(r2.cpu_s / loop_cpu - 1) * 100:+.1f} % (2 workers) (goal < 10 %); vs the simulate CPU of the same run: "
           f"{(r1.cpu_s / r1.simulate_cpu_s - 1) * 100:+.1f} % (1 worker), {(r2.cpu_s / r2.simulate_cpu_s - 1) * 100:+.1f} % "
