@@ -422,9 +422,11 @@ def _candidate_correlations(
     The short FFTs run in single precision (the stretches rounded to float32): z then carries
     relative errors of ~1e-6 of its largest value, which only choose the integer lag of the
     largest |z|; the TOF and amplitude come from the direct float64 correlations around that lag
-    (``local_kernels.local_peaks``), whose largest of 2 R + 1 values is the same unless two lags
-    R or more apart have |z| within ~1e-6 of each other. Half the bytes and about half the time
-    of the float64 FFTs (measured ~0.12 against ~0.25 ms for 9 stretches of 625 samples).
+    (``local_kernels.local_peaks``, which takes the largest of the 2 R + 1 direct values, the
+    outer two excepted), so the result is the same unless two lags more than R - 1 apart have |z|
+    within ~1e-6 of each other (two echoes of equal strength to a part in a million). Half the
+    bytes and about half the time of the float64 FFTs (measured ~0.12 against ~0.25 ms for 9
+    stretches of 625 samples, warm).
 
     Returns
     -------
