@@ -45,8 +45,9 @@ def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[n
     runs over whole vectors, with no scalar remainder loop (42 taps: 5 vectors of 8 and 2 single
     taps otherwise); the padded taps read the next block's first samples and multiply them by
     exactly 0. Used wherever those extra samples exist in the row (all but the last few blocks
-    of a row, which take their own taps only); measured 0.29 against 0.39-0.57 ms for 3 x 250,000 cached samples (one read,
-    numpy ``max``: 0.28). fastmath is safe here: finite sums only.
+    of a row, which take their own taps only). Measured for 3 x 250,000 samples, interleaved:
+    ~1.0x one read (numpy ``max``) against ~1.3-1.5x when cached; ~1.13x against ~1.3x after an
+    FFT of the record (cold, as a new ping arrives). fastmath is safe here: finite sums only.
 
     Parameters
     ----------
