@@ -289,8 +289,8 @@ def summarise(scenes: list[dict[str, Any]], snrs: list[str], detectors: list[str
     }
 
 
-COLOURS = {"threshold": "tab:orange", "ca-cfar": "tab:blue", "os-cfar": "tab:cyan", "local-matched": "tab:green",
-           "dwt": "tab:purple", "whitened-matched": "tab:red"}
+COLOURS: Mapping[str, str] = MappingProxyType({"threshold": "tab:orange", "ca-cfar": "tab:blue", "os-cfar": "tab:cyan", "local-matched": "tab:green",
+           "dwt": "tab:purple", "whitened-matched": "tab:red"})
 
 
 def roc_figure(summary: dict[str, Any], detectors: list[str]) -> Any:
