@@ -1,13 +1,49 @@
 """The threshold detector's compiled loop (``threshold_kernels``) against its numpy definition
-(``threshold.first_crossings`` and ``threshold.crossing_measures``)."""
+(``threshold.first_crossings`` and the numpy ``crossing_measures`` below)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from binsonar.detection.threshold import crossing_measures, first_crossings
+from numpy.typing import NDArray
+
+from binsonar.detection.threshold import first_crossings
 from binsonar.detection.threshold_kernels import CHUNK, crossings
+
+
+def crossing_measures(
+    rows: NDArray[np.float64], found: NDArray[np.intp], offset: NDArray[np.float64], window: int
+) -> NDArray[np.float64]:
+    """What the detector measures at each row's crossing (the numpy reference of the compiled
+    ``threshold_kernels.crossings``).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+    found : ndarray of int, shape (n_rows,)
+        Crossing sample of each row (``first_crossings``; -1: none).
+    offset : ndarray, shape (n_rows,)
+        DC offset of each row.
+    window : int
+        Samples measured from the crossing on (indices clipped to the row).
+
+    Returns
+    -------
+    ndarray, shape (n_rows, 4)
+        |x - offset| before the crossing (at it for sample 0) and at it, the largest |x - offset|
+        and the sum of (x - offset)^2 over the window; NaN where there is no crossing.
+    """
+    n_rows, n = rows.shape
+    out = np.full((n_rows, 4), np.nan)
+    hit = np.flatnonzero(found >= 0)
+    i = found[hit]
+    out[hit, 0] = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
+    out[hit, 1] = np.abs(rows[hit, i] - offset[hit])
+    segment = rows[hit[:, np.newaxis], np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)] - offset[hit, np.newaxis]
+    out[hit, 2] = np.abs(segment).max(axis=1)
+    out[hit, 3] = (segment ** 2).sum(axis=1)
+    return out
 
 
 def _case(seed: int, n: int = 5000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

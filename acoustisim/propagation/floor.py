@@ -11,11 +11,10 @@ the rule itself (in numpy) only on the few the bounds leave open.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.directivity import piston_directivity
@@ -107,36 +106,6 @@ def band_levels(rows: NDArray[Any], group: NDArray[np.intp], n_groups: int, cont
         total[:, j] = np.bincount(group, factor[:, j] * np.cos(phase[:, j]), n_groups) + 1j * np.bincount(
             group, factor[:, j] * np.sin(phase[:, j]), n_groups)
     return np.max(np.abs(total) * weights, axis=1)
-
-
-def directivity_envelope(highest_hz: float, context: SolveContext
-                         ) -> Callable[[NDArray[np.float64], ArrayLike], NDArray[np.float64]]:
-    """A function ``bound(angle_rad, frequency_hz)`` (broadcast) giving an upper bound of
-    |D(angle, f')| for every f' in [frequency_hz, highest_hz] (D the piston directivity,
-    :func:`piston_directivity`).
-
-    For x = k a sin(angle), max over those f' of |2 J1(x') / x'| <= sup over x' >= x of
-    |2 J1(x') / x'| (x at ``frequency_hz``): a non-increasing function of x, tabulated on a
-    grid of step h as the reverse running maximum, read at the grid point at or below x, plus
-    h / 4 (|d/dx 2 J1(x)/x| = |2 J2(x)/x| < 1/4, so no peak between grid points is missed).
-    0 behind the piston.
-    """
-    from scipy.special import j1
-
-    c, a = context.sound_speed_m_s, context.piston_radius_m
-    x_max = 2.0 * np.pi * highest_hz / c * a
-    grid = np.linspace(0.0, x_max, 4097)
-    safe = np.where(grid > 0, grid, 1.0)
-    magnitude = np.where(grid > 0, np.abs(2.0 * j1(safe) / safe), 1.0)
-    envelope = np.minimum(np.maximum.accumulate(magnitude[::-1])[::-1] + 0.25 * grid[1], 1.0)
-
-    def bound(angle_rad: NDArray[np.float64], frequency_hz: ArrayLike) -> NDArray[np.float64]:
-        scale = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float) / c * a / grid[1]
-        x = scale * np.sin(np.minimum(angle_rad, 0.5 * np.pi))
-        index = np.minimum(x.astype(np.intp), grid.size - 1)
-        return np.where(angle_rad <= 0.5 * np.pi, envelope[index], 0.0)
-
-    return bound
 
 
 def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext,
@@ -257,5 +226,5 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     return keep
 
 
-__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "directivity_envelope", "floor_frequencies",
+__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "floor_frequencies",
            "floor_mask", "pulse_band_hz"]

@@ -27,7 +27,6 @@ from acoustisim.propagation.floor import (
     FLOOR_BAND_DB,
     FLOOR_BAND_FREQUENCIES,
     band_levels,
-    directivity_envelope,
     floor_frequencies,
     floor_mask,
     pulse_band_hz,
@@ -147,6 +146,5 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s)
 
 
-__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "check_sonar", "directivity_envelope",
-           "floor_frequencies",
+__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "check_sonar", "floor_frequencies",
            "floor_mask", "pulse_band_hz", "solve"]

@@ -72,40 +72,6 @@ def first_crossings(
     return found
 
 
-def crossing_measures(
-    rows: NDArray[np.float64], found: NDArray[np.intp], offset: NDArray[np.float64], window: int
-) -> NDArray[np.float64]:
-    """What the detector measures at each row's crossing (the reference of the compiled
-    ``threshold_kernels.crossings``).
-
-    Parameters
-    ----------
-    rows : ndarray, shape (n_rows, n_samples)
-    found : ndarray of int, shape (n_rows,)
-        Crossing sample of each row (``first_crossings``; -1: none).
-    offset : ndarray, shape (n_rows,)
-        DC offset of each row.
-    window : int
-        Samples measured from the crossing on (indices clipped to the row).
-
-    Returns
-    -------
-    ndarray, shape (n_rows, 4)
-        |x - offset| before the crossing (at it for sample 0) and at it, the largest |x - offset|
-        and the sum of (x - offset)^2 over the window; NaN where there is no crossing.
-    """
-    n_rows, n = rows.shape
-    out = np.full((n_rows, 4), np.nan)
-    hit = np.flatnonzero(found >= 0)
-    i = found[hit]
-    out[hit, 0] = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
-    out[hit, 1] = np.abs(rows[hit, i] - offset[hit])
-    segment = rows[hit[:, np.newaxis], np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)] - offset[hit, np.newaxis]
-    out[hit, 2] = np.abs(segment).max(axis=1)
-    out[hit, 3] = (segment ** 2).sum(axis=1)
-    return out
-
-
 def crossing_time_offset(template: Template, amplitude_v: float, level_v: float) -> float:
     """Crossing time minus reference instant (s) of the noise-free template scaled so that its
     peak |sample| is ``amplitude_v``, for a threshold ``level_v``: the calibrated offset."""
@@ -215,7 +181,7 @@ def detect_threshold(
             raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
     from binsonar.detection.threshold_kernels import crossings
 
-    # ``first_crossings`` and ``crossing_measures``, compiled: each searched sample read once,
+    # ``first_crossings`` and the echo measures at the crossing, compiled: each searched sample read once,
     # up to the crossing (tests/test_detection_threshold_kernels.py).
     rows = np.ascontiguousarray(rows, dtype=float)
     found = np.empty(n_rows, dtype=np.int64)

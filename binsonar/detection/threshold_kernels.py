@@ -1,7 +1,7 @@
 """Compiled loop of the threshold detector (numba, cached on disk, GIL released).
 
 Imported by :mod:`binsonar.detection.threshold` when the detector runs (never by ``import
-binsonar``). ``threshold.first_crossings`` and ``threshold.crossing_measures`` are the numpy
+binsonar``). ``threshold.first_crossings`` and the test's ``crossing_measures`` are the numpy
 definitions: the first reads each searched sample twice (a block's maxima, then its minima)
 and pays a few array operations per block, the second a dozen small array operations; this
 loop reads each sample once, up to the crossing, stops there and measures the echo after it,
@@ -75,7 +75,8 @@ def first_crossings(rows: NDArray[np.float64], level: NDArray[np.float64], offse
 @njit(cache=True, nogil=True)
 def crossings(rows: NDArray[np.float64], level: NDArray[np.float64], offset: NDArray[np.float64], first: int,
               stop_at: int, window: int, found: NDArray[np.int64], measures: NDArray[np.float64]) -> None:
-    """``first_crossings``, then ``threshold.crossing_measures`` at each crossing.
+    """``first_crossings``, then the echo measures at each crossing (numpy reference:
+    ``crossing_measures`` in ``tests/test_detection_threshold_kernels.py``).
 
     Parameters
     ----------
