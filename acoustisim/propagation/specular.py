@@ -43,9 +43,10 @@ from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, specular_points
-from acoustisim.propagation.image_source import PlanarMirrors, backtrace, unfold
+from acoustisim.propagation.image_source import _INSIDE_TOL, _ON_PLANE_TOL_M, PlanarMirrors, backtrace, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
+from acoustisim.propagation.specular_chains import fill_mixed, fill_planar, mixed_candidates
 from acoustisim.propagation.specular_kernels import incidence_cosines
 
 _REAL_TOL = 1e-12
@@ -97,38 +98,6 @@ def _receivers_in_front(context: SolveContext, mirrors: PlanarMirrors) -> NDArra
     """Mirrors (m,) with at least one receiver in front of them."""
     ahead = np.einsum("rmk,mk->rm", context.receivers_m[:, None, :] - mirrors.point, mirrors.normal)
     return np.any(ahead > 0, axis=0)
-
-
-def _planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, chain_base: int,
-                   first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[_Chains, int]:
-    tx = context.transmitter_m
-    seqs = mirrors.sequences(order, first, last)
-    images, ok = unfold(mirrors, np.broadcast_to(tx, (seqs.shape[0], 3)), seqs)
-    chain_ids = np.flatnonzero(ok)
-    seqs, images = seqs[ok], images[ok]
-    n_rx = context.receivers_m.shape[0]
-    s = seqs.shape[0]
-    seqs_all = np.tile(seqs, (n_rx, 1))
-    images_all = np.tile(images, (n_rx, 1, 1))
-    channel = np.repeat(np.arange(n_rx), s)
-    rx = context.receivers_m[channel]
-    points, valid = backtrace(mirrors, images_all, seqs_all, rx)
-    seqs_all, images_all, points, rx, channel = (
-        seqs_all[valid], images_all[valid], points[valid], rx[valid], channel[valid])
-    length = np.linalg.norm(images_all[:, -1] - rx, axis=1)
-    vertices = np.concatenate([np.broadcast_to(tx, (len(rx), 1, 3)), points, rx[:, None, :]], axis=1)
-    chains = _Chains(
-        vertices=vertices,
-        surface=mirrors.surface[seqs_all],
-        patch=mirrors.patch[seqs_all],
-        normal=mirrors.normal[seqs_all],
-        material=[("mirror", mirrors.material[seqs_all[:, j]]) for j in range(order)],
-        length=length,
-        spreading=1.0 / length,
-        channel=channel,
-        chain=chain_base + np.tile(chain_ids, n_rx)[valid],
-    )
-    return chains, chain_base + len(ok)
 
 
 @dataclass
@@ -210,22 +179,15 @@ def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[
 
 def _assemble(context: SolveContext, mirrors: PlanarMirrors, cand: _Candidates, x: NDArray[np.float64],
               normal: NDArray[np.float64], valid: NDArray[np.bool_], surface_of: NDArray[np.int64],
-              patch_of: NDArray[np.int64], source: str, chain: NDArray[np.int64],
-              traced: tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.bool_]] | None = None
-              ) -> tuple[_Chains, NDArray[np.int64]]:
+              patch_of: NDArray[np.int64], source: str, chain: NDArray[np.int64]) -> tuple[_Chains, NDArray[np.int64]]:
     """Back-trace the planar points of candidates with a reflector point ``x`` and build the chains.
 
-    ``traced``: the back-traces (points before, valid, reversed points after, valid) when the
-    caller has them already (:func:`_backtrace_batched`). Returns the chains and the candidate
-    rows they came from (to pick the amplitudes).
+    Returns the chains and the candidate rows they came from (to pick the amplitudes).
     """
     n_before = cand.seq_before.shape[1]
     n_after = cand.seq_after.shape[1]
-    if traced is None:
-        pts_b, ok1 = backtrace(mirrors, cand.images_before, cand.seq_before, x)
-        pts_a_rev, ok2 = backtrace(mirrors, cand.images_after, cand.seq_after[:, ::-1], x)
-    else:
-        pts_b, ok1, pts_a_rev, ok2 = traced
+    pts_b, ok1 = backtrace(mirrors, cand.images_before, cand.seq_before, x)
+    pts_a_rev, ok2 = backtrace(mirrors, cand.images_after, cand.seq_after[:, ::-1], x)
     idx = np.flatnonzero(valid & ok1 & ok2)
     n = idx.size
     tx = context.transmitter_m
@@ -244,77 +206,6 @@ def _assemble(context: SolveContext, mirrors: PlanarMirrors, cand: _Candidates, 
                 + [("mirror", mirrors.material[sa_v[:, j]]) for j in range(n_after)])
     chains = _Chains(vertices, surface, patch, normals, material, length, np.zeros(n), cand.channel[idx], chain[idx])
     return chains, idx
-
-
-def _backtrace_batched(mirrors: PlanarMirrors, jobs: list[tuple[NDArray[np.float64], NDArray[np.int64],
-                                                                  NDArray[np.float64]]]
-                       ) -> list[tuple[NDArray[np.float64], NDArray[np.bool_]]]:
-    """:func:`backtrace` of several (images, sequences, end) jobs, one call per sequence length.
-
-    ``backtrace`` is row-wise, so jobs with sequences of equal length are concatenated and
-    traced together, then split back (in the order of ``jobs``).
-    """
-    results: list[tuple[NDArray[np.float64], NDArray[np.bool_]] | None] = [None] * len(jobs)
-    for k in sorted({seq.shape[1] for _, seq, _ in jobs}):
-        members = [i for i, (_, seq, _) in enumerate(jobs) if seq.shape[1] == k]
-        sizes = [jobs[i][1].shape[0] for i in members]
-        if k == 0:  # nothing to trace: no points, every chain valid
-            for i, size in zip(members, sizes):
-                results[i] = (np.zeros((size, 0, 3)), np.ones(size, dtype=bool))
-            continue
-        points, valid = backtrace(mirrors, np.concatenate([jobs[i][0] for i in members]),
-                                  np.concatenate([jobs[i][1] for i in members]),
-                                  np.concatenate([jobs[i][2] for i in members]))
-        bounds = np.cumsum([0] + sizes)
-        for i, lo, hi in zip(members, bounds[:-1], bounds[1:]):
-            results[i] = (points[lo:hi], valid[lo:hi])
-    return results  # type: ignore[return-value]
-
-
-def _mixed_chains(context: SolveContext, prepared: PreparedScene, max_order: int, chain_base: int,
-                  first: NDArray[np.bool_], last: NDArray[np.bool_]) -> tuple[list[_Chains], int]:
-    """Chains [n_before mirrors, one curved primitive, n_after mirrors] of every split with
-    n_before + 1 + n_after <= ``max_order``, every primitive at once.
-
-    The candidates of all splits share one specular-point solve and one geometric-optics
-    amplitude evaluation (both row-wise), instead of one per split.
-    """
-    mirrors = prepared.mirrors
-    splits = [(n_before, n_after) for n_before in range(max_order) for n_after in range(max_order - n_before)]
-    cands, bases = [], []
-    sides = _sides(context, mirrors, prepared.curved_seen_by, range(max_order), first, last)
-    for n_before, n_after in splits:
-        cand = _candidates(context, mirrors, prepared.curved_seen_by, n_before, n_after, first, last, sides)
-        cands.append(cand)
-        bases.append(chain_base)
-        chain_base += cand.n_chains
-    sizes = [cand.reflector.size for cand in cands]
-    bounds = np.cumsum([0] + sizes)
-    reflector = np.concatenate([cand.reflector for cand in cands])
-    a_pt = np.concatenate([cand.images_before[:, -1] for cand in cands])
-    b_pt = np.concatenate([cand.images_after[:, -1] for cand in cands])
-    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, reflector, a_pt, b_pt)
-    surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)[reflector]
-    patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)[reflector]
-    # the planar points on both sides of every split, one back-trace per sequence length
-    jobs = []
-    for cand, lo, hi in zip(cands, bounds[:-1], bounds[1:]):
-        jobs.append((cand.images_before, cand.seq_before, x[lo:hi]))
-        jobs.append((cand.images_after, cand.seq_after[:, ::-1], x[lo:hi]))
-    traced = _backtrace_batched(mirrors, jobs)
-    groups, picked = [], []
-    for s, (cand, base, lo, hi) in enumerate(zip(cands, bases, bounds[:-1], bounds[1:])):
-        part = slice(lo, hi)
-        chains, idx = _assemble(context, mirrors, cand, x[part], normal[part], valid[part], surfaces[part],
-                                patches[part], "curved", base + cand.chain, traced[2 * s] + traced[2 * s + 1])
-        groups.append(chains)
-        picked.append(lo + idx)
-    rows = np.concatenate(picked)
-    spreading = go_amplitude(a_pt[rows], b_pt[rows], x[rows], normal[rows], e1[rows], e2[rows], k1[rows], k2[rows])
-    counts = np.cumsum([0] + [p.size for p in picked])
-    for chains, lo, hi in zip(groups, counts[:-1], counts[1:]):
-        chains.spreading = spreading[lo:hi]
-    return groups, chain_base
 
 
 def _smooth_chains(context: SolveContext, prepared: PreparedScene, n_before: int, n_after: int,
@@ -427,6 +318,98 @@ def _merge(groups: list[_Chains]) -> _Merged:
                    has_phase, phase)
 
 
+def _allocate(capacity: int, big: int) -> _Merged:
+    """Padded chain arrays for up to ``capacity`` chains of order <= ``big``, with the padding
+    values pre-set (surfaces, patches, kinds -1; normals, materials, phases 0)."""
+    return _Merged(
+        order=np.empty(capacity, dtype=np.int64), vertices=np.empty((capacity, big + 2, 3)),
+        surface=np.full((capacity, big), -1, dtype=np.int64), patch=np.full((capacity, big), -1, dtype=np.int64),
+        normal=np.zeros((capacity, big, 3)), kind=np.full((capacity, big), -1, dtype=np.int64),
+        material=np.zeros((capacity, big), dtype=np.int64), length=np.empty(capacity), spreading=np.empty(capacity),
+        channel=np.empty(capacity, dtype=np.int64), chain=np.empty(capacity, dtype=np.int64),
+        has_phase=np.zeros(capacity, dtype=bool), phase=np.zeros(capacity))
+
+
+def _head(chains: _Merged, n: int) -> _Merged:
+    """The first ``n`` chains (views)."""
+    return _Merged(*(getattr(chains, name)[:n] for name in chains.__dataclass_fields__))
+
+
+def _concatenated(first: _Merged, second: _Merged) -> _Merged:
+    """``first``'s chains, then ``second``'s (same padded order)."""
+    return _Merged(*(np.concatenate([getattr(first, name), getattr(second, name)])
+                     for name in first.__dataclass_fields__))
+
+
+def _planar_and_mixed(context: SolveContext, prepared: PreparedScene, max_order: int, first: NDArray[np.bool_],
+                      last: NDArray[np.bool_]) -> tuple[_Merged, int]:
+    """Planar chains of orders 1..``max_order``, then mixed chains [n_before mirrors, one curved
+    primitive, n_after mirrors] of every split with n_before + 1 + n_after <= ``max_order``
+    (every primitive at once), in the padded layout; and the next free chain number.
+
+    Rows in the order of the groups (planar by order; mixed by split (n_before, n_after)
+    lexicographic), each written by a compiled loop over its candidates
+    (:mod:`.specular_chains`). The candidates of all splits share one specular-point solve and
+    one geometric-optics amplitude evaluation (both row-wise).
+    """
+    mirrors = prepared.mirrors
+    frames = mirrors._barycentric_frames
+    geometry = (mirrors.point, mirrors.normal, mirrors.disc_radius, *frames,
+                mirrors.surface, mirrors.patch, mirrors.material)
+    tx = context.transmitter_m
+    receivers = np.ascontiguousarray(context.receivers_m, dtype=float)
+    n_rx = receivers.shape[0]
+    planar = []
+    for order in range(1, max_order + 1):
+        seqs = mirrors.sequences(order, first, last)
+        images, ok = unfold(mirrors, tx, seqs)
+        planar.append((seqs, images, ok))
+    capacity = n_rx * sum(seqs.shape[0] for seqs, _, _ in planar)
+    splits = [(n_before, n_after) for n_before in range(max_order) for n_after in range(max_order - n_before)]
+    candidates = []
+    if prepared.curved:
+        seen_by = prepared.curved_seen_by
+        sides = _sides(context, mirrors, seen_by, range(max_order), first, last)
+        for n_before, n_after in splits:
+            seq_b, images_b, ok_b = sides.before[n_before]
+            seq_a, ra, rr, images_a, ok_a = sides.after[n_after]
+            candidates.append(mixed_candidates(seen_by, seq_b, images_b, ok_b, seq_a, ra, images_a, ok_a))
+        capacity += sum(cand[0].size for cand in candidates)
+    chains = _allocate(capacity, max_order)
+    out = (chains.order, chains.vertices, chains.surface, chains.patch, chains.normal, chains.kind, chains.material,
+           chains.length)
+    cursor = chain_base = 0
+    for seqs, images, ok in planar:
+        cursor = fill_planar(*geometry, images, seqs, ok, chain_base, tx, receivers, _ON_PLANE_TOL_M, _INSIDE_TOL,
+                             *out, chains.spreading, chains.channel, chains.chain, cursor)
+        chain_base += seqs.shape[0]
+    if not candidates:
+        return _head(chains, cursor), chain_base
+    reflector = np.concatenate([cand[2] for cand in candidates])
+    a_pt = np.concatenate([cand[3] for cand in candidates])
+    b_pt = np.concatenate([cand[4] for cand in candidates])
+    x, normal, valid, e1, e2, k1, k2 = specular_points(prepared.curved_set, reflector, a_pt, b_pt)
+    surfaces = np.array([r.surface for r in prepared.curved], dtype=np.int64)
+    patches = np.array([r.patch for r in prepared.curved], dtype=np.int64)
+    picked = np.empty(capacity, dtype=np.int64)
+    mixed_start = cursor
+    lo = 0
+    for (n_before, n_after), (before, after_row, refl, a_end, b_end) in zip(splits, candidates):
+        seq_b, images_b, _ = sides.before[n_before]
+        seq_a, ra, rr, images_a, _ = sides.after[n_after]
+        hi = lo + before.size
+        cursor = fill_mixed(*geometry, seq_b, images_b, seq_a, ra, rr, images_a, before, after_row, refl, a_end,
+                            b_end, x[lo:hi], normal[lo:hi], valid[lo:hi], surfaces, patches, chain_base, tx,
+                            receivers, _ON_PLANE_TOL_M, _INSIDE_TOL, *out, chains.channel, chains.chain, picked, lo,
+                            cursor)
+        chain_base += seq_b.shape[0] * seq_a.shape[0] * len(prepared.curved)
+        lo = hi
+    rows = picked[mixed_start:cursor]
+    chains.spreading[mixed_start:cursor] = go_amplitude(a_pt[rows], b_pt[rows], x[rows], normal[rows], e1[rows],
+                                                        e2[rows], k1[rows], k2[rows])
+    return _head(chains, cursor), chain_base
+
+
 def _unblocked(chains: _Merged, prepared: PreparedScene) -> NDArray[np.bool_]:
     """Chains (n,) none of whose legs is occluded: one batched Embree query over every leg
     (legs ending on a mirror or a curved object ignore that patch)."""
@@ -522,23 +505,17 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     """
     mirrors = prepared.mirrors
     groups: list[_Chains] = []
-    chain_base = 0
     # mirrors the transmitter can reach first, and those some receiver can be reached from last
     first = mirrors.signed_distance(np.broadcast_to(context.transmitter_m, (mirrors.count, 3)),
                                     np.arange(mirrors.count)) > 0
     last = _receivers_in_front(context, mirrors)
-    for order in range(1, max_order + 1):
-        chains, chain_base = _planar_chains(context, mirrors, order, chain_base, first, last)
-        groups.append(chains)
-    if prepared.curved:
-        mixed, chain_base = _mixed_chains(context, prepared, max_order, chain_base, first, last)
-        groups.extend(mixed)
+    chains, chain_base = _planar_and_mixed(context, prepared, max_order, first, last)
     if prepared.smooth:
         for n_before in range(max_order):
             for n_after in range(max_order - n_before):
-                chains, chain_base = _smooth_chains(context, prepared, n_before, n_after, chain_base, first, last)
-                groups.append(chains)
-    chains = _merge(groups)
+                smooth, chain_base = _smooth_chains(context, prepared, n_before, n_after, chain_base, first, last)
+                groups.append(smooth)
+        chains = _concatenated(chains, _merge(groups))
     live = chains.select(_unblocked(chains, prepared))
     reflection = _reflection_products(live, prepared, context)
     # R in the physics convention exp(-i omega t) and the stationary-point phase in the

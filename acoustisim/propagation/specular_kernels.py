@@ -27,7 +27,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _signed_distance(p0: float, p1: float, p2: float, point: NDArray[np.float64], normal: NDArray[np.float64],
                      m: int) -> float:
     return (p0 - point[m, 0]) * normal[m, 0] + (p1 - point[m, 1]) * normal[m, 1] + (p2 - point[m, 2]) * normal[m, 2]
@@ -58,7 +58,7 @@ def unfold_chains(point: NDArray[np.float64], normal: NDArray[np.float64], start
     return images, valid
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _contains(x0: float, x1: float, x2: float, m: int, point: NDArray[np.float64],
               disc_radius: NDArray[np.float64], a: NDArray[np.float64], v0: NDArray[np.float64],
               v1: NDArray[np.float64], d00: NDArray[np.float64], d01: NDArray[np.float64],
@@ -80,6 +80,43 @@ def _contains(x0: float, x1: float, x2: float, m: int, point: NDArray[np.float64
     return False
 
 
+@njit(cache=True, nogil=True, inline="always")
+def backtrace_one(point: NDArray[np.float64], normal: NDArray[np.float64], disc_radius: NDArray[np.float64],
+                  a: NDArray[np.float64], v0: NDArray[np.float64], v1: NDArray[np.float64],
+                  d00: NDArray[np.float64], d01: NDArray[np.float64], d11: NDArray[np.float64],
+                  den: NDArray[np.float64], images: NDArray[np.float64], image_row: int,
+                  sequences: NDArray[np.int64], sequence_row: int, reverse: bool, c0: float, c1: float, c2: float,
+                  on_plane_tol: float, inside_tol: float, points: NDArray[np.float64], point_row: int,
+                  first_slot: int, slot_step: int) -> bool:
+    """One chain of :func:`backtrace_chains`, read and written in place (no array views: they
+    would cost reference counting in the loops that call this).
+
+    The chain's images are ``images[image_row]`` (k + 1, 3), its mirrors
+    ``sequences[sequence_row]`` (k,) (in reverse order if ``reverse``: the chain is the
+    sequence reversed); it is traced back from the end point (c0, c1, c2). The point of the
+    chain's mirror j goes to ``points[point_row, first_slot + slot_step * j]``. Returns whether
+    the chain is valid.
+    """
+    k = sequences.shape[1]
+    ok = True
+    for j in range(k - 1, -1, -1):
+        m = sequences[sequence_row, k - 1 - j] if reverse else sequences[sequence_row, j]
+        s0, s1, s2 = images[image_row, j + 1, 0], images[image_row, j + 1, 1], images[image_row, j + 1, 2]
+        d_cur = _signed_distance(c0, c1, c2, point, normal, m)
+        d_src = _signed_distance(s0, s1, s2, point, normal, m)
+        ok = ok and (d_cur > -on_plane_tol) and (d_src < 0.0)
+        denom = d_cur - d_src if ok else 1.0
+        t = max(d_cur, 0.0) / denom
+        c0 = c0 + t * (s0 - c0)
+        c1 = c1 + t * (s1 - c1)
+        c2 = c2 + t * (s2 - c2)
+        if ok:
+            ok = _contains(c0, c1, c2, m, point, disc_radius, a, v0, v1, d00, d01, d11, den, inside_tol)
+        slot = first_slot + slot_step * j
+        points[point_row, slot, 0], points[point_row, slot, 1], points[point_row, slot, 2] = c0, c1, c2
+    return ok
+
+
 @njit(cache=True, nogil=True)
 def backtrace_chains(point: NDArray[np.float64], normal: NDArray[np.float64], disc_radius: NDArray[np.float64],
                      a: NDArray[np.float64], v0: NDArray[np.float64], v1: NDArray[np.float64],
@@ -99,27 +136,9 @@ def backtrace_chains(point: NDArray[np.float64], normal: NDArray[np.float64], di
     points = np.empty((n, k, 3))
     valid = np.ones(n, dtype=np.bool_)
     for i in range(n):
-        c0, c1, c2 = end[i, 0], end[i, 1], end[i, 2]
-        ok = True
-        for j in range(k - 1, -1, -1):
-            m = sequences[i, j]
-            s0, s1, s2 = images[i, j + 1, 0], images[i, j + 1, 1], images[i, j + 1, 2]
-            d_cur = _signed_distance(c0, c1, c2, point, normal, m)
-            d_src = _signed_distance(s0, s1, s2, point, normal, m)
-            ok = ok and (d_cur > -on_plane_tol) and (d_src < 0.0)
-            denom = d_cur - d_src if ok else 1.0
-            t = max(d_cur, 0.0) / denom
-            c0 = c0 + t * (s0 - c0)
-            c1 = c1 + t * (s1 - c1)
-            c2 = c2 + t * (s2 - c2)
-            if ok:
-                ok = _contains(c0, c1, c2, m, point, disc_radius, a, v0, v1, d00, d01, d11, den, inside_tol)
-            points[i, j, 0], points[i, j, 1], points[i, j, 2] = c0, c1, c2
-        valid[i] = ok
+        valid[i] = backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, images, i, sequences, i,
+                                 False, end[i, 0], end[i, 1], end[i, 2], on_plane_tol, inside_tol, points, i, 0, 1)
     return points, valid
-
-
-
 
 
 @njit(cache=True, nogil=True)
@@ -304,4 +323,4 @@ def incidence_cosines(vertices: NDArray[np.float64], normals: NDArray[np.float64
     return out
 
 
-__all__ = ["backtrace_chains", "circle_newton", "incidence_cosines", "primitive_specular_points", "unfold_chains"]
+__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "incidence_cosines", "primitive_specular_points", "unfold_chains"]

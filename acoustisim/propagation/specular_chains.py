@@ -1,0 +1,299 @@
+"""Compiled candidate-to-chain loops of the specular solver (numba, cached on disk, GIL released).
+
+:func:`acoustisim.propagation.specular.specular_rows` used to build each order's planar
+chains and each split's mixed chains with a few dozen numpy passes (tiling the sequences per
+receiver, gathering images, back-tracing, concatenating the vertex, surface, patch, normal and
+material columns, then padding every group into one array): about 1,000 candidate chains per
+pose, but hundreds of small numpy calls. Here each candidate is one loop iteration that
+back-traces its planar points (:func:`.specular_kernels.backtrace_one`) and, if the chain is
+valid, writes its row straight into the padded chain arrays of the solve
+(``specular._Merged`` layout: a chain of order k < K fills slots 0..k-1; its vertices k+2..
+repeat the receiver; surfaces, patches and kinds are -1 beyond, normals 0, materials 0):
+
+1. :func:`fill_planar`: the chains of one mirror sequence length, every receiver;
+2. :func:`mixed_candidates`: the (before sequence, after sequence and receiver, curved
+   reflector) triples of one split whose images are valid and which the reflector's
+   visibility table allows, with the two unfolded ends;
+3. :func:`fill_mixed`: the chains of one split, from the candidates' specular points on the
+   curved reflectors (solved for all splits at once by
+   :func:`.specular_kernels.primitive_specular_points`).
+
+Rows come out in the order (and with the chain numbers) of the numpy code they replace, and the
+arithmetic is the same, term for term (lengths sqrt(dx^2 + dy^2 + dz^2) summed x + y + z,
+as ``np.linalg.norm`` of a row): the rows are bit-for-bit the old ones. No ``fastmath``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from acoustisim.propagation.specular_kernels import backtrace_one
+
+MIRROR_KIND = 0
+"""Reflector-kind code of a planar mirror vertex (index of "mirror" in ``specular._SOURCES``)."""
+CURVED_KIND = 1
+"""Reflector-kind code of a curved-primitive vertex (index of "curved" in ``specular._SOURCES``)."""
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _write_mirror_slot(row: int, slot: int, m: int, mirror_normal: NDArray[np.float64],
+                       mirror_surface: NDArray[np.int64], mirror_patch: NDArray[np.int64],
+                       mirror_material: NDArray[np.int64], out_surface: NDArray[np.int64],
+                       out_patch: NDArray[np.int64], out_normal: NDArray[np.float64], out_kind: NDArray[np.int64],
+                       out_material: NDArray[np.int64]) -> None:
+    out_surface[row, slot] = mirror_surface[m]
+    out_patch[row, slot] = mirror_patch[m]
+    out_normal[row, slot, 0] = mirror_normal[m, 0]
+    out_normal[row, slot, 1] = mirror_normal[m, 1]
+    out_normal[row, slot, 2] = mirror_normal[m, 2]
+    out_kind[row, slot] = MIRROR_KIND
+    out_material[row, slot] = mirror_material[m]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _write_receiver_tail(row: int, first: int, r0: float, r1: float, r2: float,
+                         out_vertices: NDArray[np.float64]) -> None:
+    """The receiver in vertex slots ``first``.. (the real one and the padding)."""
+    for q in range(first, out_vertices.shape[1]):
+        out_vertices[row, q, 0], out_vertices[row, q, 1], out_vertices[row, q, 2] = r0, r1, r2
+
+
+@njit(cache=True, nogil=True)
+def fill_planar(point: NDArray[np.float64], normal: NDArray[np.float64], disc_radius: NDArray[np.float64],
+                a: NDArray[np.float64], v0: NDArray[np.float64], v1: NDArray[np.float64], d00: NDArray[np.float64],
+                d01: NDArray[np.float64], d11: NDArray[np.float64], den: NDArray[np.float64],
+                mirror_surface: NDArray[np.int64], mirror_patch: NDArray[np.int64],
+                mirror_material: NDArray[np.int64], images: NDArray[np.float64], sequences: NDArray[np.int64],
+                unfolded: NDArray[np.bool_], chain_base: int, transmitter: NDArray[np.float64],
+                receivers: NDArray[np.float64], on_plane_tol: float, inside_tol: float,
+                out_order: NDArray[np.int64], out_vertices: NDArray[np.float64], out_surface: NDArray[np.int64],
+                out_patch: NDArray[np.int64], out_normal: NDArray[np.float64], out_kind: NDArray[np.int64],
+                out_material: NDArray[np.int64], out_length: NDArray[np.float64],
+                out_spreading: NDArray[np.float64], out_channel: NDArray[np.int64], out_chain: NDArray[np.int64],
+                cursor: int) -> int:
+    """Planar chains of ``sequences`` (s, k) of mirrors, to every receiver, from row ``cursor``.
+
+    Parameters
+    ----------
+    point, normal, disc_radius, a, v0, v1, d00, d01, d11, den
+        The mirrors' planes and barycentric frames (as :func:`.specular_kernels.backtrace_chains`).
+    mirror_surface, mirror_patch, mirror_material : ndarray of int64, shape (m,)
+    images : ndarray, shape (s, k + 1, 3)
+        The transmitter's images across each sequence (``image_source.unfold``).
+    sequences : ndarray of int64, shape (s, k)
+    unfolded : ndarray of bool, shape (s,)
+        Validity of the images; sequences with invalid images are skipped.
+    chain_base : int
+        Chain number of sequence 0 (sequence j is chain ``chain_base + j`` on every receiver).
+    transmitter : ndarray, shape (3,); receivers : ndarray, shape (r, 3)
+        Positions (m).
+    on_plane_tol, inside_tol : float
+        The back-trace tolerances (``image_source``).
+    out_* : the padded chain arrays (capacity rows), written from row ``cursor``.
+
+    Returns
+    -------
+    int
+        The next free row. Rows: receiver by receiver, sequences in order; length (m) the
+        distance from the last image to the receiver, spreading 1 / length.
+    """
+    s, k = sequences.shape
+    for rx in range(receivers.shape[0]):
+        r0, r1, r2 = receivers[rx, 0], receivers[rx, 1], receivers[rx, 2]
+        for j in range(s):
+            if not unfolded[j]:
+                continue
+            row = cursor
+            ok = backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, images, j, sequences, j,
+                               False, r0, r1, r2, on_plane_tol, inside_tol, out_vertices, row, 1, 1)
+            if not ok:
+                continue
+            cursor += 1
+            out_order[row] = k
+            out_vertices[row, 0, 0] = transmitter[0]
+            out_vertices[row, 0, 1] = transmitter[1]
+            out_vertices[row, 0, 2] = transmitter[2]
+            _write_receiver_tail(row, k + 1, r0, r1, r2, out_vertices)
+            for q in range(k):
+                _write_mirror_slot(row, q, sequences[j, q], normal, mirror_surface, mirror_patch, mirror_material,
+                                   out_surface, out_patch, out_normal, out_kind, out_material)
+            e0, e1, e2 = images[j, k, 0] - r0, images[j, k, 1] - r1, images[j, k, 2] - r2
+            length = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            out_length[row] = length
+            out_spreading[row] = 1.0 / length
+            out_channel[row] = rx
+            out_chain[row] = chain_base + j
+    return cursor
+
+
+@njit(cache=True, nogil=True)
+def mixed_candidates(seen_by: NDArray[np.bool_], sequences_before: NDArray[np.int64],
+                     images_before: NDArray[np.float64], unfolded_before: NDArray[np.bool_],
+                     sequences_after: NDArray[np.int64], after_sequence: NDArray[np.int64],
+                     images_after: NDArray[np.float64], unfolded_after: NDArray[np.bool_]
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
+                                NDArray[np.float64]]:
+    """The candidates of one split [n_before mirrors, a curved reflector, n_after mirrors].
+
+    Parameters
+    ----------
+    seen_by : ndarray of bool, shape (c, m)
+        Mirrors each curved reflector may be reached from / reach.
+    sequences_before : ndarray of int64, shape (sb, n_before)
+        Mirror sequences from the transmitter; ``images_before`` (sb, n_before + 1, 3) its
+        images across them, ``unfolded_before`` (sb,) their validity.
+    sequences_after : ndarray of int64, shape (sa, n_after)
+        Mirror sequences from the reflector to a receiver, in path order.
+    after_sequence : ndarray of int64, shape (sar,)
+        The sequence of each (sequence, receiver) row of ``images_after`` (sar, n_after + 1, 3)
+        (the receiver's images across the reversed sequence), ``unfolded_after`` (sar,).
+
+    Returns
+    -------
+    before, after_row, reflector : ndarray of int64, shape (n,)
+        Every (before, after row, reflector) triple with valid images on both sides and allowed
+        by ``seen_by`` at the mirrors next to the reflector, in that nesting order.
+    a, b : ndarray, shape (n, 3)
+        The last images of the transmitter and of the receiver (m).
+    """
+    n_refl = seen_by.shape[0]
+    n_before, n_after = sequences_before.shape[1], sequences_after.shape[1]
+    capacity = 0
+    for gb in range(unfolded_before.shape[0]):
+        if unfolded_before[gb]:
+            capacity += 1
+    n_after_ok = 0
+    for gar in range(unfolded_after.shape[0]):
+        if unfolded_after[gar]:
+            n_after_ok += 1
+    capacity *= n_after_ok * n_refl
+    before = np.empty(capacity, dtype=np.int64)
+    after_row = np.empty(capacity, dtype=np.int64)
+    reflector = np.empty(capacity, dtype=np.int64)
+    a_end = np.empty((capacity, 3))
+    b_end = np.empty((capacity, 3))
+    n = 0
+    for gb in range(unfolded_before.shape[0]):
+        if not unfolded_before[gb]:
+            continue
+        for gar in range(unfolded_after.shape[0]):
+            if not unfolded_after[gar]:
+                continue
+            for r in range(n_refl):
+                if n_before > 0 and not seen_by[r, sequences_before[gb, n_before - 1]]:
+                    continue
+                if n_after > 0 and not seen_by[r, sequences_after[after_sequence[gar], 0]]:
+                    continue
+                before[n], after_row[n], reflector[n] = gb, gar, r
+                for q in range(3):
+                    a_end[n, q] = images_before[gb, n_before, q]
+                    b_end[n, q] = images_after[gar, n_after, q]
+                n += 1
+    return before[:n], after_row[:n], reflector[:n], a_end[:n], b_end[:n]
+
+
+@njit(cache=True, nogil=True)
+def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_radius: NDArray[np.float64],
+               a: NDArray[np.float64], v0: NDArray[np.float64], v1: NDArray[np.float64], d00: NDArray[np.float64],
+               d01: NDArray[np.float64], d11: NDArray[np.float64], den: NDArray[np.float64],
+               mirror_surface: NDArray[np.int64], mirror_patch: NDArray[np.int64],
+               mirror_material: NDArray[np.int64], sequences_before: NDArray[np.int64],
+               images_before: NDArray[np.float64], sequences_after: NDArray[np.int64],
+               after_sequence: NDArray[np.int64], after_receiver: NDArray[np.int64],
+               images_after: NDArray[np.float64], before: NDArray[np.int64], after_row: NDArray[np.int64],
+               reflector: NDArray[np.int64], a_end: NDArray[np.float64], b_end: NDArray[np.float64],
+               x: NDArray[np.float64], x_normal: NDArray[np.float64], x_valid: NDArray[np.bool_],
+               reflector_surface: NDArray[np.int64], reflector_patch: NDArray[np.int64], chain_base: int,
+               transmitter: NDArray[np.float64], receivers: NDArray[np.float64], on_plane_tol: float,
+               inside_tol: float, out_order: NDArray[np.int64], out_vertices: NDArray[np.float64],
+               out_surface: NDArray[np.int64], out_patch: NDArray[np.int64], out_normal: NDArray[np.float64],
+               out_kind: NDArray[np.int64], out_material: NDArray[np.int64], out_length: NDArray[np.float64],
+               out_channel: NDArray[np.int64], out_chain: NDArray[np.int64], out_candidate: NDArray[np.int64],
+               candidate_base: int, cursor: int) -> int:
+    """Mixed chains of one split's candidates (:func:`mixed_candidates`), from row ``cursor``.
+
+    Parameters
+    ----------
+    point ... mirror_material
+        As in :func:`fill_planar`.
+    sequences_before, images_before, sequences_after, after_sequence, images_after
+        As in :func:`mixed_candidates`; ``after_receiver`` (sar,) the receiver of each after row.
+    before, after_row, reflector, a_end, b_end
+        The candidates (:func:`mixed_candidates`).
+    x, x_normal : ndarray, shape (n, 3); x_valid : ndarray of bool, shape (n,)
+        Their specular points on the reflectors (m), unit normals and validity.
+    reflector_surface, reflector_patch : ndarray of int64, shape (c,)
+        Surface index and patch label of each curved reflector.
+    chain_base : int
+        Chain number of the split's (0, 0, 0) triple: a candidate's chain is
+        ``chain_base + (before * sa + after_sequence[after_row]) * c + reflector``.
+    out_candidate : ndarray of int64, shape (capacity,)
+        Receives ``candidate_base`` + the candidate of each row written (to pick amplitudes).
+
+    Returns
+    -------
+    int
+        The next free row. A candidate becomes a chain if its specular point is valid and
+        both back-traces (to the transmitter, and to the receiver along the reversed after
+        sequence) are; its length (m) is |x - a| + |x - b|. The spreading is left to the
+        caller (``curved.go_amplitude``).
+    """
+    n_refl = reflector_surface.shape[0]
+    n_before, n_after = sequences_before.shape[1], sequences_after.shape[1]
+    order = n_before + 1 + n_after
+    n_seq_after = sequences_after.shape[0]
+    for i in range(before.shape[0]):
+        if not x_valid[i]:
+            continue
+        row = cursor
+        gb, gar, r = before[i], after_row[i], reflector[i]
+        ga = after_sequence[gar]
+        x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+        ok = backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, images_before, gb,
+                           sequences_before, gb, False, x0, x1, x2, on_plane_tol, inside_tol, out_vertices, row, 1, 1)
+        if not ok:
+            continue
+        # the after side, traced from the receiver along the reversed sequence: its j-th point is
+        # the path's vertex order - j
+        ok = backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, images_after, gar,
+                           sequences_after, ga, True, x0, x1, x2, on_plane_tol, inside_tol, out_vertices, row, order,
+                           -1)
+        if not ok:
+            continue
+        cursor += 1
+        rx = after_receiver[gar]
+        out_order[row] = order
+        out_vertices[row, 0, 0] = transmitter[0]
+        out_vertices[row, 0, 1] = transmitter[1]
+        out_vertices[row, 0, 2] = transmitter[2]
+        out_vertices[row, n_before + 1, 0] = x0
+        out_vertices[row, n_before + 1, 1] = x1
+        out_vertices[row, n_before + 1, 2] = x2
+        _write_receiver_tail(row, order + 1, receivers[rx, 0], receivers[rx, 1], receivers[rx, 2], out_vertices)
+        for q in range(n_before):
+            _write_mirror_slot(row, q, sequences_before[gb, q], normal, mirror_surface, mirror_patch,
+                               mirror_material, out_surface, out_patch, out_normal, out_kind, out_material)
+        out_surface[row, n_before] = reflector_surface[r]
+        out_patch[row, n_before] = reflector_patch[r]
+        out_normal[row, n_before, 0] = x_normal[i, 0]
+        out_normal[row, n_before, 1] = x_normal[i, 1]
+        out_normal[row, n_before, 2] = x_normal[i, 2]
+        out_kind[row, n_before] = CURVED_KIND
+        out_material[row, n_before] = r
+        for q in range(n_after):
+            _write_mirror_slot(row, n_before + 1 + q, sequences_after[ga, q], normal, mirror_surface, mirror_patch,
+                               mirror_material, out_surface, out_patch, out_normal, out_kind, out_material)
+        e0, e1, e2 = x0 - a_end[i, 0], x1 - a_end[i, 1], x2 - a_end[i, 2]
+        f0, f1, f2 = x0 - b_end[i, 0], x1 - b_end[i, 1], x2 - b_end[i, 2]
+        out_length[row] = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) + math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        out_channel[row] = after_receiver[gar]
+        out_chain[row] = chain_base + (gb * n_seq_after + ga) * n_refl + r
+        out_candidate[row] = candidate_base + i
+    return cursor
+
+
+__all__ = ["CURVED_KIND", "MIRROR_KIND", "fill_mixed", "fill_planar", "mixed_candidates"]
