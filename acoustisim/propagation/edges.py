@@ -64,6 +64,7 @@ from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
 from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains, visibility_rays32
+from acoustisim.propagation.edge_visibility import VisibilityScreen, screened_visibility_rays32
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 from acoustisim.propagation.raycast import DEFAULT_EPS_M
 from acoustisim.scene import Scene
@@ -213,8 +214,55 @@ class DiffractingEdges:
         return cls(edges, edges.length_m, edges.nu, _endpoint_partners(edges), VISIBILITY_OFFSET_M * bisector)
 
 
+def element_visibility(context: SolveContext, scene_part: DiffractingEdges, elements: EdgeElements,
+                       pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], *, screen: bool = True
+                       ) -> NDArray[np.bool_]:
+    """Whether each element's centre is seen from the transmitter and from its receiver.
+
+    Parameters
+    ----------
+    context : SolveContext
+    scene_part : DiffractingEdges
+    elements : EdgeElements
+        n elements of the pairs ``pair_edge``, ``pair_rx`` (shape (p,)).
+    screen : bool, optional
+        True (default): the legs that can be decided exactly without Embree are
+        (:mod:`~acoustisim.propagation.edge_visibility`), the others go to Embree in one
+        batch. False: every leg goes to Embree (the reference; the same answers).
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    edges = scene_part.edges
+    tx = np.asarray(context.transmitter_m, dtype=float)
+    rx = np.asarray(context.receivers_m, dtype=float)
+    own_leg_rx = ~np.all(rx == tx, axis=1)
+    raycaster = context.raycaster
+    n = elements.pair.size
+    if not screen:
+        starts32, directions32, lengths32, segment, own_leg = visibility_rays32(
+            elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m,
+            edges.direction, scene_part.probe_offset_m, tx, rx, own_leg_rx, raycaster.shift_m, DEFAULT_EPS_M,
+        )
+        blocked = np.zeros(n + own_leg.size, dtype=bool)
+        blocked[segment] = raycaster.occluded_segments32(starts32, directions32, lengths32)
+        visible = ~blocked[:n]
+        visible[own_leg] &= ~blocked[n:]
+        return visible
+    visible, starts32, directions32, lengths32, element = screened_visibility_rays32(
+        elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m, edges.direction,
+        scene_part.probe_offset_m, tx, rx, own_leg_rx, raycaster.shift_m, DEFAULT_EPS_M,
+        *VisibilityScreen.create(context.scene, raycaster).kernel_arguments(),
+    )
+    if element.size:
+        visible[element[raycaster.occluded_segments32(starts32, directions32, lengths32)]] = False
+    return visible
+
+
 def edge_paths(context: SolveContext, config: SolverConfig,
-               edges: DiffractingEdges | SharpEdges | None = None, *, sort_rows: bool = False) -> NDArray[Any]:
+               edges: DiffractingEdges | SharpEdges | None = None, *, sort_rows: bool = False,
+               screen: bool = True) -> NDArray[Any]:
     """Edge-diffraction rows for one sonar pose.
 
     Parameters
@@ -231,6 +279,8 @@ def edge_paths(context: SolveContext, config: SolverConfig,
         (channel, then delay ``path_length_m / c``, ties in the default order), so that it
         need not move them (:func:`~acoustisim.propagation.assemble.assemble_rows`). False
         (default): ordered by (edge, receiver) pair, then along the edge.
+    screen : bool, optional
+        See :func:`element_visibility` (the rows are the same either way).
 
     Returns
     -------
@@ -288,20 +338,13 @@ def edge_paths(context: SolveContext, config: SolverConfig,
         )
     except ValueError as error:
         raise InputError(f"solver.edge_segment_m = {config.edge_segment_m!r}: {error}; use a larger value") from None
-    # visibility of each element's centre from the transmitter and from its receiver, one batch
-    # (before the gains: hidden elements cost no quadrature)
-    # a receiver at the transmitter (the centre transducer) has the same leg: tested once
-    starts32, directions32, lengths32, segment, own_leg = visibility_rays32(
-        elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m, edges.direction,
-        scene_part.probe_offset_m, tx, rx, ~np.all(rx == tx, axis=1), context.raycaster.shift_m, DEFAULT_EPS_M,
-    )
-    n = elements.pair.size
-    blocked = np.zeros(n + own_leg.size, dtype=bool)
-    blocked[segment] = context.raycaster.occluded_segments32(starts32, directions32, lengths32)
-    visible = ~blocked[:n]
-    visible[own_leg] &= ~blocked[n:]
-    elements = EdgeElements(elements.pair[visible], elements.z_start_m[visible], elements.z_end_m[visible],
-                            elements.path_length_m[visible])
+    # visibility of each element's centre from the transmitter and from its receiver (before
+    # the gains: hidden elements cost no quadrature); a receiver at the transmitter (the centre
+    # transducer) has the same leg: tested once
+    visible = element_visibility(context, scene_part, elements, pair_edge, pair_rx, screen=screen)
+    if not np.all(visible):
+        elements = EdgeElements(elements.pair[visible], elements.z_start_m[visible], elements.z_end_m[visible],
+                                elements.path_length_m[visible])
 
     # per element: two impulses at its Gauss points (graded, see element_gains with per_point)
     # or one at its centre (fine)

@@ -1,0 +1,333 @@
+"""Visibility of edge elements: which legs probe -> transmitter / receiver are blocked.
+
+:func:`~acoustisim.propagation.edges.edge_paths` keeps an edge element when the leg from its
+probe (its centre moved :data:`~acoustisim.propagation.edges.VISIBILITY_OFFSET_M` into the
+water) to the transmitter, and the one to its receiver, cross no triangle of the scene: the
+answer of Embree's float32 occlusion query on the segment shrunk by ``eps`` at both ends
+(:func:`~acoustisim.propagation.edge_kernels.visibility_rays32`). On the thesis tank that is
+some 13 000 queries per pose, most of which can be decided exactly without Embree:
+
+* the tank's boundaries enclose a convex box, so a leg whose two ends lie inside the water
+  at least ``tolerance`` from every boundary passes at least that far from every wall;
+* a leg missing an object's axis-aligned box grown by ``tolerance`` passes at least that far
+  from the object;
+* a leg crossing the box of a convex object (a closed mesh with every vertex inside every face
+  plane, :mod:`~acoustisim.propagation.convex_occlusion`) is clipped against the object's face
+  planes moved ``tolerance`` outwards (P+) and inwards (P-) (Cyrus and Beck 1978): a segment
+  missing P+ passes more than ``tolerance`` from the solid (every point within ``tolerance``
+  of a convex solid lies in P+), and a segment whose ends lie outside P+ and which meets P-
+  crosses the solid's surface with both ends and one inner point at least ``tolerance`` from
+  it.
+
+Embree answers in float32: vertices, ray origin, direction and length rounded to float32
+(about one ulp of the scene's coordinates, 5e-7 m in the 9 m tank, after the ray caster's
+shift to the centre) and an intersection test with errors of a few ulps of the distances
+involved. A leg decided with the margin ``tolerance`` (:func:`screen_tolerance`,
+:data:`TOLERANCE_ULPS` float32 ulps of the scene's diagonal: 2.3e-5 m in the tank, 40 times
+that rounding, and below the probes' 1.4e-4 m from their own faces) therefore gets Embree's
+answer; every other leg (ends near a wall, grazing an object within ``tolerance``, crossing
+the box of a non-convex object) goes to Embree, as before, in one batch. The only leg where
+the two could differ is one Embree itself lets through a solid, across the shared edge of two
+triangles within its float32 rounding (its intersection test is not watertight), at both of
+the leg's crossings of the solid. ``tests/test_edges_visibility.py`` compares every decided
+leg with Embree's answer over many poses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from acoustisim.propagation.convex_occlusion import ConvexPlanes
+
+TOLERANCE_ULPS = 20.0
+"""The screen's margin, in float32 ulps (2^-23) of the scene's bounding-box diagonal."""
+
+CLEAR, BLOCKED, UNDECIDED = 0, 1, 2
+"""Decisions of :func:`screen_leg`."""
+
+
+def screen_tolerance(vertices_m: NDArray[np.float64]) -> float:
+    """The screen's margin (m) for a scene with these triangle vertices (n, 3): at least
+    :data:`TOLERANCE_ULPS` float32 ulps of the bounding-box diagonal (2.3e-5 m in the thesis
+    tank)."""
+    if vertices_m.shape[0] == 0:
+        return 0.0
+    diagonal = float(np.linalg.norm(vertices_m.max(axis=0) - vertices_m.min(axis=0)))
+    return TOLERANCE_ULPS * float(np.finfo(np.float32).eps) * diagonal
+
+
+@dataclass(frozen=True, eq=False)
+class VisibilityScreen:
+    """What decides a leg without Embree, for one prepared scene (built per pose: some
+    microseconds).
+
+    Attributes
+    ----------
+    tolerance : float
+        The margin (m), :func:`screen_tolerance`.
+    water_lo, water_hi : ndarray, shape (3,)
+        The tank's water box shrunk by ``tolerance`` (m); infinite in free field (no walls).
+    box_lo, box_hi : ndarray, shape (k, 3)
+        Each object's axis-aligned box grown by ``tolerance`` (m).
+    plane_start : ndarray of int64, shape (k + 1,)
+        Object j's face planes are rows ``plane_start[j]:plane_start[j + 1]`` of ``normal``
+        and ``offset``; none for a non-convex object (its legs crossing its box go to Embree).
+    normal : ndarray, shape (m, 3)
+    offset : ndarray, shape (m,)
+        :class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes` arrays (at least one
+        row, for the compiled kernel).
+    """
+
+    tolerance: float
+    water_lo: NDArray[np.float64]
+    water_hi: NDArray[np.float64]
+    box_lo: NDArray[np.float64]
+    box_hi: NDArray[np.float64]
+    plane_start: NDArray[np.int64]
+    normal: NDArray[np.float64]
+    offset: NDArray[np.float64]
+
+    @classmethod
+    def create(cls, scene: Any, raycaster: Any) -> "VisibilityScreen":
+        """The screen of ``scene`` (a :class:`~acoustisim.scene.Scene`) and its ray caster
+        (:class:`~acoustisim.propagation.raycast.RayCaster`, whose ``convex_planes`` and
+        vertices it uses)."""
+        tolerance = screen_tolerance(raycaster.vertices)
+        if scene.tank is None:
+            water_lo, water_hi = np.full(3, -np.inf), np.full(3, np.inf)
+        else:
+            bounds = scene.tank.bounds_m
+            water_lo, water_hi = bounds[0] + tolerance, bounds[1] - tolerance
+        n_objects = len(scene.objects)
+        if n_objects:
+            bounds = np.array([obj.bounds_m for obj in scene.objects], dtype=float).reshape(n_objects, 2, 3)
+            box_lo, box_hi = bounds[:, 0] - tolerance, bounds[:, 1] + tolerance
+        else:
+            box_lo, box_hi = np.zeros((0, 3)), np.zeros((0, 3))
+        planes: ConvexPlanes = raycaster.convex_planes
+        if planes.start.size == n_objects + 1:
+            start = np.ascontiguousarray(planes.start, dtype=np.int64)
+        else:  # no planes known: every object's box crossing goes to Embree
+            start = np.zeros(n_objects + 1, dtype=np.int64)
+        normal = planes.normal if planes.normal.shape[0] else np.zeros((1, 3))
+        offset = planes.offset if planes.offset.shape[0] else np.zeros(1)
+        return cls(tolerance, water_lo, water_hi, np.ascontiguousarray(box_lo), np.ascontiguousarray(box_hi), start,
+                   np.ascontiguousarray(normal, dtype=float), np.ascontiguousarray(offset, dtype=float))
+
+    def kernel_arguments(self) -> tuple[Any, ...]:
+        """(tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset) for
+        :func:`screen_leg`."""
+        return (self.tolerance, self.water_lo, self.water_hi, self.box_lo, self.box_hi, self.plane_start,
+                self.normal, self.offset)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _inside(x0: float, x1: float, x2: float, lo: NDArray[np.float64], hi: NDArray[np.float64]) -> bool:
+    # (& on booleans: numba makes a chained ``and`` of comparisons much slower)
+    return (lo[0] <= x0) & (x0 <= hi[0]) & (lo[1] <= x1) & (x1 <= hi[1]) & (lo[2] <= x2) & (x2 <= hi[2])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _slab(a: float, b: float, lo: float, hi: float) -> tuple[float, float]:
+    """The parameters s in [0, 1] where ``a + s (b - a)`` lies in [lo, hi]: (enter, leave),
+    enter > leave when none."""
+    step = b - a
+    if step == 0.0:
+        return (0.0, 1.0) if (lo <= a) & (a <= hi) else (1.0, 0.0)
+    inverse = 1.0 / step
+    s_lo = (lo - a) * inverse
+    s_hi = (hi - a) * inverse
+    return (s_lo, s_hi) if s_lo <= s_hi else (s_hi, s_lo)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crosses_box(p0: tuple[float, float, float], p1: tuple[float, float, float], lo: NDArray[np.float64],
+                 hi: NDArray[np.float64], j: int) -> bool:
+    """Whether the segment p0 -> p1 meets box j (the slab test)."""
+    enter, leave = 0.0, 1.0
+    for c in range(3):
+        a, b = _slab(p0[c], p1[c], lo[j, c], hi[j, c])
+        enter = max(enter, a)
+        leave = min(leave, b)
+        if enter > leave:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _height(p: tuple[float, float, float], normal: NDArray[np.float64], offset: NDArray[np.float64], i: int) -> float:
+    """Height of p above plane i (m; > 0 outside)."""
+    return (normal[i, 0] * p[0] + normal[i, 1] * p[1] + normal[i, 2] * p[2]) - offset[i]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _convex_decision(p0: tuple[float, float, float], p1: tuple[float, float, float], normal: NDArray[np.float64],
+                     offset: NDArray[np.float64], first: int, last: int, tolerance: float) -> tuple[int, int]:
+    """(CLEAR, BLOCKED or UNDECIDED, a separating plane or -1) for the segment p0 -> p1 and the
+    convex polyhedron of planes ``first:last``, with the margin ``tolerance`` (see the module
+    docstring): the planes moved out (P+) and in (P-) by it, clipped in one pass. The
+    separating plane, when found, has both ends more than ``tolerance`` outside it."""
+    enter_out, leave_out = 0.0, 1.0  # the part of the segment in P+ (parameter s in [0, 1])
+    enter_in, leave_in = 0.0, 1.0  # in P-
+    out0, out1 = False, False  # whether the ends lie outside P+
+    for i in range(first, last):
+        h0 = _height(p0, normal, offset, i)
+        h1 = _height(p1, normal, offset, i)
+        above0, above1 = h0 > tolerance, h1 > tolerance
+        if above0 & above1:
+            return CLEAR, i
+        out0 |= above0
+        out1 |= above1
+        slope = h1 - h0  # height h0 + s slope along the segment
+        if slope < 0.0:
+            enter_out = max(enter_out, (tolerance - h0) / slope)
+            enter_in = max(enter_in, (-tolerance - h0) / slope)
+        elif slope > 0.0:
+            leave_out = min(leave_out, (tolerance - h0) / slope)
+            leave_in = min(leave_in, (-tolerance - h0) / slope)
+        elif h0 > -tolerance:  # parallel, outside P-
+            enter_in = 2.0
+    if enter_out > leave_out:  # misses P+
+        return CLEAR, -1
+    if out0 & out1 & (enter_in <= leave_in):  # ends outside P+, meets P-
+        return BLOCKED, -1
+    return UNDECIDED, -1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def screen_leg(p0: tuple[float, float, float], p1: tuple[float, float, float], tolerance: float,
+               water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
+               box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
+               offset: NDArray[np.float64], hint: NDArray[np.int64]) -> int:
+    """CLEAR, BLOCKED or UNDECIDED (left to Embree) for the segment p0 -> p1 (m).
+
+    Parameters
+    ----------
+    p0, p1 : tuple of float
+        The segment's ends (m): the leg shrunk by Embree's ``eps`` at both ends.
+    tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset
+        :meth:`VisibilityScreen.kernel_arguments`.
+    hint : ndarray of int64, shape (k,)
+        Per object, a plane that separated an earlier segment from it (or -1), tested first;
+        updated.
+    """
+    if not (_inside(p0[0], p0[1], p0[2], water_lo, water_hi) & _inside(p1[0], p1[1], p1[2], water_lo, water_hi)):
+        return UNDECIDED
+    decision = CLEAR
+    for j in range(box_lo.shape[0]):
+        if not _crosses_box(p0, p1, box_lo, box_hi, j):
+            continue
+        first, last = plane_start[j], plane_start[j + 1]
+        if first == last:  # not convex: Embree decides, unless another object blocks
+            decision = UNDECIDED
+            continue
+        h = hint[j]
+        if h >= 0:
+            if (_height(p0, normal, offset, h) > tolerance) & (_height(p1, normal, offset, h) > tolerance):
+                continue
+        here, separating = _convex_decision(p0, p1, normal, offset, first, last, tolerance)
+        if separating >= 0:
+            hint[j] = separating
+        if here == BLOCKED:
+            return BLOCKED
+        if here == UNDECIDED:
+            decision = UNDECIDED
+    return decision
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def screened_visibility_rays32(
+    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
+    pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], start: NDArray[np.float64],
+    direction: NDArray[np.float64], offset: NDArray[np.float64], tx: NDArray[np.float64],
+    rx: NDArray[np.float64], own_leg_rx: NDArray[np.bool_], shift: NDArray[np.float64], eps: float,
+    tolerance: float, water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
+    box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], plane_normal: NDArray[np.float64],
+    plane_offset: NDArray[np.float64],
+) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.int64]]:
+    """Every element's legs screened (:func:`screen_leg`), and Embree's float32 queries of the
+    undecided ones.
+
+    The legs, probes and queries are those of
+    :func:`~acoustisim.propagation.edge_kernels.visibility_rays32` (same arguments up to
+    ``eps``; the screen's arrays after it): the leg probe -> transmitter of every element,
+    and probe -> receiver where the receiver is not the transmitter; a leg not longer than
+    2 ``eps`` is never blocked.
+
+    Returns
+    -------
+    visible : ndarray of bool, shape (n,)
+        Whether each element's decided legs are all clear (its undecided legs still to be
+        asked).
+    starts32, directions32 : ndarray of float32, shape (q, 3)
+    lengths32 : ndarray of float32, shape (q,)
+        The undecided legs' queries, byte for byte those of ``visibility_rays32``.
+    element : ndarray of int64, shape (q,)
+        The element of each query: it is visible iff ``visible[element]`` and no query of it
+        is blocked.
+    """
+    n = pair.size
+    visible = np.ones(n, dtype=np.bool_)
+    # at most two legs per element
+    starts32 = np.empty((2 * n, 3), dtype=np.float32)
+    directions32 = np.empty((2 * n, 3), dtype=np.float32)
+    lengths32 = np.empty(2 * n, dtype=np.float32)
+    element = np.empty(2 * n, dtype=np.int64)
+    two_eps = 2.0 * eps
+    hint = np.full(box_lo.shape[0], -1, dtype=np.int64)
+    q = 0
+    for i in range(n):
+        p = pair[i]
+        e = pair_edge[p]
+        ch = pair_rx[p]
+        z = 0.5 * (z_start[i] + z_end[i])
+        o0 = start[e, 0] + z * direction[e, 0] + offset[e, 0]
+        o1 = start[e, 1] + z * direction[e, 1] + offset[e, 1]
+        o2 = start[e, 2] + z * direction[e, 2] + offset[e, 2]
+        for leg in range(2):
+            if leg == 0:
+                t0, t1, t2 = tx[0], tx[1], tx[2]
+            elif own_leg_rx[ch]:
+                t0, t1, t2 = rx[ch, 0], rx[ch, 1], rx[ch, 2]
+            else:
+                break
+            s0, s1, s2 = t0 - o0, t1 - o1, t2 - o2
+            length = math.sqrt((s0 * s0 + s1 * s1) + s2 * s2)
+            if not length > two_eps:
+                continue
+            d0, d1, d2 = s0 / length, s1 / length, s2 / length
+            # the segment Embree is asked about (in float64)
+            far = length - eps
+            p0 = (o0 + eps * d0, o1 + eps * d1, o2 + eps * d2)
+            p1 = (o0 + far * d0, o1 + far * d1, o2 + far * d2)
+            decision = screen_leg(p0, p1, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, plane_normal,
+                                  plane_offset, hint)
+            if decision == BLOCKED:
+                visible[i] = False
+                break
+            if decision == UNDECIDED:
+                starts32[q, 0] = np.float32((eps * d0 + o0) - shift[0])
+                starts32[q, 1] = np.float32((eps * d1 + o1) - shift[1])
+                starts32[q, 2] = np.float32((eps * d2 + o2) - shift[2])
+                directions32[q, 0] = np.float32(d0)
+                directions32[q, 1] = np.float32(d1)
+                directions32[q, 2] = np.float32(d2)
+                lengths32[q] = np.float32(length - two_eps)
+                element[q] = i
+                q += 1
+        if not visible[i]:  # a blocked leg decides: drop its element's queries
+            while q > 0:
+                if element[q - 1] != i:
+                    break
+                q -= 1
+    return visible, starts32[:q], directions32[:q], lengths32[:q], element[:q]
+
+
+__all__ = ["BLOCKED", "CLEAR", "TOLERANCE_ULPS", "UNDECIDED", "VisibilityScreen", "screen_leg",
+           "screen_tolerance", "screened_visibility_rays32"]

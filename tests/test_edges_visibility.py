@@ -1,0 +1,194 @@
+"""The edge elements' visibility screen (:mod:`acoustisim.propagation.edge_visibility`) against
+Embree, the independent method it replaces where it decides.
+
+Every leg the screen decides must get Embree's answer (its margin covers Embree's float32
+rounding), and the rows of ``edge_paths`` must be byte for byte those of the Embree-only
+visibility. Poses are drawn over the whole thesis tank so that the posts, the prism and the
+pipe hide some legs (the tests assert that they do: a screen that never blocks would fail).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from numba import njit
+
+from acoustisim.medium import Medium
+from acoustisim.propagation import SolverConfig, prepare
+from acoustisim.propagation import edges as edges_module
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.edge_visibility import (
+    BLOCKED,
+    CLEAR,
+    UNDECIDED,
+    VisibilityScreen,
+    screen_leg,
+    screen_tolerance,
+)
+from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
+from acoustisim.propagation.solver import check_sonar
+from acoustisim.scene import Scene, Tank
+from acoustisim.sonar import SonarHead
+from scenes.builders import plate, sphere
+from scenes.builtin import builtin_scene
+
+
+@njit(cache=False)
+def _decide(p0, p1, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset):
+    """screen_leg of each segment p0[i] -> p1[i] (shapes (n, 3)), a fresh hint per call."""
+    out = np.empty(p0.shape[0], dtype=np.int64)
+    hint = np.full(box_lo.shape[0], -1, dtype=np.int64)
+    for i in range(p0.shape[0]):
+        out[i] = screen_leg((p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]), tolerance, water_lo,
+                            water_hi, box_lo, box_hi, plane_start, normal, offset, hint)
+    return out
+
+
+def _decisions(screen: VisibilityScreen, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """The screen's decision for legs origin -> target shrunk by Embree's eps at both ends."""
+    leg = targets - origins
+    length = np.linalg.norm(leg, axis=1, keepdims=True)
+    unit = leg / length
+    p0, p1 = origins + DEFAULT_EPS_M * unit, origins + (length - DEFAULT_EPS_M) * unit
+    return _decide(np.ascontiguousarray(p0), np.ascontiguousarray(p1), *screen.kernel_arguments())
+
+
+@pytest.fixture(scope="module")
+def tank():
+    return prepare(builtin_scene("thesis-tank"))
+
+
+def _poses(prepared, count, seed):
+    """Sonar poses in the thesis tank that check_sonar accepts (random positions and headings)."""
+    rng = np.random.default_rng(seed)
+    poses = []
+    while len(poses) < count:
+        position = tuple(rng.uniform((0.2, 0.2, 0.1), (8.8, 2.8, 0.9)))
+        sonar = replace(prepared.scene.sonar, position_m=position)
+        try:
+            check_sonar(prepared, sonar)
+        except Exception:  # a transducer inside or touching an object: not a pose
+            continue
+        poses.append(sonar)
+    return poses
+
+
+def _element_legs(prepared, sonar):
+    """Every element's legs probe -> transmitter and probe -> side receiver of one pose, as
+    edge_paths makes them: (origins, targets) in float64."""
+    captured = {}
+    original = edges_module.element_visibility
+
+    def spy(context, scene_part, elements, pair_edge, pair_rx, **kwargs):
+        captured.update(scene_part=scene_part, elements=elements, pair_edge=pair_edge, pair_rx=pair_rx)
+        return original(context, scene_part, elements, pair_edge, pair_rx, **kwargs)
+
+    context = SolveContext.build(prepared.scene, sonar, prepared.raycaster)
+    edges_module.element_visibility = spy
+    try:
+        edges_module.edge_paths(context, SolverConfig(), prepared.diffracting_edges)
+    finally:
+        edges_module.element_visibility = original
+    part, elements = captured["scene_part"], captured["elements"]
+    edge = captured["pair_edge"][elements.pair]
+    channel = captured["pair_rx"][elements.pair]
+    probes = (part.edges.start_m[edge] + elements.z_mid_m[:, None] * part.edges.direction[edge]
+              + part.probe_offset_m[edge])
+    tx = np.asarray(context.transmitter_m, dtype=float)
+    rx = np.asarray(context.receivers_m, dtype=float)
+    side = ~np.all(rx[channel] == tx, axis=1)
+    origins = np.concatenate([probes, probes[side]])
+    targets = np.concatenate([np.broadcast_to(tx, probes.shape), rx[channel[side]]])
+    return context, origins, targets
+
+
+def test_screen_decisions_equal_embree_over_poses(tank):
+    screen = VisibilityScreen.create(tank.scene, tank.raycaster)
+    counts = {CLEAR: 0, BLOCKED: 0, UNDECIDED: 0}
+    for sonar in _poses(tank, 16, seed=11):
+        context, origins, targets = _element_legs(tank, sonar)
+        decided = _decisions(screen, origins, targets)
+        embree = tank.raycaster.occluded(origins, targets)
+        for value in counts:
+            counts[value] += int(np.sum(decided == value))
+        np.testing.assert_array_equal(embree[decided == CLEAR], False)
+        np.testing.assert_array_equal(embree[decided == BLOCKED], True)
+    # the objects hide legs in these poses, and nearly every leg is decided without Embree
+    assert counts[BLOCKED] > 1000 and counts[CLEAR] > 100_000  # 16 poses: 2 790 and 214 107
+    assert counts[UNDECIDED] < 1e-3 * (counts[CLEAR] + counts[BLOCKED])  # 4 of them
+
+
+def test_rows_equal_the_embree_only_visibility(tank):
+    hidden = 0
+    for sonar in [tank.scene.sonar] + _poses(tank, 5, seed=5):
+        context = SolveContext.build(tank.scene, sonar, tank.raycaster)
+        for config in (SolverConfig(), SolverConfig(edge_adaptive=False)):
+            screened = edges_module.edge_paths(context, config, tank.diffracting_edges, sort_rows=True)
+            reference = edges_module.edge_paths(context, config, tank.diffracting_edges, sort_rows=True,
+                                                screen=False)
+            assert screened.size > 1000 and screened.tobytes() == reference.tobytes()
+        _, origins, targets = _element_legs(tank, sonar)
+        hidden += int(np.sum(tank.raycaster.occluded(origins, targets)))
+    assert hidden > 100  # some elements are hidden in these poses
+
+
+def test_tolerance_covers_float32_and_stays_below_the_probe_offset(tank):
+    tolerance = screen_tolerance(tank.raycaster.vertices)
+    # 20 float32 ulps of the 9.54 m diagonal: 40 ulps of the largest shifted coordinate (4.5 m)
+    ulp = np.spacing(np.float32(4.5))
+    assert 30 * ulp < tolerance < 60 * ulp
+    # a probe lies VISIBILITY_OFFSET_M along the bisector of a convex wedge (exterior angle up to
+    # 270 degrees on the tank's objects): sin(135 deg) times that from its faces
+    assert tolerance < edges_module.VISIBILITY_OFFSET_M * np.sin(np.radians(135.0)) / 5
+
+
+def _box_scene(objects):
+    return Scene("screen", Medium(), SonarHead(position_m=(1.0, 1.5, 0.5)), Tank(9.0, 3.0, 1.0), tuple(objects))
+
+
+def test_convex_decisions_of_single_legs():
+    cube = plate("cube", (4.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.2, 0.2, 0.2, "steel")  # a 0.2 m cube
+    scene = _box_scene([cube])
+    screen = VisibilityScreen.create(scene, RayCaster.from_scene(scene))
+    tol = screen.tolerance
+    x_face = 4.1  # the cube's +x face
+    legs = {
+        "through": ((3.0, 1.5, 0.5), (5.0, 1.5, 0.5), BLOCKED),
+        "beside": ((3.0, 1.7, 0.5), (5.0, 1.7, 0.5), CLEAR),  # 0.1 m off the +y face
+        "grazing a face": ((3.0, 1.6 + 0.1 * tol, 0.5), (5.0, 1.6 + 0.1 * tol, 0.5), UNDECIDED),
+        "just clear": ((3.0, 1.6 + 3 * tol, 0.5), (5.0, 1.6 + 3 * tol, 0.5), CLEAR),
+        "just through": ((3.0, 1.6 - 3 * tol, 0.5), (5.0, 1.6 - 3 * tol, 0.5), BLOCKED),
+        "ending on the face": ((x_face + 1.0, 1.5, 0.5), (x_face + 0.5 * tol, 1.5, 0.5), UNDECIDED),
+        "ending short of it": ((x_face + 1.0, 1.5, 0.5), (x_face + 3 * tol, 1.5, 0.5), CLEAR),
+        "starting inside": ((4.0, 1.5, 0.5), (6.0, 1.5, 0.5), UNDECIDED),
+        "near the floor": ((1.0, 1.5, 0.5 * tol), (2.0, 1.5, 0.5), UNDECIDED),
+        "near the surface": ((1.0, 1.5, 0.5), (1.0, 1.5, 1.0 - 0.5 * tol), UNDECIDED),
+        "short of the surface": ((1.0, 1.5, 0.5), (1.0, 1.5, 1.0 - 3 * tol), CLEAR),
+    }
+    # the segments Embree would be asked about (already shrunk)
+    p0 = np.array([a for a, _, _ in legs.values()])
+    p1 = np.array([b for _, b, _ in legs.values()])
+    got = _decide(p0, p1, *screen.kernel_arguments())
+    want = np.array([w for _, _, w in legs.values()])
+    assert dict(zip(legs, got.tolist())) == dict(zip(legs, want.tolist()))
+
+
+def test_non_convex_object_is_left_to_embree_unless_a_convex_one_blocks():
+    # an open plate-like screen: a sphere mesh cut open is not a closed convex mesh
+    ball = sphere("ball", (4.0, 1.5, 0.5), 0.1, "steel")
+    mesh = ball.mesh.copy()
+    mesh.update_faces(np.arange(len(mesh.faces)) != 0)  # open: no planes
+    open_ball = replace(ball, name="open", mesh=mesh, primitive=None)
+    wall = plate("wall", (6.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.02, 1.0, 0.5, "steel")
+    scene = _box_scene([open_ball, wall])
+    raycaster = RayCaster.from_scene(scene)
+    screen = VisibilityScreen.create(scene, raycaster)
+    assert screen.plane_start[1] == screen.plane_start[0]  # the open ball has no planes
+    origins = np.array([(3.0, 1.5, 0.5), (3.0, 1.5, 0.5), (3.0, 2.5, 0.5)])
+    targets = np.array([(5.0, 1.5, 0.5), (7.0, 1.5, 0.5), (5.0, 2.5, 0.5)])
+    got = _decisions(screen, origins, targets)
+    # crossing the open ball's box only: Embree; through the wall as well: blocked; clear of both
+    assert got.tolist() == [UNDECIDED, BLOCKED, CLEAR]
+    assert raycaster.occluded(origins, targets).tolist() == [True, True, False]
