@@ -7,7 +7,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-COLOURS = MappingProxyType({"threshold": "tab:orange", "matched": "tab:blue", "bound": "0.3"})
+COLOURS = MappingProxyType({"threshold": "tab:orange", "matched": "tab:blue", "beam-matched": "tab:red", "bound": "0.3"})
 
 
 def new_figure(n_rows: int, n_cols: int = 1, *, width: float = 7.5, row_height: float = 2.6) -> tuple[Any, Any]:

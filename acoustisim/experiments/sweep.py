@@ -60,24 +60,31 @@ REVERBERATION_NOTE = (
     "averaging does not reduce it.")
 
 
+DEFAULT_DETECTORS = "threshold,matched,beam-matched"
+"""The seed's two detectors and the matched filter with binsonar's beam-aware refinement."""
+
+
 def add_sweep_arguments(parser: Any, *, pings: int) -> None:
     """Options common to both sweeps."""
     parser.add_argument("--pings", type=int, default=pings, help=f"pings averaged per measurement (default {pings})")
     parser.add_argument("--no-reverberation", action="store_true",
                         help="leave out the diffuse (Lambert) reverberation of the floor, surface, walls and prism")
-    parser.add_argument("--detectors", default="threshold,matched",
-                        help="comma-separated detection methods (default threshold,matched)")
+    parser.add_argument("--detectors", default=DEFAULT_DETECTORS,
+                        help=f"comma-separated detection methods (default {DEFAULT_DETECTORS}); beam-matched is the "
+                             "matched filter refined by binsonar's beam-aware TOF estimator with the sonar's pistons")
 
 
 def detectors_of(config: ExperimentConfig) -> tuple[str, ...]:
     """The detectors option as a tuple (validated against binsonar's methods)."""
     from acoustisim.errors import InputError
+    from acoustisim.experiments.point_target import BEAM_MATCHED
     from binsonar.detection import METHODS
 
-    names = tuple(s.strip() for s in str(config.option("detectors", "threshold,matched")).split(",") if s.strip())
-    bad = [n for n in names if n not in METHODS]
+    known = (*METHODS, BEAM_MATCHED)
+    names = tuple(s.strip() for s in str(config.option("detectors", DEFAULT_DETECTORS)).split(",") if s.strip())
+    bad = [n for n in names if n not in known]
     if bad or not names:
-        raise InputError(f"--detectors {','.join(bad) or '(empty)'}: unknown method (known: {', '.join(METHODS)})")
+        raise InputError(f"--detectors {','.join(bad) or '(empty)'}: unknown method (known: {', '.join(known)})")
     return names
 
 
@@ -101,7 +108,7 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
     """
     from acoustisim.errors import InputError
     from acoustisim.experiments.figures import sweep_figure
-    from acoustisim.experiments.point_target import measure_position, summarise
+    from acoustisim.experiments.point_target import BEAM_MATCHED, BOUNDED_DETECTORS, measure_position, summarise
 
     repeats = config.trials_or(default_repeats)
     pings = int(config.option("pings", default_pings))
@@ -136,36 +143,39 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
     xs = [p[variable] for p in positions]
     fig = sweep_figure(xs, summary["positions"], detectors,
                        xlabel="range (m)" if variable == "range_m" else "bearing (deg)", title=title)
-    if "matched" in detectors:
-        # The matched filter's noise-free bias (|.|) and its scatter about it, on the range and bearing axes.
+    bounded = [m for m in BOUNDED_DETECTORS if m in detectors]
+    for m in bounded:
+        # The noise-free bias (|.|) and the scatter about it, on the range and bearing axes.
         ax_r, ax_b = fig.axes[0], fig.axes[1]
         rows = summary["positions"]
+        colour = {"matched": ("tab:green", "tab:purple"), BEAM_MATCHED: ("tab:olive", "tab:pink")}[m]
         for ax, bias_key, scatter_key, scale in ((ax_r, "bias_range_m", "scatter_range_rms_m", 1e3),
                                                  (ax_b, "bias_bearing_deg", "scatter_bearing_rms_deg", 1.0)):
-            bias = np.array([abs(r["matched"].get(bias_key, np.nan)) for r in rows], dtype=float) * scale
-            scatter = np.array([r["matched"].get(scatter_key, np.nan) for r in rows], dtype=float) * scale
-            ax.semilogy(xs, bias, "v", ms=3, color="tab:green", label="matched |bias| (noise-free)")
-            ax.semilogy(xs, scatter, "^", ms=3, color="tab:purple", label="matched scatter RMS")
+            bias = np.array([abs(r[m].get(bias_key, np.nan)) for r in rows], dtype=float) * scale
+            scatter = np.array([r[m].get(scatter_key, np.nan) for r in rows], dtype=float) * scale
+            ax.semilogy(xs, bias, "v", ms=3, color=colour[0], label=f"{m} |bias| (noise-free)")
+            ax.semilogy(xs, scatter, "^", ms=3, color=colour[1], label=f"{m} scatter RMS")
             ax.legend(fontsize=6, loc="best")
     report.add_figure(fig, figure_name, title)
     s = summary["summary"]
     header = [variable.replace("_", " "), "bound range (um)", "bound bearing (mdeg)"]
     for m in detectors:
         header += [f"{m} range RMS (um)", f"{m} bearing RMS (mdeg)", f"{m} detected"]
-    if "matched" in detectors:
-        header += ["matched bias edge / +specular / +diffuse (um)", "matched scatter RMS (um)", "RMS / bound",
-                   "scatter / bound", "RMS / bound with reverberation"]
+    for m in bounded:
+        header += [f"{m} bias edge / +specular / +diffuse (um)", f"{m} scatter RMS (um)", f"{m} RMS / bound",
+                   f"{m} bearing RMS / bound", f"{m} scatter / bound", f"{m} RMS / bound with reverberation"]
     rows = []
     for p in summary["positions"]:
         row: list[Any] = [p[variable], p["bound_range_m"] * 1e6, p["bound_bearing_deg"] * 1e3]
         for m in detectors:
             row += [p[m]["range_rms_m"] * 1e6, p[m]["bearing_rms_deg"] * 1e3, f"{p[m]['detection_rate']:.0%}"]
-        if "matched" in detectors:
-            mf = p["matched"]
+        for m in bounded:
+            mf = p[m]
             parts = mf.get("bias_range_parts_m", {})
             row += [" / ".join(f"{parts.get(k, float('nan')) * 1e6:.1f}" for k in ("edge", "specular", "all")),
                     mf.get("scatter_range_rms_m", float("nan")) * 1e6, mf["range_rms_over_bound"],
-                    mf["scatter_range_rms_over_bound"], mf.get("range_rms_over_reverb_bound", float("nan"))]
+                    mf["bearing_rms_over_bound"], mf["scatter_range_rms_over_bound"],
+                    mf.get("range_rms_over_reverb_bound", float("nan"))]
         rows.append(row)
     timing = [f"- simulation: {s['simulate_s_per_ping'] * 1e3:.1f} ms per ping wall, "
               f"{s['simulate_cpu_s_per_ping'] * 1e3:.1f} ms CPU (synthesis); "
@@ -180,10 +190,11 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
     report.results["cpu_time_s"] = cpu_total
     timing.append(f"- wall time {wall_s:.1f} s for {len(positions)} positions x {repeats} x {pings} pings "
                   f"({config.workers or 'all'} worker(s)); CPU time of the trials {cpu_total:.1f} s in all")
-    if "matched" in detectors:
-        mf = s["matched"]
-        timing.append(f"- matched-filter range RMS within 1.5x the bound at {mf['positions_within_1_5_bound']} of "
-                      f"{len(positions)} positions (largest ratio {mf['max_range_rms_over_bound']:.3g}); its scatter "
+    for m in bounded:
+        mf = s[m]
+        timing.append(f"- {m} range RMS within 1.5x the bound at {mf['positions_within_1_5_bound']} of "
+                      f"{len(positions)} positions (largest ratio {mf['max_range_rms_over_bound']:.3g}), bearing RMS "
+                      f"at {mf['positions_bearing_within_1_5_bound']}; its scatter "
                       f"about the noise-free bias within 1.5x at {mf['positions_scatter_within_1_5_bound']} "
                       f"(pooled RMS of scatter / bound {mf['pooled_scatter_range_rms_over_bound']:.2f}); RMS within "
                       f"1.5x the bound with the reverberation as Gaussian interference at "

@@ -1,0 +1,340 @@
+"""Beam-aware time-of-flight refinement: matched filtering with the echo the transducers actually receive.
+
+The plain matched filter correlates each channel with the transmitted pulse. Off axis the
+pistons filter the echo per frequency (``beam_model``), so the correlation's envelope peaks
+away from the geometric time of flight: by microseconds on the side channels when the target is
+near or past the first null (close range), by nanoseconds for an extended edge whose outer
+Fresnel zone the beam trims. A real sonar has this distortion; its user knows the transducers'
+aperture (``PistonTransducers``), so the refinement takes it as an explicit input:
+
+1. Start from the plain matched filter's times of flight (one per channel).
+2. Locate the target: the left and right path lengths give its head-frame position
+   (``point.initial_point``: the seed geometry's exact solution at the receivers' height).
+3. Per channel, the expected echo spectrum A_c(f) = T(f) H_c(f): the template's spectrum T (its
+   phase referred to its reference instant) times ``beam_model.expected_response`` (referred to
+   the channel's geometric time of flight).
+4. Re-estimate each channel's TOF as the maximum over tau of |z_c(tau)|,
+   z_c(tau) = sum_{f > 0} X(f) conj(A_c(f)) exp(j 2 pi f tau), X the record segment's spectrum
+   with absolute-time phases. For a noise-free echo x = a_c(t - tau_0),
+   z_c(tau) = sum |A_c|^2 exp(j 2 pi f (tau - tau_0)), whose modulus is largest at tau_0 exactly
+   (triangle inequality): the reference delay is the geometric TOF by construction, with no
+   offset to calibrate and no interpolation bias. The maximum is found on a grid of half a sample
+   and polished by Newton's method on the band-limited |z|^2 (its derivatives are exact sums).
+5. Repeat 2-4 (``iterations``) with the refined TOFs.
+
+With vanishing pistons (D = 1) and a point target, A_c = T and the result is the plain matched
+filter's continuous envelope maximum (its log-parabolic vertex differs by well under a
+nanosecond, tested). Costs: one FFT of a short segment per channel and iteration, and for an
+edge a (3, points, bins) line-integral table (vectorised, no loop over samples, frequencies or
+points).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers, expected_response
+from binsonar.recording import RecordingError, Template
+
+TEMPLATE_BAND_FLOOR = 1e-5
+"""Bins where the template's spectrum is below this fraction of its peak are left out of the
+correlation (they carry ~1e-10 of its energy: the TOF changes by far below a picosecond)."""
+STEP_BAND_DB = -30.0
+"""The line integral's grid is fine enough at the template's highest frequency this far below its
+peak (``BeamModelConfig.step_frequency_hz``)."""
+NEWTON_STEPS = 6
+"""Newton steps on |z|^2 from the best half-sample grid point: quadratic convergence from within a
+quarter sample of the peak reaches 1e-15 s in 3-4 steps."""
+
+
+@dataclass(frozen=True)
+class BeamRefinementConfig:
+    """Settings of the beam-aware refinement.
+
+    Attributes
+    ----------
+    model : BeamModelConfig
+        Target class (point or vertical edge) and line-integral settings.
+    iterations : int
+        Locate-and-refine passes (2-3 converge: the beam factor depends on the angles only, which
+        a first pass already gets to a fraction of a degree).
+    search_half_width_s : float
+        First pass: the maximum is searched within this of the plain matched filter's TOF (s);
+        it covers the plain filter's bias at the closest ranges (about 4 us at 0.1 m).
+    track_half_width_s : float
+        Later passes: within this of the previous pass's TOF (s).
+    """
+
+    model: BeamModelConfig = field(default_factory=BeamModelConfig)
+    iterations: int = 3
+    search_half_width_s: float = 6e-6
+    track_half_width_s: float = 0.5e-6
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.iterations, int) and 1 <= self.iterations <= 20):
+            raise RecordingError(f"beam refinement: iterations must be an integer in [1, 20], got {self.iterations!r}")
+        for name in ("search_half_width_s", "track_half_width_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
+                raise RecordingError(f"beam refinement: {name} must be > 0 (s), got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class BeamRefinement:
+    """Result of ``refine_tofs``.
+
+    Attributes
+    ----------
+    tof_s : ndarray, shape (3,)
+        Refined times of flight (s), left, centre, right (NaN where there was no start).
+    initial_tof_s : ndarray, shape (3,)
+        The plain times of flight it started from (s).
+    position_m : ndarray, shape (3,)
+        The target's head-frame position from the refined left and right TOFs (m).
+    peak : ndarray, shape (3,)
+        |z_c| at the refined TOFs (the adapted filter's peak, arbitrary unit).
+    iterations : int
+        Passes run.
+    last_change_s : float
+        Largest |TOF change| of the last pass (s): the iteration's convergence.
+    """
+
+    tof_s: NDArray[np.float64] = field(repr=False)
+    initial_tof_s: NDArray[np.float64] = field(repr=False)
+    position_m: NDArray[np.float64] = field(repr=False)
+    peak: NDArray[np.float64] = field(repr=False)
+    iterations: int
+    last_change_s: float
+
+
+def template_spectrum(template: Template, n_fft: int, bins: NDArray[np.intp]) -> NDArray[np.complex128]:
+    """T(f_k) = sum_n s[n] exp(-j 2 pi f_k (t0 + n / fs)) at f_k = k fs / n_fft: the template's DTFT
+    referred to its reference instant, on the rfft bins ``bins`` (shape (k,)) of an n_fft grid
+    (n_fft >= the template's length)."""
+    import scipy.fft as sfft
+
+    s = np.asarray(template.samples, dtype=float)
+    if n_fft < s.size:
+        raise RecordingError(f"beam refinement: FFT length {n_fft} is shorter than the template ({s.size} samples)")
+    f = np.asarray(bins) * (float(template.sample_rate_hz) / n_fft)
+    return sfft.rfft(s, n_fft)[bins] * np.exp(-2j * np.pi * f * template.t0_s)
+
+
+def _band(template: Template, n_fft: int) -> tuple[NDArray[np.float64], float]:
+    """The rfft frequencies (Hz) of an n_fft grid where the template has energy (>= TEMPLATE_BAND_FLOOR of
+    its peak), and the highest frequency where it is within ``STEP_BAND_DB`` of its peak (Hz)."""
+    import scipy.fft as sfft
+
+    fs = float(template.sample_rate_hz)
+    magnitude = np.abs(sfft.rfft(np.asarray(template.samples, dtype=float), n_fft))
+    keep = np.flatnonzero(magnitude >= TEMPLATE_BAND_FLOOR * magnitude.max())
+    k_lo, k_hi = max(int(keep[0]), 1), int(keep[-1]) + 1  # DC never (the record's offset sits there)
+    top = int(np.flatnonzero(magnitude >= 10.0 ** (STEP_BAND_DB / 20.0) * magnitude.max())[-1])
+    return np.arange(k_lo, k_hi) * fs / n_fft, top * fs / n_fft
+
+
+def _segments(rows: NDArray[np.float64], t0_s: float, fs: float, starts_s: NDArray[np.float64], n_fft: int,
+              bins: NDArray[np.intp]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+    """Spectra (c, k) on ``bins`` of n_fft-sample record segments starting at ``starts_s`` (zeros outside the record).
+
+    Returns the spectra with absolute-time phases, X(f) = sum_n x[n] exp(-j 2 pi f t_n), and the
+    segments' start times (s, on the sample grid).
+    """
+    import scipy.fft as sfft
+
+    n = rows.shape[1]
+    first = np.floor((starts_s - t0_s) * fs).astype(np.intp)  # (c,)
+    index = first[:, np.newaxis] + np.arange(n_fft)
+    inside = (index >= 0) & (index < n)
+    segment = np.where(inside, rows[np.arange(rows.shape[0])[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
+    start = t0_s + first / fs
+    spectrum = sfft.rfft(segment, axis=-1)[:, bins]
+    return spectrum * np.exp(-2j * np.pi * np.outer(start, bins * fs / n_fft)), start
+
+
+def correlation_maximum(spectrum: NDArray[np.complex128], expected: NDArray[np.complex128],
+                        frequency_hz: NDArray[np.float64], centre_s: NDArray[np.float64],
+                        half_width_s: float, fs: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Lag of the largest |z(tau)|, z(tau) = sum_k X_k conj(A_k) exp(j 2 pi f_k tau), within a window.
+
+    Parameters
+    ----------
+    spectrum : ndarray, shape (c, k)
+        X with absolute-time phases.
+    expected : ndarray, shape (c, k)
+        A, the expected echo's spectrum referred to its reference instant.
+    frequency_hz : ndarray, shape (k,)
+    centre_s : ndarray, shape (c,)
+        Centre of each row's search window (s).
+    half_width_s : float
+        Half-width of the window (s).
+    fs : float
+        Sample rate (Hz): the search grid's spacing is 1 / (2 fs).
+
+    Returns
+    -------
+    tau_s : ndarray, shape (c,)
+        The continuous maximum (s).
+    peak : ndarray, shape (c,)
+        |z| there.
+    """
+    coeff = spectrum * np.conj(expected)  # (c, k)
+    omega = 2.0 * np.pi * frequency_hz
+    n_grid = int(math.ceil(2.0 * half_width_s * 2.0 * fs)) + 1
+    offsets = np.linspace(-half_width_s, half_width_s, n_grid)  # spacing <= 1 / (2 fs)
+    # Phases relative to each window's centre keep the exponents small (no loss of precision).
+    base = coeff * np.exp(1j * np.outer(centre_s, omega))  # (c, k)
+    grid = np.exp(1j * np.outer(offsets, omega))  # (g, k)
+    z = base @ grid.T  # (c, g)
+    best = np.argmax(np.abs(z), axis=1)
+    x = offsets[best]
+    for _ in range(NEWTON_STEPS):
+        rot = base * np.exp(1j * np.outer(x, omega))
+        z0 = rot.sum(axis=1)
+        z1 = (rot * (1j * omega)).sum(axis=1)
+        z2 = (rot * (-(omega ** 2))).sum(axis=1)
+        d1 = 2.0 * np.real(np.conj(z0) * z1)
+        d2 = 2.0 * (np.abs(z1) ** 2 + np.real(np.conj(z0) * z2))
+        ok = d2 < 0.0
+        step = np.where(ok, -d1 / np.where(ok, d2, -1.0), 0.0)
+        step = np.clip(step, -0.5 / fs, 0.5 / fs)  # never more than a grid cell at a time
+        x = np.clip(x + step, -half_width_s, half_width_s)
+    peak = np.abs((base * np.exp(1j * np.outer(x, omega))).sum(axis=1))
+    return centre_s + x, peak
+
+
+def refine_tofs(rows: ArrayLike, tof_s: ArrayLike, *, sample_rate_hz: float, t0_s: float, template: Template,
+                channel_positions_m: ArrayLike, sound_speed_m_s: float, transducers: PistonTransducers,
+                config: BeamRefinementConfig = BeamRefinementConfig()) -> BeamRefinement:
+    """Beam-aware TOFs of one target on the three channels of one ping (module docstring).
+
+    Parameters
+    ----------
+    rows : array_like, shape (3, n)
+        The ping's channels (V), left, centre, right; sample i at ``t0_s + i / sample_rate_hz``.
+    tof_s : array_like, shape (3,)
+        The plain matched filter's TOFs (s) of the target; NaN where a channel has none (it is
+        not refined). Left and right are needed to locate the target.
+    sample_rate_hz : float
+    t0_s : float
+        Time of sample 0 after the trigger (s).
+    template : Template
+        The matched filter's template at ``sample_rate_hz`` (the transmitted pulse through the
+        receiver's chain).
+    channel_positions_m : array_like, shape (3, 3)
+        Channel positions in the head frame (m); the transmitter is
+        ``transducers.transmitter_channel``.
+    sound_speed_m_s : float
+    transducers : PistonTransducers
+    config : BeamRefinementConfig
+
+    Returns
+    -------
+    BeamRefinement
+
+    Raises
+    ------
+    RecordingError
+        Bad shapes, a template at another sample rate, or no left or right TOF.
+    """
+    from binsonar.localization.array_geometry import ArrayGeometry
+    from binsonar.localization.point import initial_point
+
+    x = np.asarray(rows, dtype=float)
+    tof0 = np.asarray(tof_s, dtype=float).ravel()
+    fs = float(sample_rate_hz)
+    if x.ndim != 2 or x.shape[0] != 3 or x.shape[1] < 2:
+        raise RecordingError(f"beam refinement: rows must have shape (3, n), got {x.shape}")
+    if tof0.shape != (3,):
+        raise RecordingError(f"beam refinement: tof_s must hold 3 values (left, centre, right), got {tof0.shape}")
+    if not math.isclose(template.sample_rate_hz, fs, rel_tol=1e-9):
+        raise RecordingError(f"beam refinement: template at {template.sample_rate_hz:g} Hz, record at {fs:g} Hz")
+    if not (np.isfinite(tof0[0]) and np.isfinite(tof0[2])):
+        raise RecordingError(f"beam refinement: needs the left and right TOFs, got {tof0.tolist()}")
+    c = float(sound_speed_m_s)
+    if not (math.isfinite(c) and c > 0):
+        raise RecordingError(f"beam refinement: sound_speed_m_s must be > 0, got {sound_speed_m_s!r}")
+    positions = np.asarray(channel_positions_m, dtype=float)
+    geometry = ArrayGeometry.from_channel_positions(positions, transducers.transmitter_channel)
+    model = config.model
+    # Segment: the widest search window plus the expected echo's span (template, beam spread,
+    # edge tail): a segment that long holds a(t - tau) for every searched tau, so the circular
+    # correlation equals the linear one (the periodic copies of a fall outside the segment).
+    m = template.samples.size
+    spread_s = 2.0 * float(transducers.radii_m.max()) / c  # a sin(theta) / c per piston, both ways
+    tail_s = model.edge_tail_s if model.target == "vertical-edge" else 0.0
+    lead_s = -template.t0_s + spread_s
+    span_s = 2.0 * config.search_half_width_s + m / fs + 2.0 * spread_s + tail_s
+    n_fft = 1 << int(math.ceil(math.log2(span_s * fs + 16)))
+    frequency, step_top_hz = _band(template, n_fft)
+    if model.step_frequency_hz is None:
+        model = replace(model, step_frequency_hz=step_top_hz)
+    bins = np.rint(frequency * n_fft / fs).astype(np.intp)
+    t_spec = template_spectrum(template, n_fft, bins)
+    active = np.isfinite(tof0)
+    tof = tof0.copy()
+    peak = np.full(3, np.nan)
+    change = float("nan")
+    done = 0
+    for it in range(config.iterations):
+        half = config.search_half_width_s if it == 0 else config.track_half_width_s
+        lengths = c * tof
+        position = initial_point(lengths, geometry)
+        response, _ = expected_response(frequency, position, geometry.transmitter_m, geometry.receivers_m, transducers,
+                                        c, model)
+        centre = np.where(active, tof, 0.0)
+        starts = centre - half - lead_s - 4.0 / fs
+        spectrum, _ = _segments(x, t0_s, fs, starts, n_fft, bins)
+        refined, values = correlation_maximum(spectrum, t_spec * response, frequency, centre, half, fs)
+        new = np.where(active, refined, np.nan)
+        change = float(np.nanmax(np.abs(new - tof)))
+        tof, peak = new, np.where(active, values, np.nan)
+        done = it + 1
+        if change < 1e-13:  # converged to far below any TOF that matters (0.1 ps)
+            break
+    final = initial_point(c * tof, geometry)
+    return BeamRefinement(tof, tof0, final, peak, done, change)
+
+
+def refine_echoes(rows: ArrayLike, echoes: Sequence[Any], *, sample_rate_hz: float, t0_s: float,
+                  template: Template, channel_positions_m: ArrayLike, sound_speed_m_s: float,
+                  transducers: PistonTransducers | None,
+                  config: BeamRefinementConfig = BeamRefinementConfig()) -> tuple[Any, Any, Any]:
+    """The (left, centre, right) echoes of one target with beam-aware TOFs (``refine_tofs``).
+
+    Parameters
+    ----------
+    rows : array_like, shape (3, n)
+    echoes : sequence of 3 ``binsonar.detection.Echo`` or None
+        The plain matched filter's echoes of the target on each channel.
+    transducers : PistonTransducers or None
+        None: no beam model, the echoes are returned as they are (the plain matched filter).
+    sample_rate_hz, t0_s, template, channel_positions_m, sound_speed_m_s, config
+        As ``refine_tofs``.
+
+    Returns
+    -------
+    tuple of 3 Echo or None
+        The same echoes with ``tof_s`` replaced; unchanged when the left or right one is
+        missing (the target cannot be located).
+    """
+    triple = tuple(echoes)
+    if len(triple) != 3:
+        raise RecordingError(f"beam refinement: needs 3 echoes (left, centre, right), got {len(triple)}")
+    if transducers is None or triple[0] is None or triple[2] is None:
+        return triple  # type: ignore[return-value]
+    tof = [float("nan") if e is None else float(e.tof_s) for e in triple]
+    result = refine_tofs(rows, tof, sample_rate_hz=sample_rate_hz, t0_s=t0_s, template=template,
+                         channel_positions_m=channel_positions_m, sound_speed_m_s=sound_speed_m_s,
+                         transducers=transducers, config=config)
+    return tuple(None if e is None else replace(e, tof_s=float(result.tof_s[ch]))  # type: ignore[return-value]
+                 for ch, e in enumerate(triple))
+
+
+__all__ = ["BeamRefinement", "BeamRefinementConfig", "correlation_maximum", "refine_echoes", "refine_tofs",
+           "template_spectrum"]
