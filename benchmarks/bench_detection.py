@@ -3,16 +3,29 @@
 Usage
 -----
     python benchmarks/bench_detection.py [--repeats 15] [--samples 250000] [--pings 50]
-        [--clock cpu] [--methods local-matched seed-9] [--no-seed-table]
+        [--clock cpu] [--methods local-matched seed-9] [--inputs f64 i16 array] [--no-seed-table]
 
 The record: 3 channels x ``--samples`` at 20 MS/s (12.5 ms, the thesis's), two Gaussian echoes
 (T = 5 us, 500 kHz; amplitudes 1 and 0.5) per channel in white noise (2E/N0 = 30 dB for
 the first, so that the 6-sigma threshold detector finds it), the 201-sample template.
 Timed (medians over ``--repeats``, after one warm-up call so that imports and caches are not
-counted): ``binsonar.detection.detect`` on a ``Recording`` of one ping (1, 3, n) for each
-method, everything included (planning the filter, pre-processing, detection) except the
-recording's validation, done once when it is read (an array input adds one pass over the
-samples for the NaN/inf check). Baselines measured in
+counted), for each method and each input form (``--inputs``):
+
+- ``f64``: a ``Recording`` of one ping (1, 3, n) in float64 volts (what last sessions timed);
+- ``i16``: the same ping as int16 ADC codes of a 12-bit ADC (+/-2.5 V full scale, 1.22 mV a
+  code), a ``Recording`` that carries its codes (``read_recording(..., keep_codes=True)``):
+  threshold and local-matched read the codes (2 bytes a sample), the others convert them to
+  volts; clipping is checked on the codes (the ADC's rails);
+- ``array``: the float64 volts as a plain (3, n) array with ``sample_rate_hz`` (adds one
+  pass over the samples for the NaN/inf check).
+
+Columns: ``detect()`` (everything per call: planning the filter, pre-processing, detection,
+except a recording's validation, done once when it is read); ``Detector`` (the same call on a
+``binsonar.detection.Detector``, which keeps the prepared detector of each set-up: what a
+live loop calling ``detect`` pays once the plan is cached, i.e. the matched filter's template
+spectrum, the local filter's tone table and FFT weights, the threshold factors; the key, the
+template's bytes, is hashed on every call); ``prepared`` (``prepare(...)`` once, then ``run``).
+Baselines measured in
 the same run: ``numpy.fft.rfft`` and ``numpy.fft.fft`` of the same (3, n) record (float64), and
 one read of it (``max``: the floor of any method that looks at every sample).
 Each method is timed interleaved with that rfft and that read (``paired_medians``), so its ratios
@@ -48,11 +61,14 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from binsonar.detection import METHODS, detect, prepare  # noqa: E402
+from binsonar.detection import METHODS, Detector, detect, prepare  # noqa: E402
 from binsonar.detection.seed import SEED_COMBINATIONS  # noqa: E402
 from binsonar.recording import Recording, Template  # noqa: E402
 
 FS = 20e6
+ADC_BITS = 12
+VOLTS_PER_CODE = 2.5 / 2 ** (ADC_BITS - 1)  # a +/-2.5 V 12-bit ADC: 1.22 mV a code
+INPUTS = ("f64", "i16", "array")
 SEED_SECONDS = {"seed-2": 0.008, "seed-4": 0.866}  # the seed's per-position times it states
 
 
@@ -120,6 +136,8 @@ def main() -> int:
                         help="wall time, or this process's CPU time (steadier on a shared machine)")
     parser.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="METHOD",
                         help="time only these methods (default: all); the baselines are always timed")
+    parser.add_argument("--inputs", nargs="+", choices=INPUTS, default=list(INPUTS),
+                        help="input forms timed (default: all): float64 Recording, int16-code Recording, float64 array")
     parser.add_argument("--no-seed-table", action="store_true",
                         help="skip the seed's nine-combination table (time per position of --pings pings)")
     args = parser.parse_args()
@@ -127,7 +145,13 @@ def main() -> int:
     samples, template = make_record(1, args.samples)
     flat = samples[0]
     # As the pipeline receives it: a Recording (validated once, when read or built, untimed).
-    one = Recording(samples, FS, 0.0, template=template)
+    codes = np.clip(np.rint(samples / VOLTS_PER_CODE), -2 ** (ADC_BITS - 1), 2 ** (ADC_BITS - 1) - 1).astype(np.int16)
+    data = {
+        "f64": Recording(samples, FS, 0.0, template=template),
+        "i16": Recording(None, FS, 0.0, template=template, volts_per_code=VOLTS_PER_CODE, adc_bits=ADC_BITS,
+                         codes=codes),
+        "array": flat,
+    }
     fft_real = median_time(lambda: np.fft.rfft(flat, axis=-1), args.repeats, args.clock)
     fft_complex = median_time(lambda: np.fft.fft(flat, axis=-1), args.repeats, args.clock)
     # The least any detector that looks at every sample can cost: one read of the record.
@@ -138,47 +162,53 @@ def main() -> int:
     print(f"baseline numpy.fft.fft  of the record: {fft_complex * 1e3:8.3f} ms")
     print(f"one read of the record (numpy max):    {read_pass * 1e3:8.3f} ms")
     print()
-    print("detect(): everything per call; prepared: prepare() once, then run() per ping (live use);")
-    print("/rfft and /read: against numpy's rfft and one read of the record timed interleaved with the method")
+    print("detect(): everything per call; Detector: detect() with the plan of each set-up cached (a live loop);")
+    print("prepared: prepare() once, then run() per ping (live use); inputs: f64 = float64 Recording, i16 = int16-code")
+    print("Recording (12-bit ADC), array = float64 (3, n) array")
+    print("/rfft and /read: against numpy's rfft and one read of the float64 record timed interleaved with the method")
     other_name = "wall" if args.clock == "cpu" else "cpu"
     print(f"{other_name} ms: the same calls timed on the {other_name} clock (with 1 thread per call they agree"
           f" on a quiet machine; wall exceeds cpu when the process waits for a core)")
-    print(f"{'method':18s} {'ms/ping':>9s} {'/rfft':>7s} {'prepared':>9s} {'/rfft':>7s} {'/read':>7s}"
-          f" {other_name + ' det':>9s} {other_name + ' prep':>9s}  echoes (ch0)")
-    per_ping, per_ping_prepared, ratio, ratio_prepared, ratio_read = {}, {}, {}, {}, {}
+    print(f"{'method':18s} {'input':5s} {'detect()':>9s} {'/rfft':>6s} {'Detector':>9s} {'/rfft':>6s} {'prepared':>9s}"
+          f" {'/rfft':>6s} {'/read':>6s} {other_name + ' det':>9s} {other_name + ' prep':>9s}  echoes (ch0)")
+    per_ping, per_ping_cached, per_ping_prepared, ratio, ratio_cached, ratio_prepared, ratio_read = ({} for _ in range(7))
     for method in args.methods:
-        detect(one, method, sample_rate_hz=FS, template=template)  # warm-up: imports, caches
-        prepared = prepare(method, sample_rate_hz=FS, n_samples=args.samples, template=template)
-        prepared.run(one)
-        other: dict = {}
-        m = paired_medians({
-            "detect": lambda: detect(one, method, sample_rate_hz=FS, template=template),
-            "prepared": lambda: prepared.run(one),
-            "rfft": lambda: np.fft.rfft(flat, axis=-1),
-            "read": lambda: flat.max(axis=-1),
-        }, args.repeats, args.clock, other=other)
-        seconds, ready = m["detect"], m["prepared"]
-        per_ping[method], per_ping_prepared[method] = seconds, ready
-        ratio[method], ratio_prepared[method] = seconds / m["rfft"], ready / m["rfft"]
-        ratio_read[method] = ready / m["read"]
-        result = detect(one, method, sample_rate_hz=FS, template=template)
-        tofs = ", ".join(f"{e.tof_s * 1e3:.6f}" for e in result.echoes[0][0][:3])
-        print(f"{method:18s} {seconds * 1e3:9.3f} {ratio[method]:7.2f} {ready * 1e3:9.3f} {ratio_prepared[method]:7.2f}"
-              f" {ratio_read[method]:7.1f} {other['detect'] * 1e3:9.3f} {other['prepared'] * 1e3:9.3f}  [{tofs}] ms")
+        for kind in args.inputs:
+            one = data[kind]
+            detector = Detector()
+            detect(one, method, sample_rate_hz=FS, template=template)  # warm-up: imports, compiled kernels
+            detector.detect(one, method, sample_rate_hz=FS, template=template)  # plans the set-up once
+            prepared = prepare(method, sample_rate_hz=FS, n_samples=args.samples, template=template)
+            prepared.run(one, volts_per_code=None)
+            other: dict = {}
+            m = paired_medians({
+                "detect": lambda: detect(one, method, sample_rate_hz=FS, template=template),
+                "cached": lambda: detector.detect(one, method, sample_rate_hz=FS, template=template),
+                "prepared": lambda: prepared.run(one),
+                "rfft": lambda: np.fft.rfft(flat, axis=-1),
+                "read": lambda: flat.max(axis=-1),
+            }, args.repeats, args.clock, other=other)
+            key = (method, kind)
+            per_ping[key], per_ping_cached[key], per_ping_prepared[key] = m["detect"], m["cached"], m["prepared"]
+            ratio[key], ratio_cached[key] = m["detect"] / m["rfft"], m["cached"] / m["rfft"]
+            ratio_prepared[key], ratio_read[key] = m["prepared"] / m["rfft"], m["prepared"] / m["read"]
+            assert detector.builds == 1  # every timed call used the cached plan
+            result = detect(one, method, sample_rate_hz=FS, template=template)
+            tofs = ", ".join(f"{e.tof_s * 1e3:.6f}" for e in result.echoes[0][0][:3])
+            print(f"{method:18s} {kind:5s} {m['detect'] * 1e3:9.3f} {ratio[key]:6.3f} {m['cached'] * 1e3:9.3f}"
+                  f" {ratio_cached[key]:6.3f} {m['prepared'] * 1e3:9.3f} {ratio_prepared[key]:6.3f} {ratio_read[key]:6.2f}"
+                  f" {other['detect'] * 1e3:9.3f} {other['prepared'] * 1e3:9.3f}  [{tofs}] ms")
     print()
     if not args.no_seed_table:
         seed_table(args, template)
-    goals = {"matched", "local-matched", "seed-9", "threshold"}
-    if goals <= set(args.methods):
+    goals = [name for name in ("matched", "local-matched", "threshold") if name in args.methods]
+    if goals:
         print("goals: matched <= 3x FFT and < 15 ms; local-matched and threshold < 1 ms per ping")
-        for name, table, ratios in (("detect()", per_ping, ratio), ("prepared", per_ping_prepared, ratio_prepared)):
-            print(f"  {name:9s} matched {table['matched'] * 1e3:.2f} ms = {ratios['matched']:.2f}x rfft;"
-                  f" local-matched {table['local-matched'] * 1e3:.3f} ms = {ratios['local-matched']:.3f}x rfft;"
-                  f" seed-9 {table['seed-9'] * 1e3:.3f} ms; threshold {table['threshold'] * 1e3:.3f} ms")
-    if "local-matched" in args.methods:
-        print(f"  prepared local-matched = {ratio_read['local-matched']:.1f}x one read of the record"
-              f" (the floor of a method that looks at every sample); goal < 1 ms:"
-              f" {per_ping_prepared['local-matched'] * 1e3:.3f} ms prepared, {per_ping['local-matched'] * 1e3:.3f} ms detect()")
+        for kind in args.inputs:
+            for name, table, ratios in (("detect()", per_ping, ratio), ("Detector", per_ping_cached, ratio_cached),
+                                        ("prepared", per_ping_prepared, ratio_prepared)):
+                print(f"  {kind:5s} {name:9s} " + "; ".join(
+                    f"{method} {table[method, kind] * 1e3:.3f} ms = {ratios[method, kind]:.3f}x rfft" for method in goals))
     return 0
 
 

@@ -103,9 +103,14 @@ class Recording:
     created_by : str
     source : str
         Path the recording was read from ("" for arrays).
+    codes : ndarray of int16, shape (n_pings, 3, n_samples), or None
+        The ADC codes the volts were made from (``waveforms`` = ``codes * volts_per_code``),
+        kept when asked for (``read_recording(..., keep_codes=True)``): detectors that work on
+        codes read them instead of the volts (a quarter of the bytes). Needs
+        ``volts_per_code``; with codes, ``waveforms`` may be None (made from the codes).
     """
 
-    waveforms: NDArray[np.float64] = field(repr=False)
+    waveforms: NDArray[np.float64] | None = field(repr=False)
     sample_rate_hz: float
     t0_s: float = 0.0
     channel_positions_m: NDArray[np.float64] = field(
@@ -121,10 +126,15 @@ class Recording:
     adc_bits: int | None = None
     created_by: str = ""
     source: str = ""
+    codes: NDArray[np.int16] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         where = self.source or "recording"
-        w = np.array(self.waveforms, dtype=float, copy=True)
+        codes = None if self.codes is None else _as_codes(self.codes, self.volts_per_code, where)
+        if codes is not None and self.waveforms is None:
+            w = codes * float(self.volts_per_code)  # type: ignore[arg-type]
+        else:
+            w = np.array(self.waveforms, dtype=float, copy=True)
         if w.ndim == 2:
             w = w[np.newaxis]
         if w.ndim != 3 or w.shape[1] != 3 or w.shape[2] < 1 or w.shape[0] < 1:
@@ -137,6 +147,13 @@ class Recording:
             )
         w.setflags(write=False)
         object.__setattr__(self, "waveforms", w)
+        if codes is not None:
+            if codes.shape != w.shape:
+                raise RecordingError(f"{where}: codes shape {codes.shape} != waveforms shape {w.shape}")
+            if self.waveforms is not None and not np.array_equal(w, codes * float(self.volts_per_code)):  # type: ignore[arg-type]
+                raise RecordingError(f"{where}: waveforms are not codes * volts_per_code ({self.volts_per_code!r})")
+            codes.setflags(write=False)
+            object.__setattr__(self, "codes", codes)
         if not (isinstance(self.sample_rate_hz, (int, float)) and math.isfinite(self.sample_rate_hz)
                 and self.sample_rate_hz > 0):
             raise RecordingError(f"{where}: sample_rate_hz must be a finite number > 0, got {self.sample_rate_hz!r}")
@@ -183,6 +200,26 @@ class Recording:
         return self.t0_s + np.arange(self.n_samples) / self.sample_rate_hz
 
 
+def _as_codes(codes: Any, volts_per_code: float | None, where: str) -> NDArray[np.int16]:
+    """ADC codes as a new int16 array of shape (n_pings, 3, n) ((3, n) gets a ping axis).
+
+    Raises
+    ------
+    RecordingError
+        No valid ``volts_per_code``, a non-integer array, or codes outside the int16 range.
+    """
+    if volts_per_code is None or not (isinstance(volts_per_code, (int, float)) and math.isfinite(volts_per_code)
+                                      and volts_per_code > 0):
+        raise RecordingError(f"{where}: codes need volts_per_code > 0, got {volts_per_code!r}")
+    array = np.asarray(codes)
+    if not np.issubdtype(array.dtype, np.integer):
+        raise RecordingError(f"{where}: codes must be integer ADC codes, got dtype {array.dtype}")
+    if array.dtype != np.int16 and array.size and (array.min() < -32768 or array.max() > 32767):
+        raise RecordingError(f"{where}: codes must fit int16, got values in [{array.min()}, {array.max()}]")
+    out = np.array(array, dtype=np.int16, copy=True)
+    return out[np.newaxis] if out.ndim == 2 else out
+
+
 def as_poses(pose: Any, n_pings: int, where: str) -> NDArray[np.float64]:
     """Head poses as a new (n_pings, 6) float array: one pose (6,) is repeated for every ping.
 
@@ -221,8 +258,15 @@ def _attr(attrs: Mapping[str, Any], key: str, where: str) -> Any:
     return value
 
 
-def read_recording(path: str | os.PathLike[str]) -> Recording:
+def read_recording(path: str | os.PathLike[str], *, keep_codes: bool = False) -> Recording:
     """Read a recording file (format 1.x); never reads ``/truth``.
+
+    Parameters
+    ----------
+    path : path-like
+    keep_codes : bool
+        For a file of int16 ADC codes, keep them too (``Recording.codes``): the detectors that
+        work on codes then read them instead of the volts. Ignored for files of volts.
 
     Raises
     ------
@@ -261,7 +305,7 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
                 if not (math.isfinite(volts_per_code) and volts_per_code > 0):
                     raise RecordingError(f"{where}: waveforms.volts_per_code must be > 0, got {volts_per_code!r}")
                 adc_bits = int(dset.attrs.get("adc_bits", 12))
-                waveforms = raw.astype(float) * volts_per_code
+                waveforms = None if keep_codes else raw.astype(float) * volts_per_code
             elif np.issubdtype(raw.dtype, np.floating):
                 waveforms = raw.astype(float)
             else:
@@ -290,8 +334,9 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
         raise
     except (OSError, KeyError, ValueError, TypeError) as exc:
         raise RecordingError(f"{where}: cannot read recording: {exc}") from None
+    keep = keep_codes and volts_per_code is not None
     return Recording(
-        waveforms=waveforms,
+        waveforms=None if keep else waveforms,  # with codes: made from them (the same product)
         sample_rate_hz=sample_rate,
         t0_s=t0,
         channel_positions_m=positions,
@@ -305,6 +350,7 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
         adc_bits=adc_bits,
         created_by=created_by,
         source=where,
+        codes=raw if keep else None,
     )
 
 

@@ -71,7 +71,7 @@ def test_refinement_matches_the_full_filters_refinement(dc):
     values = np.empty((3, n_lags), dtype=complex)
     refined = np.empty((3, 2))
     settings = np.array([3, 2 * plan.half + 1, lo, hi, matched.analytic_offset])
-    local_kernels.local_peaks(z, start, rows, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
+    local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
                               values, refined)
     # The numpy definition: the largest |z| over the candidates' lags, then the direct z.
     width = 2 * plan.half + 1
@@ -146,7 +146,7 @@ def test_detection_path_equals_the_numpy_path_at_edges(n, bounds, k, dc):
     values = np.empty((3, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
     refined = np.empty((3, 2))
     settings = np.array([k, 2 * plan.half + 1, bounds[0], bounds[1], plan.matched.analytic_offset])
-    local_kernels.local_peaks(z, start, rows, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
+    local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
                               values, refined)
     # Same picks and the same refinement up to the order of ~1000-term sums: lags to 1e-9
     # samples (50 fs) and powers to 1e-9 relative, as above.
@@ -192,7 +192,7 @@ def test_block_powers_with_padded_taps_equal_the_numpy_definition(n, first_block
     energy = np.empty((3, n_blocks))
     tone_sum = plan.tone.sum(axis=0)
     local_kernels._block_powers(rows, first_block, energy, plan.block, plan.tone_lanes, offsets * tone_sum[0],
-                                offsets * tone_sum[1])
+                                offsets * tone_sum[1], 1.0)
     from binsonar.detection.local import block_tone_power
 
     expected = block_tone_power(plan, rows, offsets)[:, first_block:]

@@ -67,7 +67,7 @@ def test_compiled_crossings_equal_the_numpy_definition(first, stop):
     rows, level, offset = _case(1)
     found = np.empty(6, dtype=np.int64)
     measures = np.empty((6, 4))
-    crossings(rows, level, offset, first, stop, 201, found, measures)
+    crossings(rows, 1.0, level, offset, first, stop, 201, found, measures)
     reference = first_crossings(rows[:, first:stop], level, offset)
     reference = np.where(reference >= 0, reference + first, -1)
     assert np.array_equal(found, reference)

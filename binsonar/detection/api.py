@@ -6,7 +6,7 @@ import inspect
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable
+from typing import Any, Callable, Hashable, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +36,7 @@ RawEchoes = list[list[tuple[float, float, float, float, float]]]
 
 # Parameters of the method functions that ``detect`` supplies itself (not user options).
 _SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v", "dc_v",
-                       "robust_sigma_v"})
+                       "robust_sigma_v", "volts_per_code"})
 # Base methods that take the robust noise estimate measured with the offsets
 # (``Signals.noise_sigma_v``, as ``robust_sigma_v``) instead of measuring it again.
 TAKES_ROBUST_SIGMA = frozenset({"threshold", "local-matched"})
@@ -44,6 +44,11 @@ TAKES_ROBUST_SIGMA = frozenset({"threshold", "local-matched"})
 # fold it into their arithmetic, with the result they would give on the offset-free copy:
 # no pass over the record to make that copy. The others get ``Signals.without_dc()``.
 FOLDS_DC = frozenset({"threshold", "local-matched", "matched"})
+# Base methods that read int16 ADC codes as they are (``Signals.volts_per_code``: a quarter of
+# the bytes of the volts), converting to volts only the samples they measure, with the result
+# they give on the volts to rounding (``tests/test_detection_codes.py``). They take the codes
+# when they run without averaging or band-pass; the others, and those, get volts.
+TAKES_CODES = frozenset({"threshold", "local-matched"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -189,6 +194,8 @@ class PreparedDetector:
         full_scale_v: float | None = None,
         on_clipped: str = "flag",
         adc_step_v: float | None = None,
+        volts_per_code: float | None = None,
+        adc_bits: int | None = None,
     ) -> DetectionResult:
         """Detect echoes in one recording or array (see ``detect`` for the arguments).
 
@@ -199,7 +206,7 @@ class PreparedDetector:
         """
         start = time.perf_counter()
         signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v,
-                             adc_step_v, remove_dc=False)
+                             adc_step_v, remove_dc=False, volts_per_code=volts_per_code, adc_bits=adc_bits)
         if not math.isclose(signals.sample_rate_hz, self.sample_rate_hz, rel_tol=1e-12) or signals.n_samples != self.n_samples:
             raise RecordingError(
                 f"{signals.source}: {signals.n_samples} samples at {signals.sample_rate_hz:g} Hz, but the detector was "
@@ -216,6 +223,10 @@ class PreparedDetector:
                 f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped "
                 f"channel(s))"
             )
+        if signals.volts_per_code is not None and not (
+            self.base in TAKES_CODES and not self.average and self.bandpass_hz is None
+        ):
+            signals = signals.in_volts()
         if self.base in FOLDS_DC and self.bandpass_hz is None:
             if self.average:
                 signals = _average_keeping_offsets(signals)
@@ -357,6 +368,8 @@ def detect(
     full_scale_v: float | None = None,
     on_clipped: str = "flag",
     adc_step_v: float | None = None,
+    volts_per_code: float | None = None,
+    adc_bits: int | None = None,
     **options: Any,
 ) -> DetectionResult:
     """Detect echoes and estimate their times of flight.
@@ -364,7 +377,9 @@ def detect(
     Parameters
     ----------
     data : Recording or array_like
-        Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples). Each
+        Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), or
+        integer ADC codes with ``volts_per_code`` (a recording read with
+        ``read_recording(..., keep_codes=True)`` carries its codes). Each
         ping-channel's median (its DC offset) is removed first (``inputs.remove_median``);
         the methods in ``FOLDS_DC`` (threshold, matched, local-matched) instead fold it into their
         arithmetic, with the same result (to rounding) and no copy of the record.
@@ -397,6 +412,14 @@ def detect(
         arrays). Every noise estimate is floored at the quantisation noise q / sqrt(12):
         noise below one code step quantises quiet stretches to constant samples, which would
         otherwise look noise-free (zero TOF std, SNRs of 150 dB, spurious CFAR echoes).
+    volts_per_code : float, optional
+        Arrays only: ``data`` are integer ADC codes (int16 range) of this step (V). The methods
+        in ``TAKES_CODES`` (threshold, local-matched) read the codes as they are (a quarter of
+        the bytes of volts); the others get volts. The echoes are those of the volts
+        ``data * volts_per_code``, to rounding.
+    adc_bits : int, optional
+        Arrays of codes only: the ADC's resolution; channels with a code at +/-(2^(bits - 1) - 1)
+        are flagged as clipped (a recording's own ``adc_bits`` is used for its codes).
     **options
         Method options; ``method_options(method)`` lists them with their defaults.
 
@@ -411,17 +434,85 @@ def detect(
     RecordingError
         Bad data, template or option (one-line message naming the field and value).
     """
+    return detect_with_plans(data, method, None, sample_rate_hz=sample_rate_hz, t0_s=t0_s, template=template,
+                             average=average, bandpass_hz=bandpass_hz, bandpass_order=bandpass_order,
+                             full_scale_v=full_scale_v, on_clipped=on_clipped, adc_step_v=adc_step_v,
+                             volts_per_code=volts_per_code, adc_bits=adc_bits, **options)
+
+
+class PlanStore(Protocol):
+    """Where ``detect_with_plans`` keeps prepared detectors (``detector.Detector``'s cache)."""
+
+    def prepared(self, key: Hashable, build: Callable[[], PreparedDetector]) -> PreparedDetector:
+        """The detector stored under ``key``, built (and stored) by ``build()`` if absent."""
+        ...
+
+
+def _template_key(template: Template | NDArray[np.floating] | None) -> Hashable:
+    """What identifies a template input: its samples' bytes and, for a ``Template``, its sample
+    rate, time origin and kind (an array is taken at the record's rate, part of the plan key)."""
+    if template is None:
+        return None
+    if isinstance(template, Template):
+        return (template.samples.tobytes(), template.sample_rate_hz, template.t0_s, template.kind)
+    array = np.asarray(template, dtype=float)
+    return ("array", array.shape, array.tobytes())
+
+
+def detect_with_plans(
+    data: Recording | NDArray[np.floating],
+    method: str,
+    plans: PlanStore | None,
+    *,
+    sample_rate_hz: float | None = None,
+    t0_s: float = 0.0,
+    template: Template | NDArray[np.floating] | None = None,
+    average: bool | None = None,
+    bandpass_hz: tuple[float, float] | str | None = None,
+    bandpass_order: int = 4,
+    full_scale_v: float | None = None,
+    on_clipped: str = "flag",
+    adc_step_v: float | None = None,
+    volts_per_code: float | None = None,
+    adc_bits: int | None = None,
+    **options: Any,
+) -> DetectionResult:
+    """``detect``, taking the prepared detector (the method's plan for the template, sample
+    rate, record length and options) from ``plans`` when it holds one, and storing the one it
+    builds there otherwise; with ``plans`` None, ``detect`` itself (planned on every call).
+
+    The key is the method, the template input (its bytes, or the recording's template when
+    none is given), the sample rate, the record length, ``average``, ``bandpass_hz``,
+    ``bandpass_order`` and the options; options that cannot be hashed (a list, an array) make
+    the call plan afresh, uncached.
+    """
     start = time.perf_counter()
     base, _, seed_bandpass = _base(method)
     if on_clipped not in CLIPPED_POLICIES:
         raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
-    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v, adc_step_v, remove_dc=False)
+    signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v, adc_step_v, remove_dc=False,
+                         volts_per_code=volts_per_code, adc_bits=adc_bits)
     band_from_template = isinstance(bandpass_hz, str) or (bandpass_hz is None and seed_bandpass)
-    resolved: Template | None = None
-    if base != "threshold" or band_from_template or template is not None or signals.template is not None:
-        resolved = resolve_template(template, signals, method)  # raises if there is none
-    prepared = _prepare(method, resolved, signals.sample_rate_hz, signals.n_samples, average, bandpass_hz,
+
+    def build() -> PreparedDetector:
+        resolved: Template | None = None
+        if base != "threshold" or band_from_template or template is not None or signals.template is not None:
+            resolved = resolve_template(template, signals, method)  # raises if there is none
+        return _prepare(method, resolved, signals.sample_rate_hz, signals.n_samples, average, bandpass_hz,
                         bandpass_order, options)
+
+    prepared = None
+    if plans is not None:
+        key = (method, _template_key(signals.template if template is None else template), signals.sample_rate_hz,
+               signals.n_samples, average, bandpass_hz, bandpass_order, tuple(sorted(options.items())))
+        try:
+            hash(key)
+        except TypeError:  # an unhashable option value: plan afresh
+            pass
+        else:
+            prepared = plans.prepared(key, build)
+    if prepared is None:
+        prepared = build()
     return prepared._detect(signals, on_clipped, start)
 
 
@@ -433,6 +524,8 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     options["noise_floor_v"] = signals.noise_floor_v
     template, plan = prepared.template, prepared._plan
     fs, t0, where = signals.sample_rate_hz, signals.t0_s, signals.source
+    if signals.volts_per_code is not None:  # codes: only the methods in ``TAKES_CODES`` get here
+        options["volts_per_code"] = signals.volts_per_code
     dc = None if signals.dc_v is None else signals.dc_v.reshape(-1)  # per row, as ``rows``
     robust = None if signals.noise_sigma_v is None else signals.noise_sigma_v.reshape(-1)
     if base in TAKES_ROBUST_SIGMA and robust is not None and options.get("noise_window_s") is None:

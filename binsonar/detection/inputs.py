@@ -8,7 +8,7 @@ the record, a template at another sample rate) is checked here, once, and report
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,6 +63,11 @@ class Signals:
     ``noise.noise_sigma``'s robust estimate (before its floor), measured together with
     ``dc_v`` (``robust_offsets``: one copy and two partitions of the few thousand samples per
     row, instead of two of each). None once the waveforms change (``with_waveforms``)."""
+    volts_per_code: float | None = None
+    """Set when ``waveforms`` are int16 ADC codes, not volts (volts = codes * volts_per_code;
+    ``dc_v``, ``noise_sigma_v`` and ``noise_floor_v`` are in volts all the same). The detectors
+    in ``api.TAKES_CODES`` read the codes (a quarter of the bytes of the volts); the others get
+    ``in_volts()``."""
 
     @property
     def n_pings(self) -> int:
@@ -79,11 +84,19 @@ class Signals:
         """Samples per channel."""
         return int(self.waveforms.shape[2])
 
-    def without_dc(self) -> "Signals":
-        """These signals with the DC offsets ``dc_v`` subtracted (self when there are none)."""
-        if self.dc_v is None:
+    def in_volts(self) -> "Signals":
+        """These signals with the waveforms in volts (self when they are already)."""
+        if self.volts_per_code is None:
             return self
-        return self.with_waveforms(self.waveforms - self.dc_v[:, :, np.newaxis])
+        return replace(self, waveforms=self.waveforms * self.volts_per_code, volts_per_code=None)
+
+    def without_dc(self) -> "Signals":
+        """These signals in volts with the DC offsets ``dc_v`` subtracted (self when they are
+        volts without offsets)."""
+        volts = self.in_volts()
+        if volts.dc_v is None:
+            return volts
+        return volts.with_waveforms(volts.waveforms - volts.dc_v[:, :, np.newaxis])
 
     def with_waveforms(self, waveforms: NDArray[np.float64], clipped: NDArray[np.bool_] | None = None) -> "Signals":
         """A copy with other waveforms (same sample rate and time origin), offsets removed
@@ -149,6 +162,83 @@ def robust_offsets(waveforms: NDArray[np.float64]) -> tuple[NDArray[np.float64] 
     return dc, sigma.reshape(n_pings, n_channels)
 
 
+def code_offsets(codes: NDArray[np.int16], volts_per_code: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
+    """``robust_offsets`` of records stored as ADC codes, in volts.
+
+    The same subsample (``noise.robust_subsample``) and the same selected elements, counted by
+    a histogram of the codes (``code_kernels.median_and_mad``) rather than partitioned: the
+    median code times ``volts_per_code`` is exactly the median of the volts (scaling by a
+    positive number keeps the order); the deviation's median, taken in codes then scaled,
+    equals the one taken in volts to the rounding of the volts' differences.
+
+    Parameters
+    ----------
+    codes : ndarray of int16, shape (n_pings, n_channels, n_samples)
+    volts_per_code : float
+
+    Returns
+    -------
+    dc_v : ndarray, shape (n_pings, n_channels), or None
+        None when every median is 0.
+    sigma_v : ndarray, shape (n_pings, n_channels)
+    """
+    from binsonar.detection.code_kernels import median_and_mad
+
+    n_pings, n_channels, n = codes.shape
+    sample = np.ascontiguousarray(robust_subsample(codes.reshape(n_pings * n_channels, n)).reshape(n_pings * n_channels, -1))
+    median = np.empty(sample.shape[0], dtype=np.int64)
+    mad = np.empty(sample.shape[0], dtype=np.int64)
+    median_and_mad(sample, median, mad)
+    sigma = (MAD_TO_SIGMA * (mad * volts_per_code)).reshape(n_pings, n_channels)
+    if not np.any(median != 0):
+        return None, sigma
+    return (median * volts_per_code).reshape(n_pings, n_channels), sigma
+
+
+def _clipped_codes(codes: NDArray[np.int16], volts_per_code: float, full_scales_v: list[float]) -> NDArray[np.bool_]:
+    """``_clipped_by_full_scale`` of the volts ``codes * volts_per_code``, for each full scale,
+    from one pass over the codes (their largest and smallest: the volts' extremes, scaled)."""
+    from binsonar.detection.code_kernels import row_extremes
+
+    n_pings, n_channels, n = codes.shape
+    rows = np.ascontiguousarray(codes).reshape(n_pings * n_channels, n)
+    largest = np.empty(rows.shape[0], dtype=np.int64)
+    smallest = np.empty(rows.shape[0], dtype=np.int64)
+    row_extremes(rows, largest, smallest)
+    clipped = np.zeros(rows.shape[0], dtype=bool)
+    for full_scale_v in full_scales_v:  # one or two full scales
+        limit = full_scale_v * (1.0 - 1e-9)
+        clipped |= (largest * volts_per_code >= limit) | (smallest * volts_per_code <= -limit)
+    return clipped.reshape(n_pings, n_channels)
+
+
+def _code_signals(
+    codes: NDArray[np.int16],
+    volts_per_code: float,
+    adc_bits: int | None,
+    clipped: NDArray[np.bool_],
+    full_scale_v: float | None,
+    adc_step_v: float | None,
+    sample_rate_hz: float,
+    t0_s: float,
+    template: Template | None,
+    where: str,
+    remove_dc: bool,
+) -> Signals:
+    """``Signals`` of ADC codes: clipping judged on the codes (the ADC's rails
+    +/-(2^(bits - 1) - 1) codes, and ``full_scale_v``), offsets and noise from a histogram."""
+    full_scales = [] if full_scale_v is None else [float(full_scale_v)]
+    if adc_bits is not None:
+        full_scales.append((2 ** (int(adc_bits) - 1) - 1) * volts_per_code)
+    if full_scales:
+        clipped = clipped | _clipped_codes(codes, volts_per_code, full_scales)
+    step = adc_step_v if adc_step_v is not None else volts_per_code
+    dc, sigma = code_offsets(codes, volts_per_code)
+    signals = Signals(codes, float(sample_rate_hz), float(t0_s), clipped, template, where,
+                      quantisation_noise_std_v(step), dc, sigma, float(volts_per_code))
+    return signals.without_dc() if remove_dc else signals
+
+
 def remove_median(waveforms: NDArray[np.float64]) -> NDArray[np.float64]:
     """The waveforms minus each ping-channel's median (its DC offset), shape kept.
 
@@ -172,6 +262,8 @@ def as_signals(
     full_scale_v: float | None = None,
     adc_step_v: float | None = None,
     remove_dc: bool = True,
+    volts_per_code: float | None = None,
+    adc_bits: int | None = None,
 ) -> Signals:
     """Validate a recording or an array and return it as ``Signals``, each ping-channel's DC
     offset removed (or, with ``remove_dc=False``, measured and carried in ``Signals.dc_v``).
@@ -183,7 +275,9 @@ def as_signals(
     Parameters
     ----------
     data : Recording or array_like
-        Shapes (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), volts.
+        Shapes (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), volts; or integer ADC
+        codes with ``volts_per_code``. A recording that carries its codes
+        (``Recording.codes``) is taken as codes.
     sample_rate_hz : float, optional
         Required for arrays; for a recording it must agree with the file if given.
     t0_s : float
@@ -197,6 +291,13 @@ def as_signals(
     remove_dc : bool
         Subtract the offsets from a copy of the waveforms (default), or leave the waveforms as
         they are and return the offsets as ``dc_v`` (the caller removes or folds them).
+        Codes are converted to volts when the offsets are removed; kept as codes otherwise
+        (``Signals.volts_per_code``).
+    volts_per_code : float, optional
+        Arrays only: ``data`` are integer ADC codes (int16 range) of this step (V); they stay
+        codes (no conversion to volts here).
+    adc_bits : int, optional
+        Arrays of codes only: the ADC's resolution; a code at +/-(2^(bits - 1) - 1) is clipped.
 
     Raises
     ------
@@ -215,6 +316,10 @@ def as_signals(
             raise RecordingError(
                 f"{where}: sample_rate_hz={sample_rate_hz!r} disagrees with the recording's {data.sample_rate_hz!r}"
             )
+        if data.codes is not None:
+            return _code_signals(data.codes, float(data.volts_per_code), data.adc_bits,  # type: ignore[arg-type]
+                                 np.array(data.clipped, dtype=bool), full_scale_v, adc_step_v, data.sample_rate_hz,
+                                 data.t0_s, data.template, where, remove_dc)
         waveforms = np.asarray(data.waveforms, dtype=float)
         clipped = np.array(data.clipped, dtype=bool)
         if data.volts_per_code is not None and data.adc_bits is not None:
@@ -230,10 +335,23 @@ def as_signals(
         return signals.without_dc() if remove_dc else signals
 
     where = "array"
-    try:
-        waveforms = np.asarray(data, dtype=float)  # no copy for float64 input: never written to
-    except (TypeError, ValueError) as exc:
-        raise RecordingError(f"{where}: waveforms are not a numeric array: {exc}") from None
+    if volts_per_code is not None:
+        if not (isinstance(volts_per_code, (int, float)) and math.isfinite(volts_per_code) and volts_per_code > 0):
+            raise RecordingError(f"{where}: volts_per_code must be a finite number > 0, got {volts_per_code!r}")
+        if adc_bits is not None and not (isinstance(adc_bits, (int, np.integer)) and 2 <= adc_bits <= 16):
+            raise RecordingError(f"{where}: adc_bits must be an integer in [2, 16], got {adc_bits!r}")
+        kind = np.asarray(data).dtype
+        if not np.issubdtype(kind, np.integer):
+            raise RecordingError(f"{where}: volts_per_code is given, so the waveforms must be integer ADC codes, "
+                                 f"got dtype {kind}")
+        waveforms = np.asarray(data)
+    elif adc_bits is not None:
+        raise RecordingError(f"{where}: adc_bits={adc_bits!r} needs volts_per_code (integer ADC codes)")
+    else:
+        try:
+            waveforms = np.asarray(data, dtype=float)  # no copy for float64 input: never written to
+        except (TypeError, ValueError) as exc:
+            raise RecordingError(f"{where}: waveforms are not a numeric array: {exc}") from None
     if waveforms.ndim == 1:
         waveforms = waveforms[np.newaxis, np.newaxis, :]
     elif waveforms.ndim == 2 and waveforms.shape[0] == 3:
@@ -245,6 +363,16 @@ def as_signals(
         )
     if waveforms.shape[0] < 1 or waveforms.shape[2] < 2:
         raise RecordingError(f"{where}: waveforms are empty (shape {np.shape(data)})")
+    if volts_per_code is not None:
+        if waveforms.dtype != np.int16:
+            if waveforms.min() < -32768 or waveforms.max() > 32767:
+                raise RecordingError(f"{where}: ADC codes must fit int16, got values in "
+                                     f"[{waveforms.min()}, {waveforms.max()}]")
+            waveforms = waveforms.astype(np.int16)
+        _check_rate(where, sample_rate_hz, t0_s)
+        return _code_signals(waveforms, float(volts_per_code), adc_bits, np.zeros(waveforms.shape[:2], dtype=bool),
+                             full_scale_v, adc_step_v, float(sample_rate_hz), float(t0_s), None,  # type: ignore[arg-type]
+                             where, remove_dc)
     # The sum is finite unless a sample is NaN/inf (or it overflows): one cheap pass first.
     finite = np.isfinite(waveforms) if not np.isfinite(waveforms.sum()) else None
     if finite is not None and not finite.all():
@@ -253,12 +381,7 @@ def as_signals(
             f"{where}: waveforms contain NaN or infinite samples (first at ping {bad[0]}, channel {bad[1]}, "
             f"sample {bad[2]})"
         )
-    if sample_rate_hz is None:
-        raise RecordingError(f"{where}: sample_rate_hz is required for array input")
-    if not (isinstance(sample_rate_hz, (int, float)) and math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
-        raise RecordingError(f"{where}: sample_rate_hz must be a finite number > 0, got {sample_rate_hz!r}")
-    if not math.isfinite(t0_s):
-        raise RecordingError(f"{where}: t0_s must be finite, got {t0_s!r}")
+    _check_rate(where, sample_rate_hz, t0_s)
     clipped = np.zeros(waveforms.shape[:2], dtype=bool)
     if full_scale_v is not None:
         clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
@@ -266,6 +389,16 @@ def as_signals(
     dc, sigma = robust_offsets(waveforms)
     signals = Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor, dc, sigma)
     return signals.without_dc() if remove_dc else signals
+
+
+def _check_rate(where: str, sample_rate_hz: float | None, t0_s: float) -> None:
+    """An array's sample rate (required, finite, > 0) and time origin (finite)."""
+    if sample_rate_hz is None:
+        raise RecordingError(f"{where}: sample_rate_hz is required for array input")
+    if not (isinstance(sample_rate_hz, (int, float)) and math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+        raise RecordingError(f"{where}: sample_rate_hz must be a finite number > 0, got {sample_rate_hz!r}")
+    if not math.isfinite(t0_s):
+        raise RecordingError(f"{where}: t0_s must be finite, got {t0_s!r}")
 
 
 def _resample_template(template: Template, sample_rate_hz: float) -> Template:

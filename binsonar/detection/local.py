@@ -414,6 +414,7 @@ def _candidate_correlations(
     candidates: int,
     lag_bounds: tuple[int, int],
     dc: NDArray[np.float64] | None = None,
+    scale: float = 1.0,
 ) -> tuple[NDArray[np.complex64], NDArray[np.int64]]:
     """z around each row's ``candidates`` coarse picks: what ``coarse_lags`` then
     ``segment_correlation`` give, from one compiled pass (``local_kernels.coarse_stretches``)
@@ -445,7 +446,7 @@ def _candidate_correlations(
     start = np.empty(count, dtype=np.int64)
     settings = np.array([plan.span, plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
                          plan.segment_length, plan.block], dtype=np.int64)
-    local_kernels.coarse_stretches(rows, _offsets(dc, n_rows), plan.tone_lanes, settings, segments, start)
+    local_kernels.coarse_stretches(rows, scale, _offsets(dc, n_rows), plan.tone_lanes, settings, segments, start)
     spectrum = sfft.rfft(segments, axis=-1, overwrite_x=True)
     band = plan.segment_weights32.size
     weighted = np.zeros((count, plan.segment_fft), dtype=np.complex64)  # the band, zero above it
@@ -466,12 +467,14 @@ def detect_local_matched(
     noise_floor_v: float = 0.0,
     dc_v: NDArray[np.float64] | None = None,
     robust_sigma_v: NDArray[np.float64] | None = None,
+    volts_per_code: float | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Local matched filter around the strongest coarse windows of each row (module notes).
 
     Parameters
     ----------
     rows : ndarray, shape (n_rows, n_samples)
+        Volts, or int16 ADC codes with ``volts_per_code``.
     plan : LocalPlan
         From ``plan_local`` for this template and record length.
     t0_s : float
@@ -494,6 +497,10 @@ def detect_local_matched(
     robust_sigma_v : ndarray, shape (n_rows,), optional
         The rows' robust noise estimate, already measured (``inputs.Signals.noise_sigma_v``):
         used instead of measuring it again when there is no ``noise_window_s``.
+    volts_per_code : float, optional
+        ``rows`` are ADC codes of this step (V), read as they are (2 bytes a sample): the
+        block correlations are scaled to volts, the stretches and the direct correlations
+        made of volts code * volts_per_code, so the result is that of the volts to rounding.
 
     Returns
     -------
@@ -510,11 +517,12 @@ def detect_local_matched(
     lag_lo, lag_hi = lag_range(matched, t0_s, search_window_s, where)
     dc = None if dc_v is None else np.asarray(dc_v, dtype=float).reshape(n_rows)
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
-                        floor_v=noise_floor_v, offset_v=dc, robust_v=robust_sigma_v)
+                        floor_v=noise_floor_v, offset_v=dc, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
+    scale = 1.0 if volts_per_code is None else float(volts_per_code)
     k = int(candidates)
     width = 2 * plan.half + 1
-    rows = np.ascontiguousarray(rows)  # the kernels read rows as contiguous blocks (no copy when they are)
-    z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc)  # (n_rows * k, >= width)
+    rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)  # contiguous blocks
+    z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc, scale)  # (n_rows * k, >= width)
     values = np.empty((n_rows, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
     refined = np.empty((n_rows, 2))
     settings = np.array([k, width, lag_lo, lag_hi, matched.analytic_offset], dtype=np.int64)
@@ -522,7 +530,7 @@ def detect_local_matched(
 
     # Sub-sample refinement as the full matched filter's (direct z around the peak, then
     # ``matched.refine``'s log-parabolic vertex, compiled: tests/test_detection_local_kernels.py).
-    local_kernels.local_peaks(z, start, rows, _offsets(dc, n_rows), plan.tap_parts, settings,
+    local_kernels.local_peaks(z, start, rows, scale, _offsets(dc, n_rows), plan.tap_parts, settings,
                               values, refined)
     # ``matched.echo_values`` of the vertex, the noise as ``white_noise_power`` (2 sigma^2 sum s^2:
     # white noise through the filter), compiled (one call, not some twenty small numpy ones);

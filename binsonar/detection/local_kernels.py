@@ -30,8 +30,9 @@ from numpy.typing import NDArray
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[np.float64], block: int,
-                  lanes: NDArray[np.float64], offset_re: NDArray[np.float64], offset_im: NDArray[np.float64]) -> None:
+def _block_powers(rows: NDArray, first_block: int, energy: NDArray[np.float64], block: int,
+                  lanes: NDArray[np.float64], offset_re: NDArray[np.float64], offset_im: NDArray[np.float64],
+                  scale: float) -> None:
     """|z_b|^2 of blocks first_block + 0 .. energy.shape[1] - 1 of every row.
 
     Four blocks at a time: eight independent multiply-add chains over the tone table, with no
@@ -54,6 +55,7 @@ def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[n
     Parameters
     ----------
     rows : ndarray, shape (n_rows, n_samples)
+        Volts (float64), or int16 ADC codes (2 bytes a sample to read) with ``scale``.
     first_block : int
     energy : ndarray, shape (n_rows, n_blocks), written
     block : int
@@ -62,6 +64,9 @@ def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[n
         cos and -sin of 2 pi f0 k / fs for k < B, 0 beyond (``LocalPlan.tone_lanes``).
     offset_re, offset_im : ndarray, shape (n_rows,)
         Block correlation of each row's DC offset (dc times the tone's column sums), subtracted.
+    scale : float
+        Volts per unit of ``rows`` (1.0 for volts: exact): each block's correlation of the raw
+        values is scaled to volts once, before the offset is subtracted.
     """
     n_rows, n = rows.shape
     n_blocks = energy.shape[1]
@@ -92,14 +97,14 @@ def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[n
                 i1 += x1[q] * sq
                 i2 += x2[q] * sq
                 i3 += x3[q] * sq
-            r0 -= offset_re[r]
-            r1 -= offset_re[r]
-            r2 -= offset_re[r]
-            r3 -= offset_re[r]
-            i0 -= offset_im[r]
-            i1 -= offset_im[r]
-            i2 -= offset_im[r]
-            i3 -= offset_im[r]
+            r0 = r0 * scale - offset_re[r]
+            r1 = r1 * scale - offset_re[r]
+            r2 = r2 * scale - offset_re[r]
+            r3 = r3 * scale - offset_re[r]
+            i0 = i0 * scale - offset_im[r]
+            i1 = i1 * scale - offset_im[r]
+            i2 = i2 * scale - offset_im[r]
+            i3 = i3 * scale - offset_im[r]
             energy[r, j] = r0 * r0 + i0 * i0
             energy[r, j + 1] = r1 * r1 + i1 * i1
             energy[r, j + 2] = r2 * r2 + i2 * i2
@@ -114,8 +119,8 @@ def _block_powers(rows: NDArray[np.float64], first_block: int, energy: NDArray[n
             for q in range(block):
                 re += x[q] * c[q]
                 im += x[q] * s[q]
-            re -= offset_re[r]
-            im -= offset_im[r]
+            re = re * scale - offset_re[r]
+            im = im * scale - offset_im[r]
             energy[r, j] = re * re + im * im
 
 
@@ -136,7 +141,8 @@ def _group_max(window: NDArray[np.float64], lo: int, hi: int) -> float:
 
 @njit(cache=True, nogil=True)
 def coarse_stretches(
-    rows: NDArray[np.float64],
+    rows: NDArray,
+    scale: float,
     dc: NDArray[np.float64],
     lanes: NDArray[np.float64],
     settings: NDArray[np.int64],
@@ -149,8 +155,11 @@ def coarse_stretches(
     Parameters
     ----------
     rows : ndarray, shape (n_rows, n_samples), C-contiguous
+        Volts (float64), or int16 ADC codes.
+    scale : float
+        Volts per unit of ``rows``: 1.0 for volts, the code step for codes.
     dc : ndarray, shape (n_rows,)
-        Offset still in each row (zeros for none).
+        Offset (V) still in each row (zeros for none).
     lanes : ndarray, shape (2, L), C-contiguous
         cos and -sin of 2 pi f0 k / fs, k < block, zero padded (``LocalPlan.tone_lanes``).
     settings : ndarray of int, shape (9,)
@@ -187,7 +196,7 @@ def coarse_stretches(
         sum_sin += lanes[1, q]
     width = 2 * half + 1
     n_fft = segments.shape[1]
-    _block_powers(rows, first, energies, block, lanes, dc * sum_cos, dc * sum_sin)
+    _block_powers(rows, first, energies, block, lanes, dc * sum_cos, dc * sum_sin, scale)
     for r in range(n_rows):
         d = dc[r]
         energy = energies[r]
@@ -227,7 +236,7 @@ def coarse_stretches(
             starts[i] = start
             for s in range(segment_length):
                 index = start + s
-                segments[i, s] = rows[r, index] - d if 0 <= index < n else 0.0
+                segments[i, s] = rows[r, index] * scale - d if 0 <= index < n else 0.0
             for s in range(segment_length, n_fft):
                 segments[i, s] = 0.0
 
@@ -235,7 +244,7 @@ def coarse_stretches(
 # fastmath (vectorised reduction) only here: finite sums; the candidate search, which relies on
 # -inf for blanked windows, is compiled without it.
 @njit(cache=True, nogil=True, fastmath=True)
-def _direct(row: NDArray[np.float64], first: int, taps: NDArray[np.float64]) -> tuple:
+def _direct(row: NDArray, first: int, taps: NDArray[np.float64]) -> tuple:
     """sum_t row[first + t] taps[:, t] over the taps that overlap the row (others count as 0).
 
     Returns the real and imaginary sums and the overlapping taps' range [lo, hi).
@@ -275,7 +284,8 @@ def _log_parabolic(left: float, centre: float, right: float) -> tuple:
 def local_peaks(
     z: NDArray[np.complex128],
     starts: NDArray[np.int64],
-    rows: NDArray[np.float64],
+    rows: NDArray,
+    scale: float,
     dc: NDArray[np.float64],
     taps: NDArray[np.float64],
     settings: NDArray[np.int64],
@@ -289,7 +299,7 @@ def local_peaks(
     z : ndarray, shape (n_rows * candidates, >= width), complex
         Local filter output of each stretch at lags ``starts + 0 .. width - 1``.
     starts : ndarray of int, shape (n_rows * candidates,)
-    rows, dc : the record and its offsets (as for ``coarse_stretches``)
+    rows, scale, dc : the record, its volts per unit and its offsets (as for ``coarse_stretches``)
     taps : ndarray, shape (4, m_a + 1)
         ``LocalPlan.tap_parts``: the analytic template's conjugate (real, imaginary; first m_a
         columns) and its running sums, 0 first.
@@ -326,6 +336,8 @@ def local_peaks(
                 values[r, j] = 0.0
             else:
                 re, im, lo, hi = _direct(rows[r], lag - analytic_offset, taps)
+                re *= scale
+                im *= scale
                 if hi > lo:
                     re -= d * (taps[2, hi] - taps[2, lo])
                     im -= d * (taps[3, hi] - taps[3, lo])

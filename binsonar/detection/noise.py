@@ -91,6 +91,7 @@ def noise_sigma(
     floor_v: float = 0.0,
     offset_v: NDArray[np.float64] | None = None,
     robust_v: NDArray[np.float64] | None = None,
+    volts_per_code: float | None = None,
 ) -> NDArray[np.float64]:
     """Noise standard deviation per row (V).
 
@@ -112,19 +113,26 @@ def noise_sigma(
     robust_v : ndarray, shape (n_rows,), optional
         The robust estimate already measured for these rows (``inputs.Signals.noise_sigma_v``,
         from ``inputs.robust_offsets``): used as it is, floored, when there is no noise window.
+    volts_per_code : float, optional
+        ``rows`` are ADC codes of this step (V); ``offset_v`` and the result stay in volts.
 
     Returns
     -------
     ndarray, shape (n_rows,)
         Strictly positive (a tiny floor replaces an exactly zero estimate), >= ``floor_v``.
     """
+    scale = 1.0 if volts_per_code is None else float(volts_per_code)  # codes: only the samples measured in volts
     if noise_window_s is not None:
         segment = rows[:, window_indices(noise_window_s, rows.shape[1], sample_rate_hz, t0_s, where)]
+        if volts_per_code is not None:
+            segment = segment * scale
         sigma = segment.std(axis=1)  # the standard deviation ignores a constant offset
     elif robust_v is not None:
         sigma = np.asarray(robust_v, dtype=float).reshape(rows.shape[0])
     else:
         sample = robust_subsample(rows)
+        if volts_per_code is not None:
+            sample = sample * scale
         if offset_v is not None:
             sample = sample - offset_v.reshape((-1,) + (1,) * (sample.ndim - 1))
         sigma = MAD_TO_SIGMA * row_median(np.abs(sample))

@@ -107,13 +107,14 @@ def detect_threshold(
     noise_floor_v: float = 0.0,
     dc_v: NDArray[np.float64] | None = None,
     robust_sigma_v: NDArray[np.float64] | None = None,
+    volts_per_code: float | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """First threshold crossing of each row.
 
     Parameters
     ----------
     rows : ndarray, shape (n_rows, n_samples)
-        Volts.
+        Volts, or int16 ADC codes with ``volts_per_code``.
     sample_rate_hz, t0_s : float
     template : Template, optional
         Sets the window (its length) over which amplitude and energy are measured, and is needed
@@ -143,6 +144,9 @@ def detect_threshold(
     robust_sigma_v : ndarray, shape (n_rows,), optional
         The rows' robust noise estimate, already measured (``inputs.Signals.noise_sigma_v``):
         used instead of measuring it again when there is no ``noise_window_s``.
+    volts_per_code : float, optional
+        ``rows`` are ADC codes of this step (V): searched as they are (2 bytes a sample), each
+        sample compared as the volts code * volts_per_code, so the result is that of the volts.
 
     Returns
     -------
@@ -153,7 +157,7 @@ def detect_threshold(
     """
     fs = sample_rate_hz
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
-                        floor_v=noise_floor_v, offset_v=dc_v, robust_v=robust_sigma_v)
+                        floor_v=noise_floor_v, offset_v=dc_v, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
     offset = np.zeros(rows.shape[0]) if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
     if level_v is not None:
         if not (math.isfinite(level_v) and level_v > 0):
@@ -183,10 +187,11 @@ def detect_threshold(
 
     # ``first_crossings`` and the echo measures at the crossing, compiled: each searched sample read once,
     # up to the crossing (tests/test_detection_threshold_kernels.py).
-    rows = np.ascontiguousarray(rows, dtype=float)
+    rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)
+    scale = 1.0 if volts_per_code is None else float(volts_per_code)
     found = np.empty(n_rows, dtype=np.int64)
     measures = np.empty((n_rows, 4))
-    crossings(rows, np.ascontiguousarray(level, dtype=float), offset, first, stop, window, found, measures)
+    crossings(rows, scale, np.ascontiguousarray(level, dtype=float), offset, first, stop, window, found, measures)
     out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
     hit = np.flatnonzero(found >= 0)
     if hit.size == 0:
