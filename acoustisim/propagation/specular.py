@@ -46,7 +46,8 @@ from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, sp
 from acoustisim.propagation.image_source import _INSIDE_TOL, _ON_PLANE_TOL_M, PlanarMirrors, backtrace, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
-from acoustisim.propagation.specular_chains import fill_mixed, fill_planar, mixed_candidates
+from acoustisim.propagation.specular_chains import (chain_legs, duplicate_keys, fill_mixed, fill_planar,
+                                                    mixed_candidates, unblocked_chains, write_rows)
 from acoustisim.propagation.specular_kernels import incidence_cosines
 
 _REAL_TOL = 1e-12
@@ -274,10 +275,6 @@ class _Merged:
     has_phase: NDArray[np.bool_]  # (n,) the chain's group has a stationary-point phase
     phase: NDArray[np.float64]  # (n,) that phase (0 elsewhere)
 
-    def select(self, keep: NDArray[np.bool_]) -> "_Merged":
-        """The chains where ``keep`` is true."""
-        return _Merged(*(getattr(self, name)[keep] for name in self.__dataclass_fields__))
-
 
 def _merge(groups: list[_Chains]) -> _Merged:
     """Stack the groups' chains, padded to the largest order."""
@@ -410,26 +407,21 @@ def _planar_and_mixed(context: SolveContext, prepared: PreparedScene, max_order:
     return _head(chains, cursor), chain_base
 
 
-def _unblocked(chains: _Merged, prepared: PreparedScene) -> NDArray[np.bool_]:
-    """Chains (n,) none of whose legs is occluded: one batched Embree query over every leg
-    (legs ending on a mirror or a curved object ignore that patch)."""
-    n, big = chains.surface.shape
+def _unblocked(chains: _Merged, prepared: PreparedScene) -> NDArray[np.int64]:
+    """Indices (sorted) of the chains none of whose legs is occluded: one batched Embree query
+    over every leg (legs ending on a mirror or a curved object ignore that patch)."""
+    n = chains.length.shape[0]
+    every = np.arange(n)
     if n == 0:
-        return np.ones(0, dtype=bool)
-    legs = np.arange(big + 1) <= chains.order[:, None]  # (n, K + 1) real legs
-    pad = np.full((n, 1), -1, dtype=np.int64)
-    start_patch = np.concatenate([pad, chains.patch], axis=1)  # patch at each leg's start
-    end_patch = np.concatenate([chains.patch, pad], axis=1)
-    blocked_legs = prepared.raycaster.occluded(
-        chains.vertices[:, :-1][legs], chains.vertices[:, 1:][legs],
-        exclude_patches=np.stack([start_patch, end_patch], axis=2)[legs])
-    blocked = np.zeros((n, big + 1), dtype=bool)
-    blocked[legs] = blocked_legs
-    return ~blocked.any(axis=1)
+        return every
+    origins, directions, lengths, exclude = chain_legs(chains.vertices, chains.patch, chains.order, every)
+    blocked_legs = prepared.raycaster.occluded_rays(origins, directions, lengths, exclude_patches=exclude)
+    return unblocked_chains(blocked_legs, chains.order, every)
 
 
-def _reflection_products(chains: _Merged, prepared: PreparedScene, context: SolveContext) -> NDArray[np.complex128]:
-    """Product over each chain's vertices of R(cos theta_incidence): (n,) complex.
+def _reflection_products(chains: _Merged, rows: NDArray[np.int64], prepared: PreparedScene,
+                         context: SolveContext) -> NDArray[np.complex128]:
+    """Product over the vertices of the chains ``rows`` of R(cos theta_incidence): (c,) complex.
 
     One ``Material.reflection_coefficient`` call per (reflector kind, material) over every
     vertex, then the factors multiplied in vertex order per chain.
@@ -439,13 +431,14 @@ def _reflection_products(chains: _Merged, prepared: PreparedScene, context: Solv
               "smooth": tuple(r.material for r in prepared.smooth)}
     # |cos| of the incidence angle at each vertex (a zero-length leg, two reflections on a corner
     # line, arrives along the previous direction mirrored by the previous surface)
-    cos_i = incidence_cosines(chains.vertices, chains.normal, chains.order)
+    cos_i = incidence_cosines(chains.vertices[rows], chains.normal[rows], chains.order[rows])
+    kind, material = chains.kind[rows], chains.material[rows]
     factor = np.ones(cos_i.shape, dtype=complex)
     for code, source in enumerate(_SOURCES):
-        at = chains.kind == code
+        at = kind == code
         if not at.any():
             continue
-        index = chains.material[at]
+        index = material[at]
         cos_at = cos_i[at]
         r = np.ones(index.size, dtype=complex)
         for m in np.unique(index):
@@ -456,35 +449,6 @@ def _reflection_products(chains: _Merged, prepared: PreparedScene, context: Solv
     for j in range(cos_i.shape[1]):
         total *= factor[:, j]
     return total
-
-
-def _rows_from_chains(chains: _Merged, reflection: NDArray[np.complex128], path_id_base: int) -> NDArray[Any]:
-    n = chains.length.shape[0]
-    rows = empty_paths_array(n)
-    if n == 0:
-        return rows
-    v = chains.vertices
-    r = reflection
-    real = np.abs(r.imag) <= _REAL_TOL * np.abs(r)
-    gain = chains.spreading
-    rows["path_id"] = path_id_base + chains.chain
-    rows["channel"] = chains.channel
-    rows["kind"] = PathKind.SPECULAR
-    rows["order"] = chains.order
-    rows["path_length_m"] = chains.length
-    rows["geometric_gain"] = np.where(real, gain * r.real, gain * np.abs(r))
-    rows["phase_rad"] = np.where(real, 0.0, -np.angle(r))
-    dep = v[:, 1] - v[:, 0]
-    last = np.arange(n)
-    arr = v[last, chains.order + 1] - v[last, chains.order]
-    rows["departure_dir"] = dep / np.linalg.norm(dep, axis=1, keepdims=True)
-    rows["arrival_dir"] = arr / np.linalg.norm(arr, axis=1, keepdims=True)
-    m = min(chains.surface.shape[1], MAX_INTERACTIONS)
-    rows["object_ids"][:, :m] = chains.surface[:, :m]
-    points = v[:, 1:1 + m].copy()
-    points[np.arange(m) >= chains.order[:, None]] = np.nan  # the padding convention of PATH_DTYPE
-    rows["points_m"][:, :m] = points
-    return rows
 
 
 def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
@@ -516,18 +480,29 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
                 smooth, chain_base = _smooth_chains(context, prepared, n_before, n_after, chain_base, first, last)
                 groups.append(smooth)
         chains = _concatenated(chains, _merge(groups))
-    live = chains.select(_unblocked(chains, prepared))
-    reflection = _reflection_products(live, prepared, context)
+    live = _unblocked(chains, prepared)
+    kept = live[_first_of_duplicates(chains, live)]
+    reflection = _reflection_products(chains, kept, prepared, context)
     # R in the physics convention exp(-i omega t) and the stationary-point phase in the
     # engineering one: convert the latter back before multiplying
-    reflection[live.has_phase] = reflection[live.has_phase] * np.exp(-1j * live.phase[live.has_phase])
-    keep = _first_of_duplicates(live)
-    return _rows_from_chains(live.select(keep), reflection[keep], context.first_path_id)
+    has_phase = chains.has_phase[kept]
+    if has_phase.any():
+        reflection[has_phase] = reflection[has_phase] * np.exp(-1j * chains.phase[kept][has_phase])
+    rows = empty_paths_array(kept.size)
+    write_rows(kept, context.first_path_id, int(PathKind.SPECULAR), chains.chain, chains.channel, chains.order,
+               chains.surface, chains.vertices, chains.length, rows["path_id"], rows["channel"], rows["kind"],
+               rows["order"], rows["path_length_m"], rows["departure_dir"], rows["arrival_dir"], rows["object_ids"],
+               rows["points_m"])
+    real = np.abs(reflection.imag) <= _REAL_TOL * np.abs(reflection)
+    gain = chains.spreading[kept]
+    rows["geometric_gain"] = np.where(real, gain * reflection.real, gain * np.abs(reflection))
+    rows["phase_rad"] = np.where(real, 0.0, -np.angle(reflection))
+    return rows
 
 
-def _first_of_duplicates(chains: _Merged) -> NDArray[np.int64]:
-    """Indices (sorted) of the chains to keep: one per (channel, ordered interaction points, set
-    of surfaces), the first.
+def _first_of_duplicates(chains: _Merged, rows: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Positions in ``rows`` (sorted) of the chains to keep: one per (channel, ordered
+    interaction points, set of surfaces), the first.
 
     Reflections on perpendicular planes commute: [wall, floor] and [floor, wall] have the same
     image, and generically only one order is a real path. Through the corner line itself (a
@@ -539,18 +514,10 @@ def _first_of_duplicates(chains: _Merged) -> NDArray[np.int64]:
     The key is the one the rows carry (``object_ids`` and ``points_m``, i.e. the first
     ``MAX_INTERACTIONS`` interactions; points rounded to 1 nm).
     """
-    n = chains.length.shape[0]
-    if n < 2:
-        return np.arange(n)
-    m = min(chains.surface.shape[1], MAX_INTERACTIONS)
-    ids = np.full((n, MAX_INTERACTIONS), -1, dtype=np.int64)
-    ids[:, :m] = chains.surface[:, :m]
-    ids.sort(axis=1)
-    points = np.zeros((n, MAX_INTERACTIONS, 3))
-    points[:, :m] = chains.vertices[:, 1:1 + m]
-    points[:, :m][np.arange(m) >= chains.order[:, None]] = 0.0
-    key = np.column_stack([chains.channel, chains.order, ids, np.round(points.reshape(n, -1) / 1e-9)]).astype(np.int64)
-    return first_distinct_rows(key)
+    if rows.size < 2:
+        return np.arange(rows.size)
+    return first_distinct_rows(duplicate_keys(rows, chains.channel, chains.order, chains.surface, chains.vertices,
+                                              MAX_INTERACTIONS, 1e-9))
 
 
 def first_distinct_rows(key: NDArray[np.int64]) -> NDArray[np.int64]:

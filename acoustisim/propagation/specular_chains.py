@@ -296,4 +296,143 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
     return cursor
 
 
-__all__ = ["CURVED_KIND", "MIRROR_KIND", "fill_mixed", "fill_planar", "mixed_candidates"]
+@njit(cache=True, nogil=True, error_model="numpy")
+def chain_legs(vertices: NDArray[np.float64], patch: NDArray[np.int64], order: NDArray[np.int64],
+               chains: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                                   NDArray[np.int64]]:
+    """The legs of ``chains`` (c,) (rows of the padded arrays ``vertices`` (n, K + 2, 3),
+    ``patch`` (n, K), ``order`` (n,)) as occlusion segments, chain by chain, leg by leg.
+
+    Returns
+    -------
+    origins, directions : ndarray, shape (L, 3)
+        Start (m) and unit direction of each leg (``(end - start) / |end - start|``: NaN for a
+        zero-length leg, which ``RayCaster.occluded_rays`` never casts).
+    lengths : ndarray, shape (L,)
+        Leg lengths (m), ``sqrt(dx^2 + dy^2 + dz^2)`` summed x + y + z (as ``np.linalg.norm``).
+    exclude : ndarray of int64, shape (L, 2)
+        The patches at the leg's start and end (-1 at the transmitter and the receiver).
+    """
+    n_legs = 0
+    for i in range(chains.shape[0]):
+        n_legs += order[chains[i]] + 1
+    origins = np.empty((n_legs, 3))
+    directions = np.empty((n_legs, 3))
+    lengths = np.empty(n_legs)
+    exclude = np.empty((n_legs, 2), dtype=np.int64)
+    leg = 0
+    for i in range(chains.shape[0]):
+        c = chains[i]
+        k = order[c]
+        for j in range(k + 1):
+            o0, o1, o2 = vertices[c, j, 0], vertices[c, j, 1], vertices[c, j, 2]
+            s0, s1, s2 = vertices[c, j + 1, 0] - o0, vertices[c, j + 1, 1] - o1, vertices[c, j + 1, 2] - o2
+            length = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+            origins[leg, 0], origins[leg, 1], origins[leg, 2] = o0, o1, o2
+            directions[leg, 0], directions[leg, 1], directions[leg, 2] = s0 / length, s1 / length, s2 / length
+            lengths[leg] = length
+            exclude[leg, 0] = patch[c, j - 1] if j > 0 else -1
+            exclude[leg, 1] = patch[c, j] if j < k else -1
+            leg += 1
+    return origins, directions, lengths, exclude
+
+
+@njit(cache=True, nogil=True)
+def unblocked_chains(blocked_legs: NDArray[np.bool_], order: NDArray[np.int64],
+                     chains: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The entries of ``chains`` (in order) none of whose legs (``blocked_legs`` (L,), in the
+    order of :func:`chain_legs`) is blocked."""
+    out = np.empty(chains.shape[0], dtype=np.int64)
+    n = 0
+    leg = 0
+    for i in range(chains.shape[0]):
+        c = chains[i]
+        clear = True
+        for _ in range(order[c] + 1):
+            clear = clear and not blocked_legs[leg]
+            leg += 1
+        if clear:
+            out[n] = c
+            n += 1
+    return out[:n]
+
+
+@njit(cache=True, nogil=True)
+def duplicate_keys(chains: NDArray[np.int64], channel: NDArray[np.int64], order: NDArray[np.int64],
+                   surface: NDArray[np.int64], vertices: NDArray[np.float64], slots: int,
+                   resolution_m: float) -> NDArray[np.int64]:
+    """The duplicate key (c, 2 + 4 ``slots``) of ``chains`` (c,): channel, order, the surfaces of
+    the first ``slots`` interactions sorted (-1 padding), then their points in units of
+    ``resolution_m``, rounded half to even (0 for padding).
+
+    As ``np.round(points / resolution_m)`` on float64 columns cast to int64 (the integer
+    columns are exact as floats).
+    """
+    n = chains.shape[0]
+    big = surface.shape[1]
+    key = np.zeros((n, 2 + 4 * slots), dtype=np.int64)
+    ids = np.empty(slots, dtype=np.int64)
+    for i in range(n):
+        c = chains[i]
+        k = order[c]
+        key[i, 0] = channel[c]
+        key[i, 1] = k
+        for q in range(slots):
+            ids[q] = surface[c, q] if q < big else -1
+        for q in range(1, slots):  # insertion sort of a few values
+            value = ids[q]
+            p = q - 1
+            while p >= 0 and ids[p] > value:
+                ids[p + 1] = ids[p]
+                p -= 1
+            ids[p + 1] = value
+        for q in range(slots):
+            key[i, 2 + q] = ids[q]
+        for q in range(min(k, big, slots)):
+            for d in range(3):
+                key[i, 2 + slots + 3 * q + d] = np.int64(np.rint(vertices[c, q + 1, d] / resolution_m))
+    return key
+
+
+@njit(cache=True, nogil=True)
+def write_rows(chains: NDArray[np.int64], path_id_base: int, kind: int, chain: NDArray[np.int64],
+               channel: NDArray[np.int64], order: NDArray[np.int64], surface: NDArray[np.int64],
+               vertices: NDArray[np.float64], length: NDArray[np.float64], out_path_id: NDArray[np.int64],
+               out_channel: NDArray[np.int8], out_kind: NDArray[np.int8], out_order: NDArray[np.int8],
+               out_length: NDArray[np.float64], out_departure: NDArray[np.float64],
+               out_arrival: NDArray[np.float64], out_object_ids: NDArray[np.int16],
+               out_points: NDArray[np.float64]) -> None:
+    """The geometric columns of the path rows of ``chains`` (c,), written into the fields
+    ``out_*`` of a fresh ``empty_paths_array(c)`` (object ids and points of the padding slots
+    are left at -1 and NaN): path id ``path_id_base`` + chain number, channel, ``kind``,
+    order, length, the unit departure and arrival directions (as ``d / np.linalg.norm(d)``)
+    and the first ``out_points.shape[1]`` interactions' surfaces and points."""
+    slots = out_points.shape[1]
+    big = surface.shape[1]
+    for i in range(chains.shape[0]):
+        c = chains[i]
+        k = order[c]
+        out_path_id[i] = path_id_base + chain[c]
+        out_channel[i] = channel[c]
+        out_kind[i] = kind
+        out_order[i] = k
+        out_length[i] = length[c]
+        d0 = vertices[c, 1, 0] - vertices[c, 0, 0]
+        d1 = vertices[c, 1, 1] - vertices[c, 0, 1]
+        d2 = vertices[c, 1, 2] - vertices[c, 0, 2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        out_departure[i, 0], out_departure[i, 1], out_departure[i, 2] = d0 / norm, d1 / norm, d2 / norm
+        d0 = vertices[c, k + 1, 0] - vertices[c, k, 0]
+        d1 = vertices[c, k + 1, 1] - vertices[c, k, 1]
+        d2 = vertices[c, k + 1, 2] - vertices[c, k, 2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        out_arrival[i, 0], out_arrival[i, 1], out_arrival[i, 2] = d0 / norm, d1 / norm, d2 / norm
+        for q in range(min(big, slots)):
+            out_object_ids[i, q] = surface[c, q]
+        for q in range(min(k, big, slots)):
+            for d in range(3):
+                out_points[i, q, d] = vertices[c, q + 1, d]
+
+
+__all__ = ["CURVED_KIND", "MIRROR_KIND", "chain_legs", "duplicate_keys", "fill_mixed", "fill_planar",
+           "mixed_candidates", "unblocked_chains", "write_rows"]
