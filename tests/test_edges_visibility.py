@@ -46,13 +46,13 @@ def _decide(p0, p1, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, 
     return out
 
 
-def _decisions(screen: VisibilityScreen, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def _decisions(screen: VisibilityScreen, planes, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """The screen's decision for legs origin -> target shrunk by Embree's eps at both ends."""
     leg = targets - origins
     length = np.linalg.norm(leg, axis=1, keepdims=True)
     unit = leg / length
     p0, p1 = origins + DEFAULT_EPS_M * unit, origins + (length - DEFAULT_EPS_M) * unit
-    return _decide(np.ascontiguousarray(p0), np.ascontiguousarray(p1), *screen.kernel_arguments())
+    return _decide(np.ascontiguousarray(p0), np.ascontiguousarray(p1), *screen.kernel_arguments(planes))
 
 
 @pytest.fixture(scope="module")
@@ -105,11 +105,11 @@ def _element_legs(prepared, sonar):
 
 
 def test_screen_decisions_equal_embree_over_poses(tank):
-    screen = VisibilityScreen.create(tank.scene, tank.raycaster)
+    screen, planes = VisibilityScreen.create(tank.scene), tank.raycaster.convex_planes
     counts = {CLEAR: 0, BLOCKED: 0, UNDECIDED: 0}
     for sonar in _poses(tank, 16, seed=11):
         context, origins, targets = _element_legs(tank, sonar)
-        decided = _decisions(screen, origins, targets)
+        decided = _decisions(screen, planes, origins, targets)
         embree = tank.raycaster.occluded(origins, targets)
         for value in counts:
             counts[value] += int(np.sum(decided == value))
@@ -135,7 +135,9 @@ def test_rows_equal_the_embree_only_visibility(tank):
 
 
 def test_tolerance_covers_float32_and_stays_below_the_probe_offset(tank):
-    tolerance = screen_tolerance(tank.raycaster.vertices)
+    tolerance = VisibilityScreen.create(tank.scene).tolerance
+    vertices = tank.raycaster.vertices  # the triangles' bounds: the tolerance's box
+    assert tolerance == screen_tolerance(np.array([vertices.min(axis=0), vertices.max(axis=0)]))
     # 20 float32 ulps of the 9.54 m diagonal: 40 ulps of the largest shifted coordinate (4.5 m)
     ulp = np.spacing(np.float32(4.5))
     assert 30 * ulp < tolerance < 60 * ulp
@@ -151,7 +153,7 @@ def _box_scene(objects):
 def test_convex_decisions_of_single_legs():
     cube = plate("cube", (4.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.2, 0.2, 0.2, "steel")  # a 0.2 m cube
     scene = _box_scene([cube])
-    screen = VisibilityScreen.create(scene, RayCaster.from_scene(scene))
+    screen, planes = VisibilityScreen.create(scene), RayCaster.from_scene(scene).convex_planes
     tol = screen.tolerance
     x_face = 4.1  # the cube's +x face
     legs = {
@@ -170,7 +172,7 @@ def test_convex_decisions_of_single_legs():
     # the segments Embree would be asked about (already shrunk)
     p0 = np.array([a for a, _, _ in legs.values()])
     p1 = np.array([b for _, b, _ in legs.values()])
-    got = _decide(p0, p1, *screen.kernel_arguments())
+    got = _decide(p0, p1, *screen.kernel_arguments(planes))
     want = np.array([w for _, _, w in legs.values()])
     assert dict(zip(legs, got.tolist())) == dict(zip(legs, want.tolist()))
 
@@ -184,11 +186,11 @@ def test_non_convex_object_is_left_to_embree_unless_a_convex_one_blocks():
     wall = plate("wall", (6.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.02, 1.0, 0.5, "steel")
     scene = _box_scene([open_ball, wall])
     raycaster = RayCaster.from_scene(scene)
-    screen = VisibilityScreen.create(scene, raycaster)
-    assert screen.plane_start[1] == screen.plane_start[0]  # the open ball has no planes
+    screen, planes = VisibilityScreen.create(scene), raycaster.convex_planes
+    assert planes.start[1] == planes.start[0]  # the open ball has no planes
     origins = np.array([(3.0, 1.5, 0.5), (3.0, 1.5, 0.5), (3.0, 2.5, 0.5)])
     targets = np.array([(5.0, 1.5, 0.5), (7.0, 1.5, 0.5), (5.0, 2.5, 0.5)])
-    got = _decisions(screen, origins, targets)
+    got = _decisions(screen, planes, origins, targets)
     # crossing the open ball's box only: Embree; through the wall as well: blocked; clear of both
     assert got.tolist() == [UNDECIDED, BLOCKED, CLEAR]
     assert raycaster.occluded(origins, targets).tolist() == [True, True, False]

@@ -52,20 +52,19 @@ CLEAR, BLOCKED, UNDECIDED = 0, 1, 2
 """Decisions of :func:`screen_leg`."""
 
 
-def screen_tolerance(vertices_m: NDArray[np.float64]) -> float:
-    """The screen's margin (m) for a scene with these triangle vertices (n, 3): at least
-    :data:`TOLERANCE_ULPS` float32 ulps of the bounding-box diagonal (2.3e-5 m in the thesis
-    tank)."""
-    if vertices_m.shape[0] == 0:
-        return 0.0
-    diagonal = float(np.linalg.norm(vertices_m.max(axis=0) - vertices_m.min(axis=0)))
+def screen_tolerance(bounds_m: NDArray[np.float64]) -> float:
+    """The screen's margin (m) for a scene within the box ``bounds_m`` (2, 3) (its triangles'
+    bounds: the tank's and the objects'): :data:`TOLERANCE_ULPS` float32 ulps of the box's
+    diagonal (2.3e-5 m in the thesis tank)."""
+    diagonal = float(np.linalg.norm(bounds_m[1] - bounds_m[0]))
     return TOLERANCE_ULPS * float(np.finfo(np.float32).eps) * diagonal
 
 
 @dataclass(frozen=True, eq=False)
 class VisibilityScreen:
-    """What decides a leg without Embree, for one prepared scene (built per pose: some
-    microseconds).
+    """What decides a leg without Embree: the per-scene part (the margin and the boxes), built
+    once per scene (:class:`~acoustisim.propagation.edges.DiffractingEdges`); the convex
+    objects' face planes come from the ray caster with each pose (:meth:`kernel_arguments`).
 
     Attributes
     ----------
@@ -75,13 +74,6 @@ class VisibilityScreen:
         The tank's water box shrunk by ``tolerance`` (m); infinite in free field (no walls).
     box_lo, box_hi : ndarray, shape (k, 3)
         Each object's axis-aligned box grown by ``tolerance`` (m).
-    plane_start : ndarray of int64, shape (k + 1,)
-        Object j's face planes are rows ``plane_start[j]:plane_start[j + 1]`` of ``normal``
-        and ``offset``; none for a non-convex object (its legs crossing its box go to Embree).
-    normal : ndarray, shape (m, 3)
-    offset : ndarray, shape (m,)
-        :class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes` arrays (at least one
-        row, for the compiled kernel).
     """
 
     tolerance: float
@@ -89,42 +81,42 @@ class VisibilityScreen:
     water_hi: NDArray[np.float64]
     box_lo: NDArray[np.float64]
     box_hi: NDArray[np.float64]
-    plane_start: NDArray[np.int64]
-    normal: NDArray[np.float64]
-    offset: NDArray[np.float64]
 
     @classmethod
-    def create(cls, scene: Any, raycaster: Any) -> "VisibilityScreen":
-        """The screen of ``scene`` (a :class:`~acoustisim.scene.Scene`) and its ray caster
-        (:class:`~acoustisim.propagation.raycast.RayCaster`, whose ``convex_planes`` and
-        vertices it uses)."""
-        tolerance = screen_tolerance(raycaster.vertices)
+    def create(cls, scene: Any) -> "VisibilityScreen":
+        """The screen of ``scene`` (a :class:`~acoustisim.scene.Scene`)."""
+        n_objects = len(scene.objects)
+        boxes = np.array([obj.bounds_m for obj in scene.objects], dtype=float).reshape(n_objects, 2, 3)
+        if scene.tank is not None:
+            boxes = np.concatenate([boxes, scene.tank.bounds_m[None]])
+        if boxes.shape[0] == 0:
+            tolerance = 0.0
+        else:
+            tolerance = screen_tolerance(np.array([boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)]))
         if scene.tank is None:
             water_lo, water_hi = np.full(3, -np.inf), np.full(3, np.inf)
         else:
-            bounds = scene.tank.bounds_m
-            water_lo, water_hi = bounds[0] + tolerance, bounds[1] - tolerance
-        n_objects = len(scene.objects)
-        if n_objects:
-            bounds = np.array([obj.bounds_m for obj in scene.objects], dtype=float).reshape(n_objects, 2, 3)
-            box_lo, box_hi = bounds[:, 0] - tolerance, bounds[:, 1] + tolerance
-        else:
-            box_lo, box_hi = np.zeros((0, 3)), np.zeros((0, 3))
-        planes: ConvexPlanes = raycaster.convex_planes
-        if planes.start.size == n_objects + 1:
-            start = np.ascontiguousarray(planes.start, dtype=np.int64)
-        else:  # no planes known: every object's box crossing goes to Embree
-            start = np.zeros(n_objects + 1, dtype=np.int64)
-        normal = planes.normal if planes.normal.shape[0] else np.zeros((1, 3))
-        offset = planes.offset if planes.offset.shape[0] else np.zeros(1)
-        return cls(tolerance, water_lo, water_hi, np.ascontiguousarray(box_lo), np.ascontiguousarray(box_hi), start,
-                   np.ascontiguousarray(normal, dtype=float), np.ascontiguousarray(offset, dtype=float))
+            water_lo, water_hi = boxes[-1, 0] + tolerance, boxes[-1, 1] - tolerance
+        box_lo = np.ascontiguousarray(boxes[:n_objects, 0] - tolerance)
+        box_hi = np.ascontiguousarray(boxes[:n_objects, 1] + tolerance)
+        return cls(tolerance, water_lo, water_hi, box_lo, box_hi)
 
-    def kernel_arguments(self) -> tuple[Any, ...]:
+    def kernel_arguments(self, planes: ConvexPlanes | None) -> tuple[Any, ...]:
         """(tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset) for
-        :func:`screen_leg`."""
-        return (self.tolerance, self.water_lo, self.water_hi, self.box_lo, self.box_hi, self.plane_start,
-                self.normal, self.offset)
+        :func:`screen_leg`.
+
+        ``planes``: the objects' face planes
+        (:attr:`~acoustisim.propagation.raycast.RayCaster.convex_planes`: object j's are rows
+        ``plane_start[j]:plane_start[j + 1]``, none for a non-convex object, whose legs
+        crossing its box go to Embree); None: every leg crossing an object's box goes to
+        Embree.
+        """
+        n_objects = self.box_lo.shape[0]
+        if planes is not None and planes.start.size == n_objects + 1 and planes.normal.shape[0]:
+            start, normal, offset = planes.start, planes.normal, planes.offset
+        else:
+            start, normal, offset = np.zeros(n_objects + 1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
+        return (self.tolerance, self.water_lo, self.water_hi, self.box_lo, self.box_hi, start, normal, offset)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -134,30 +126,36 @@ def _inside(x0: float, x1: float, x2: float, lo: NDArray[np.float64], hi: NDArra
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _slab(a: float, b: float, lo: float, hi: float) -> tuple[float, float]:
-    """The parameters s in [0, 1] where ``a + s (b - a)`` lies in [lo, hi]: (enter, leave),
-    enter > leave when none."""
-    step = b - a
-    if step == 0.0:
-        return (0.0, 1.0) if (lo <= a) & (a <= hi) else (1.0, 0.0)
-    inverse = 1.0 / step
-    s_lo = (lo - a) * inverse
-    s_hi = (hi - a) * inverse
-    return (s_lo, s_hi) if s_lo <= s_hi else (s_hi, s_lo)
+def _inverse(x: float) -> float:
+    """1 / x, 0 for 0 (a segment parallel to a slab)."""
+    return 1.0 / x if x != 0.0 else 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _crosses_box(p0: tuple[float, float, float], p1: tuple[float, float, float], lo: NDArray[np.float64],
+def _slab(enter: float, leave: float, a: float, inverse: float, lo: float, hi: float) -> tuple[float, float]:
+    """The part (enter, leave) of the parameter range where ``a + s / inverse`` lies in
+    [lo, hi], within the given one (enter > leave: none); ``inverse`` is 1 / the component of
+    the segment (0: none, the segment is parallel to the slab)."""
+    if inverse == 0.0:
+        return (enter, leave) if (lo <= a) & (a <= hi) else (1.0, 0.0)
+    s_lo = (lo - a) * inverse
+    s_hi = (hi - a) * inverse
+    return max(enter, min(s_lo, s_hi)), min(leave, max(s_lo, s_hi))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crosses_box(p0: tuple[float, float, float], inverse: tuple[float, float, float], lo: NDArray[np.float64],
                  hi: NDArray[np.float64], j: int) -> bool:
-    """Whether the segment p0 -> p1 meets box j (the slab test)."""
-    enter, leave = 0.0, 1.0
-    for c in range(3):
-        a, b = _slab(p0[c], p1[c], lo[j, c], hi[j, c])
-        enter = max(enter, a)
-        leave = min(leave, b)
-        if enter > leave:
-            return False
-    return True
+    """Whether the segment ``p0 + s (p1 - p0)``, 0 <= s <= 1, meets box j (the slab test),
+    given the inverses of ``p1 - p0``'s components (0 for a zero component)."""
+    enter, leave = _slab(0.0, 1.0, p0[0], inverse[0], lo[j, 0], hi[j, 0])
+    if enter > leave:
+        return False
+    enter, leave = _slab(enter, leave, p0[1], inverse[1], lo[j, 1], hi[j, 1])
+    if enter > leave:
+        return False
+    enter, leave = _slab(enter, leave, p0[2], inverse[2], lo[j, 2], hi[j, 2])
+    return enter <= leave
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -220,8 +218,9 @@ def screen_leg(p0: tuple[float, float, float], p1: tuple[float, float, float], t
     if not (_inside(p0[0], p0[1], p0[2], water_lo, water_hi) & _inside(p1[0], p1[1], p1[2], water_lo, water_hi)):
         return UNDECIDED
     decision = CLEAR
+    inverse = (_inverse(p1[0] - p0[0]), _inverse(p1[1] - p0[1]), _inverse(p1[2] - p0[2]))  # (0 for 0)
     for j in range(box_lo.shape[0]):
-        if not _crosses_box(p0, p1, box_lo, box_hi, j):
+        if not _crosses_box(p0, inverse, box_lo, box_hi, j):
             continue
         first, last = plane_start[j], plane_start[j + 1]
         if first == last:  # not convex: Embree decides, unless another object blocks

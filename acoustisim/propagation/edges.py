@@ -197,6 +197,9 @@ class DiffractingEdges:
     probe_offset_m : ndarray, shape (n, 3)
         :data:`VISIBILITY_OFFSET_M` along each wedge's bisector (m): the visibility probes'
         offset from the edge into the water.
+    screen : VisibilityScreen
+        The scene's part of the visibility screen
+        (:mod:`~acoustisim.propagation.edge_visibility`).
     """
 
     edges: SharpEdges
@@ -204,6 +207,7 @@ class DiffractingEdges:
     nu: NDArray[np.float64] = field(repr=False)
     partner: NDArray[np.int64] = field(repr=False)
     probe_offset_m: NDArray[np.float64] = field(repr=False)
+    screen: VisibilityScreen = field(repr=False)
 
     @classmethod
     def build(cls, sharp: SharpEdges, scene: Scene) -> "DiffractingEdges":
@@ -211,7 +215,8 @@ class DiffractingEdges:
         edges = diffracting_edges(sharp, scene)
         half = 0.5 * edges.wedge_angle_rad
         bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
-        return cls(edges, edges.length_m, edges.nu, _endpoint_partners(edges), VISIBILITY_OFFSET_M * bisector)
+        return cls(edges, edges.length_m, edges.nu, _endpoint_partners(edges), VISIBILITY_OFFSET_M * bisector,
+                   VisibilityScreen.create(scene))
 
 
 def element_visibility(context: SolveContext, scene_part: DiffractingEdges, elements: EdgeElements,
@@ -253,7 +258,7 @@ def element_visibility(context: SolveContext, scene_part: DiffractingEdges, elem
     visible, starts32, directions32, lengths32, element = screened_visibility_rays32(
         elements.pair, elements.z_start_m, elements.z_end_m, pair_edge, pair_rx, edges.start_m, edges.direction,
         scene_part.probe_offset_m, tx, rx, own_leg_rx, raycaster.shift_m, DEFAULT_EPS_M,
-        *VisibilityScreen.create(context.scene, raycaster).kernel_arguments(),
+        *scene_part.screen.kernel_arguments(raycaster.convex_planes),
     )
     if element.size:
         visible[element[raycaster.occluded_segments32(starts32, directions32, lengths32)]] = False
