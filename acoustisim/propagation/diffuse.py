@@ -9,9 +9,12 @@ half of them uniform (side lobes, the back, the floor under the head) and half i
 sampled by the forward transmit power directivity D^2 = (2 J1(x)/x)^2 at the centre
 frequency (the main lobe; D^2 is tabulated as a density piecewise constant in cos(theta), so
 the pdf of each drawn direction is exact). Each ray carries the solid angle ``dOmega = 1 / (N pdf)``
-(the two shares are drawn in fixed numbers, see :class:`_LobeTable`); batched Embree
-intersect queries find the hit triangles, and the hit points are solved on the triangles'
-planes in float64.
+(the two shares are drawn in fixed numbers, see :class:`_LobeTable`). The hit triangles are
+found without Embree in a box tank whose objects are convex (the tank's exit face, the objects'
+face planes: :mod:`~acoustisim.propagation.diffuse_hits`, exact in float64, Embree's answer but
+for rays grazing an edge within its float32 rounding); batched Embree intersect queries find
+the others (a tank that is not a box, rays near a non-convex object). The hit points are solved
+on the triangles' planes in float64.
 
 Each hit is a point scatterer (next-event estimation): with Lambert's law
 ``I_s / I_i = mu sin(g_i) sin(g_s) dA / r2^2``, the footprint ``dA = r1^2 dOmega / sin(g_i)``
@@ -68,6 +71,7 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse_screen import ObjectScreen, receiver_wedges, shared_wedges
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation import diffuse_kernels as kernels
+from acoustisim.propagation.diffuse_hits import first_hits
 from acoustisim.propagation.paths import PathKind, PATH_DTYPE, empty_paths_array
 from acoustisim.propagation.ray_threads import resolve_threads, run_in_order
 from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
@@ -376,6 +380,9 @@ class DiffuseEvents:
         an object without face planes, or all legs when a receiver is outside the water).
     convex_legs : int
         Legs decided exactly by the face planes of the convex objects whose boxes they cross.
+    embree_rays : int
+        Rays (all bounces) whose first hit Embree found; the others' were found without it
+        (:mod:`~acoustisim.propagation.diffuse_hits`, in a box tank with convex objects).
     """
 
     points_m: NDArray[np.float64]
@@ -391,6 +398,7 @@ class DiffuseEvents:
     receivers_m: NDArray[np.float64]
     embree_legs: int = 0
     convex_legs: int = 0
+    embree_rays: int = 0
 
     def _columns(self, length: bool, phase: bool, arrival: bool) -> tuple[NDArray[np.float64], ...]:
         n = self.event.size
@@ -474,6 +482,10 @@ class _Tracer:
         chunk of this solve.
     output : _Output
         The solve's output arrays, into which the chunks write.
+    hits : tuple or None
+        :meth:`~acoustisim.propagation.diffuse_hits.BoxTankHits.kernel_arguments` of the scene
+        (first hits found without Embree), or None (a tank that is not a box: Embree finds
+        every first hit).
     """
 
     raycaster: RayCaster
@@ -497,6 +509,7 @@ class _Tracer:
     totals: tuple[int, int]
     buffers: threading.local
     output: "_Output"
+    hits: tuple[Any, ...] | None
 
 
 class _Output:
@@ -559,7 +572,7 @@ class _Output:
                 self._receptions += n_receptions
                 self._placed += 1
 
-    def result(self, receivers: NDArray[np.float64], legs: tuple[int, int]) -> "DiffuseEvents":
+    def result(self, receivers: NDArray[np.float64], legs: tuple[int, int, int]) -> "DiffuseEvents":
         """The events and receptions of every chunk (all placed), the arrays shrunk in place to
         them (no copy: the memory beyond is returned to the allocator)."""
         if self._finished:
@@ -573,7 +586,7 @@ class _Output:
         for a in (self.event, self.channel, self.gain):
             a.resize(n, refcheck=False)
         return DiffuseEvents(self.points, self.surface, self.parent, self.bounce, self.departure, self.travelled,
-                             self.phase, self.event, self.channel, self.gain, receivers, legs[0], legs[1])
+                             self.phase, self.event, self.channel, self.gain, receivers, *legs)
 
 
 def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | None, n: int) -> NDArray[np.float32]:
@@ -587,10 +600,39 @@ def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | 
     return out
 
 
-def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int]:
+def _hit_triangles(tracer: _Tracer, origins: NDArray[np.float64], directions: NDArray[np.float64],
+                   directions32: NDArray[np.float32] | None) -> tuple[NDArray[np.int32], int]:
+    """The first-hit triangle (m,) of each ray from ``origins`` (3, m) (or (3, 1), shared)
+    along ``directions`` (3, m), and the number of rays Embree was asked about.
+
+    Found by :func:`~acoustisim.propagation.diffuse_hits.first_hits` where the scene allows,
+    else (and for the rays it leaves pending) by Embree, on float32 rows equal to those the
+    tracer always gave it (``directions32``: the first bounce's, (m, 3), whose origin is the
+    transmitter; None: a later bounce's, made here).
+    """
+    raycaster = tracer.raycaster
+    shift = raycaster.shift_m
+    m = directions.shape[1]
+    first = directions32 is not None  # (a later bounce may have one ray, and origins (3, 1) too)
+    if tracer.hits is None:
+        origins32 = tracer.origins32[:m] if first else _float32_rows(origins, shift, m)
+        rows32 = directions32 if directions32 is not None else _float32_rows(directions, None, m)
+        return raycaster.first_hit_triangles32(origins32, rows32), m
+    triangle, pending = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int64)
+    k = first_hits(origins, directions, *tracer.hits, triangle, pending)
+    if k:
+        rays = pending[:k]
+        origins32 = tracer.origins32[:k] if first else _float32_rows(origins[:, rays], shift, k)
+        rows32 = (np.ascontiguousarray(directions32[rays]) if directions32 is not None
+                  else _float32_rows(directions[:, rays], None, k))
+        triangle[rays] = raycaster.first_hit_triangles32(origins32, rows32)
+    return triangle, k
+
+
+def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     """Trace chunk ``chunk`` (rays ``chunk CHUNK_RAYS`` onwards) through every bounce, writing
-    its events and receptions into ``tracer.output``; return the legs it sent to Embree and
-    those the convex objects' planes decided."""
+    its events and receptions into ``tracer.output``; return the legs it sent to Embree, those
+    the convex objects' planes decided and the rays whose first hit Embree found."""
     n = min(CHUNK_RAYS, tracer.n_rays - chunk * CHUNK_RAYS)
     rng = np.random.default_rng([tracer.seed_hash, chunk])
     raycaster = tracer.raycaster
@@ -608,13 +650,11 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int]:
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
     parent = np.full(n, -1, dtype=np.int32)
-    legs = [0, 0]  # sent to Embree, decided by the convex objects' planes
+    legs = [0, 0, 0]  # sent to Embree, decided by the convex objects' planes; rays sent to Embree
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
-        if bounce:
-            directions32 = _float32_rows(directions, None, m)
-        origins32 = tracer.origins32[:m] if bounce == 0 else _float32_rows(origins, shift, m)
-        triangle = raycaster.first_hit_triangles32(origins32, directions32)
+        triangle, embree_rays = _hit_triangles(tracer, origins, directions, directions32 if bounce == 0 else None)
+        legs[2] += embree_rays
         keep = bounce + 1 < tracer.bounces  # the rays continue
         # the events go straight to the output, from row event_row on
         normal = np.empty((3, m if keep else 0))  # written for continuing rays only
@@ -674,7 +714,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int]:
         travelled = out.travelled[rows]
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
     out.finish(chunk, base, event_row - base[0], reception_row - base[1])
-    return legs[0], legs[1]
+    return legs[0], legs[1], legs[2]
 
 
 def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
@@ -735,6 +775,7 @@ def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
         totals=totals,
         buffers=threading.local(),
         output=_Output(n_rays, bounces, n_rx),
+        hits=None if raycaster.box_tank_hits is None else raycaster.box_tank_hits.kernel_arguments(),
     )
 
 
@@ -768,10 +809,10 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
     tracer = _setup(context, config, threads, visibility)
     rx = np.ascontiguousarray(context.receivers_m, dtype=float)
     if tracer is None:
-        return _Output(0, 1, rx.shape[0]).result(rx, (0, 0))
+        return _Output(0, 1, rx.shape[0]).result(rx, (0, 0, 0))
     n_chunks = -(-tracer.n_rays // CHUNK_RAYS)
     legs = run_in_order(lambda chunk: _trace_chunk(tracer, chunk), range(n_chunks), resolve_threads(threads))
-    return tracer.output.result(rx, (sum(a for a, _ in legs), sum(b for _, b in legs)))
+    return tracer.output.result(rx, tuple(sum(counts) for counts in zip(*legs)))
 
 
 _PACK_ROWS = 1 << 15

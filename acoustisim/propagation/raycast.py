@@ -19,6 +19,7 @@ that the round-off is about 5e-7 m in a 9 m tank. Every query is one batched cal
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -232,6 +233,14 @@ class RayCaster:
     def triangle_count(self) -> int:
         """Number of triangles in the Embree scene."""
         return int(self.faces.shape[0])
+
+    @cached_property
+    def box_tank_hits(self) -> Any:
+        """:class:`~acoustisim.propagation.diffuse_hits.BoxTankHits` of this scene (built on first
+        use, once per ray caster), or None when its boundaries are not the faces of a box."""
+        from acoustisim.propagation.diffuse_hits import BoxTankHits
+
+        return BoxTankHits.create(self)
 
     @property
     def shift_m(self) -> NDArray[np.float64]:

@@ -1,0 +1,333 @@
+"""First hits of the diffuse tracer's rays in a box tank with convex objects, without Embree.
+
+In a tank whose boundaries are the six faces of an axis-aligned box (walls, floor and free
+surface, triangles lying in the faces with their normals into the water) and whose objects are
+convex meshes with face planes (:class:`~acoustisim.propagation.convex_occlusion.ConvexPlanes`:
+the prisms, posts and pipes), the first surface a ray from a point in the water meets is found
+exactly in float64, without a ray-tracing query:
+
+* the tank: the ray leaves the box through the face of the smallest exit distance (the slab
+  test); a ray from inside the box meets no boundary before (every boundary triangle lies in a
+  face, and the other faces' planes are crossed outside the box); the triangle is the one of
+  that face containing the exit point (a 2-D edge-function test);
+* a convex object: the ray, clipped against the object's face planes (Cyrus and Beck 1978, as
+  :func:`~acoustisim.propagation.convex_occlusion.segment_crosses_convex`), enters the solid at
+  ``t_enter`` through the plane of the largest entry distance; the first triangle of every mesh
+  triangle crossed by the ray is at ``t_enter`` (a convex surface is crossed once on the way in),
+  so the nearest object entry closer than the box exit is the first hit, even for objects that
+  overlap. Only rays crossing an object's bounding box are clipped; the hit triangle is the
+  triangle whose plane is the entering one (every triangle of that plane has its normal, offset
+  and surface).
+
+A ray the rules above cannot decide is left *pending*, for an Embree query: its origin outside
+the box or inside an object, an object without face planes (not convex) on its way, an exit
+point in no triangle of its face (a hole, or a face tiled by more than
+:data:`MAX_FACE_TRIANGLES` triangles). The answers equal Embree's but for rays grazing an edge
+within Embree's float32 rounding (about 1e-6 m in a 9 m tank), where Embree may name the
+neighbouring triangle (whose plane, surface and material are the same for a flat face).
+
+:meth:`BoxTankHits.create` checks a ray caster's scene once per solve (None when the tank is not
+such a box); :func:`first_hits` is the compiled per-ray loop (``nogil``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from acoustisim.propagation.raycast import RayCaster
+
+MAX_FACE_TRIANGLES = 64
+"""Most triangles tiling one face of the tank box searched per ray; a finer face sends the
+analytic first hits back to Embree (its BVH is faster than a linear search there)."""
+
+FACE_TOLERANCE_M = 1e-9
+"""How far outside a face triangle (m) an exit point still counts as in it: a million times
+below Embree's float32 rounding, far above the float64 rounding of the exit point (1e-15 m),
+so a point on a shared edge or the face's border is never lost between two triangles."""
+
+BOX_MARGIN_M = 1e-6
+"""Growth (m) of the object boxes that decide which rays are clipped against an object's planes
+(a conservative screen: the clipping itself is exact)."""
+
+
+@dataclass(frozen=True, eq=False)
+class BoxTankHits:
+    """What :func:`first_hits` needs of a box tank with convex objects.
+
+    Attributes
+    ----------
+    lo, hi : ndarray, shape (3,)
+        The tank box (m).
+    face_start : ndarray of int64, shape (7,)
+        Face ``f = 2 axis + side`` (side 0 at ``lo``, 1 at ``hi``) has the triangles
+        ``face_triangle[face_start[f]:face_start[f + 1]]``.
+    face_triangle : ndarray of int64, shape (k,)
+        Global triangle indices.
+    face_edges : ndarray, shape (k, 3, 3)
+        Per triangle, its three edges as ``(a, b, c)`` with ``a u + b v + c`` the signed
+        distance (m) of the point (u, v) from the edge, positive inside; (u, v) are the
+        coordinates ``((axis + 1) % 3, (axis + 2) % 3)`` of the face.
+    box_lo, box_hi : ndarray, shape (n_objects, 3)
+        Object boxes grown by :data:`BOX_MARGIN_M` (m).
+    plane_start : ndarray of int64, shape (n_objects + 1,)
+        Object b's planes are ``plane_start[b]:plane_start[b + 1]`` (none: not convex, a ray
+        crossing its box is pending).
+    plane_normal : ndarray, shape (n_planes, 3)
+    plane_offset : ndarray, shape (n_planes,)
+    plane_triangle : ndarray of int64, shape (n_planes,)
+        A triangle of each plane (its normal and offset are the plane's, bit for bit).
+    """
+
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    face_start: NDArray[np.int64]
+    face_triangle: NDArray[np.int64]
+    face_edges: NDArray[np.float64]
+    box_lo: NDArray[np.float64]
+    box_hi: NDArray[np.float64]
+    plane_start: NDArray[np.int64]
+    plane_normal: NDArray[np.float64]
+    plane_offset: NDArray[np.float64]
+    plane_triangle: NDArray[np.int64]
+
+    @classmethod
+    def create(cls, raycaster: "RayCaster") -> "BoxTankHits | None":
+        """The description of ``raycaster``'s scene, or None when its boundaries are not the
+        faces of an axis-aligned box with normals into the water (or it has none).
+
+        The objects are the surfaces after the boundaries, one per row of
+        ``raycaster.convex_planes``.
+        """
+        planes = raycaster.convex_planes
+        n_objects = planes.start.size - 1
+        n_boundaries = len(raycaster.surface_names) - n_objects
+        surface = raycaster.surface_index
+        boundary = surface < n_boundaries
+        if n_boundaries <= 0 or not np.any(boundary):
+            return None
+        faces = raycaster.faces[boundary]
+        corners = raycaster.vertices[faces]  # (k, 3, 3)
+        lo, hi = corners.reshape(-1, 3).min(axis=0), corners.reshape(-1, 3).max(axis=0)
+        if not np.all(hi > lo):
+            return None
+        normal = raycaster.face_normals[boundary]
+        axis = np.argmax(np.abs(normal), axis=1)
+        rows = np.arange(faces.shape[0])
+        along = normal[rows, axis]
+        # each triangle in a face of the box, its normal exactly the face's inward axis
+        if not np.all(np.abs(along) == 1.0) or not np.all(np.count_nonzero(normal, axis=1) == 1):
+            return None
+        side = (along < 0).astype(np.int64)  # +axis normal: the lo face (0); -axis: the hi face (1)
+        level = np.where(side == 0, lo[axis], hi[axis])
+        if not np.all(corners[rows, :, axis] == level[:, None]):
+            return None
+        u_axis, v_axis = (axis + 1) % 3, (axis + 2) % 3
+        u = corners[rows[:, None], np.arange(3)[None, :], u_axis[:, None]]  # (k, 3)
+        v = corners[rows[:, None], np.arange(3)[None, :], v_axis[:, None]]
+        # edge i from corner i to corner i + 1; the third corner on its positive side
+        du, dv = np.roll(u, -1, axis=1) - u, np.roll(v, -1, axis=1) - v
+        length = np.hypot(du, dv)
+        good = np.all(length > 0.0, axis=1)
+        a, b = np.zeros_like(du), np.zeros_like(dv)
+        a[good], b[good] = -dv[good] / length[good], du[good] / length[good]
+        c = -(a * u + b * v)
+        opposite = np.roll(u, -2, axis=1) * a + np.roll(v, -2, axis=1) * b + c
+        sign = np.where(np.sum(opposite, axis=1) < 0, -1.0, 1.0)[:, None]
+        good &= np.all(np.abs(opposite) > 0.0, axis=1)  # degenerate (zero-area) triangles are skipped
+        edges = np.stack([a * sign, b * sign, c * sign], axis=-1)  # (k, 3 edges, 3)
+        face = 2 * axis + side
+        keep = np.flatnonzero(good)
+        order = keep[np.argsort(face[keep], kind="stable")]
+        counts = np.bincount(face[order], minlength=6)
+        if counts.max() > MAX_FACE_TRIANGLES:
+            return None
+        face_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        global_index = np.flatnonzero(boundary)
+        # the objects: their boxes and, for the convex ones, each plane's first triangle (the
+        # planes are copies of triangles' normals and offsets: looked up by their bytes)
+        first_of_plane: dict[bytes, int] = {}
+        objects = np.flatnonzero(~boundary)
+        keys = np.ascontiguousarray(np.column_stack([raycaster.face_normals[objects], raycaster.plane_offset[objects]]))
+        for index, key in zip(objects.tolist(), keys):
+            first_of_plane.setdefault(key.tobytes(), index)
+        plane_keys = np.ascontiguousarray(np.column_stack([planes.normal.reshape(-1, 3), planes.offset]))
+        plane_triangle = np.array([first_of_plane.get(key.tobytes(), -1) for key in plane_keys], dtype=np.int64)
+        if np.any(plane_triangle < 0):  # not from this ray caster's triangles
+            return None
+        box_lo, box_hi = np.zeros((n_objects, 3)), np.zeros((n_objects, 3))
+        if n_objects:
+            corners = raycaster.vertices[raycaster.faces[objects]].reshape(-1, 9)
+            owner = surface[objects] - n_boundaries  # non-decreasing: each object's triangles are one block
+            starts = np.searchsorted(owner, np.arange(n_objects))
+            points = corners.reshape(-1, 3, 3)
+            box_lo = np.minimum.reduceat(points.min(axis=1), starts, axis=0) - BOX_MARGIN_M
+            box_hi = np.maximum.reduceat(points.max(axis=1), starts, axis=0) + BOX_MARGIN_M
+        return cls(lo, hi, face_start, np.ascontiguousarray(global_index[order]),
+                   np.ascontiguousarray(edges[order]), box_lo, box_hi, planes.start.astype(np.int64),
+                   np.ascontiguousarray(planes.normal.reshape(-1, 3)), np.ascontiguousarray(planes.offset),
+                   plane_triangle)
+
+    def kernel_arguments(self) -> tuple[NDArray, ...]:
+        """The arrays of :func:`first_hits` after ``origins`` and ``directions``, in order."""
+        normal = self.plane_normal if self.plane_normal.shape[0] else np.zeros((1, 3))
+        offset = self.plane_offset if self.plane_offset.size else np.zeros(1)
+        triangle = self.plane_triangle if self.plane_triangle.size else np.zeros(1, dtype=np.int64)
+        return (self.lo, self.hi, self.face_start, self.face_triangle, self.face_edges, self.box_lo, self.box_hi,
+                self.plane_start, normal, offset, triangle)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _in_box(ox: float, oy: float, oz: float, ix: float, iy: float, iz: float, sx: int, sy: int, sz: int,
+            boxes: NDArray[np.float64], b: int, t_max: float) -> bool:
+    """Whether the ray o + t d, 0 <= t <= t_max, meets box ``boxes[b]`` ((lo, hi) x 3): the slab
+    test with the inverse components ``i = 1 / d`` (+-inf for a zero component, which makes that
+    slab's bounds +-inf: no constraint inside the slab, an empty interval outside; a NaN, for an
+    origin on the slab's face, is ignored by the comparisons: a grazing contact) and ``s`` = 1
+    where a component is negative (the near side is then ``hi``). No data-dependent branch."""
+    enter = (boxes[b, sx, 0] - ox) * ix
+    leave = (boxes[b, 1 - sx, 0] - ox) * ix
+    t = (boxes[b, sy, 1] - oy) * iy
+    enter = t if t > enter else enter
+    t = (boxes[b, 1 - sy, 1] - oy) * iy
+    leave = t if t < leave else leave
+    t = (boxes[b, sz, 2] - oz) * iz
+    enter = t if t > enter else enter
+    t = (boxes[b, 1 - sz, 2] - oz) * iz
+    leave = t if t < leave else leave
+    enter = enter if enter > 0.0 else 0.0
+    leave = leave if leave < t_max else t_max
+    return enter <= leave
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], lo: NDArray[np.float64],
+               hi: NDArray[np.float64], face_start: NDArray[np.int64], face_triangle: NDArray[np.int64],
+               face_edges: NDArray[np.float64], box_lo: NDArray[np.float64], box_hi: NDArray[np.float64],
+               plane_start: NDArray[np.int64], plane_normal: NDArray[np.float64],
+               plane_offset: NDArray[np.float64], plane_triangle: NDArray[np.int64],
+               triangle: NDArray[np.int32], pending: NDArray[np.int64]) -> int:
+    """The first-hit triangle of each ray (see the module docstring), or the rays left pending.
+
+    Parameters
+    ----------
+    origins : ndarray, shape (3, m) or (3, 1)
+        Ray origins (m); one column is shared by every ray.
+    directions : ndarray, shape (3, m)
+        Ray directions (any non-zero length).
+    lo, hi, face_start, face_triangle, face_edges, box_lo, box_hi, plane_start, plane_normal, \
+plane_offset, plane_triangle
+        :meth:`BoxTankHits.kernel_arguments`.
+    triangle : output of int32, shape (>= m,)
+        The hit triangle (global index) of each decided ray (a ray from inside the box always
+        meets a face); pending rays' entries are left unwritten.
+    pending : output of int64, shape (>= m,)
+        The indices of the pending rays, in ray order, from index 0.
+
+    Returns
+    -------
+    int
+        The number of pending rays.
+    """
+    one_origin = origins.shape[1] == 1
+    n_objects = box_lo.shape[0]
+    tank = np.empty((2, 3))  # (lo, hi)
+    tank[0], tank[1] = lo, hi
+    boxes = np.empty((n_objects, 2, 3))  # (lo, hi) of each object
+    boxes[:, 0], boxes[:, 1] = box_lo, box_hi
+    n_pending = 0
+    for ray in range(directions.shape[1]):
+        o = 0 if one_origin else ray
+        ox, oy, oz = origins[0, o], origins[1, o], origins[2, o]
+        dx, dy, dz = directions[0, ray], directions[1, ray], directions[2, ray]
+        if not (lo[0] < ox < hi[0] and lo[1] < oy < hi[1] and lo[2] < oz < hi[2]) or (
+                dx == 0.0 and dy == 0.0 and dz == 0.0):
+            pending[n_pending] = ray
+            n_pending += 1
+            continue
+        # the inverse components (+-inf for a zero one) and the sign of each: 1 negative
+        ix, iy, iz = 1.0 / dx, 1.0 / dy, 1.0 / dz
+        sx, sy, sz = int(ix < 0.0), int(iy < 0.0), int(iz < 0.0)
+        # the box's exit: the face of the smallest exit distance (first axis on a tie; +inf
+        # along a zero component, the origin being strictly inside); face 2 axis + 1 - s
+        best, face = (tank[1 - sx, 0] - ox) * ix, 1 - sx
+        t = (tank[1 - sy, 1] - oy) * iy
+        if t < best:
+            best, face = t, 3 - sy
+        t = (tank[1 - sz, 2] - oz) * iz
+        if t < best:
+            best, face = t, 5 - sz
+        hit = -2  # the box face
+        undecided = False
+        for b in range(n_objects):
+            if not _in_box(ox, oy, oz, ix, iy, iz, sx, sy, sz, boxes, b, best):
+                continue
+            first, last = plane_start[b], plane_start[b + 1]
+            if first == last:  # not convex: Embree decides
+                undecided = True
+                break
+            enter, leave, entry = -math.inf, math.inf, -1
+            missed = False
+            for i in range(first, last):
+                nx, ny, nz = plane_normal[i, 0], plane_normal[i, 1], plane_normal[i, 2]
+                along = nx * dx + ny * dy + nz * dz
+                room = plane_offset[i] - (nx * ox + ny * oy + nz * oz)  # >= 0: o inside this plane
+                if along < 0.0:
+                    t = room / along
+                    if t > enter:
+                        enter, entry = t, i
+                elif along > 0.0:
+                    t = room / along
+                    if t < leave:
+                        leave = t
+                elif room < 0.0:  # parallel and outside
+                    missed = True
+                    break
+                # the entry only grows and the exit only shrinks: no hit nearer than best
+                if enter > leave or enter >= best or leave < 0.0:
+                    missed = True
+                    break
+            if missed:
+                continue
+            if not enter > 0.0:  # the origin inside (or on) the object
+                undecided = True
+                break
+            best, hit = enter, plane_triangle[entry]
+        if not undecided and hit == -2:
+            # the exit point's coordinates (u, v) = ((axis + 1) % 3, (axis + 2) % 3) in the face
+            axis = face // 2
+            if axis == 0:
+                pu, pv = oy + best * dy, oz + best * dz
+            elif axis == 1:
+                pu, pv = oz + best * dz, ox + best * dx
+            else:
+                pu, pv = ox + best * dx, oy + best * dy
+            # the triangle the point lies deepest in (the largest of the least edge
+            # distances: no data-dependent branch), if it lies in it within the tolerance
+            deepest, chosen = -math.inf, -1
+            for s in range(face_start[face], face_start[face + 1]):
+                e0 = face_edges[s, 0, 0] * pu + face_edges[s, 0, 1] * pv + face_edges[s, 0, 2]
+                e1 = face_edges[s, 1, 0] * pu + face_edges[s, 1, 1] * pv + face_edges[s, 1, 2]
+                e2 = face_edges[s, 2, 0] * pu + face_edges[s, 2, 1] * pv + face_edges[s, 2, 2]
+                least = e0 if e0 < e1 else e1
+                least = least if least < e2 else e2
+                chosen = s if least > deepest else chosen
+                deepest = least if least > deepest else deepest
+            if deepest >= -FACE_TOLERANCE_M:
+                hit = face_triangle[chosen]
+            undecided = hit == -2
+        if undecided:
+            pending[n_pending] = ray
+            n_pending += 1
+        else:
+            triangle[ray] = hit
+    return n_pending
+
+
+__all__ = ["BOX_MARGIN_M", "FACE_TOLERANCE_M", "MAX_FACE_TRIANGLES", "BoxTankHits", "first_hits"]
