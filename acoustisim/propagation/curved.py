@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
-from acoustisim.propagation.specular_kernels import circle_newton, primitive_specular_points
+from acoustisim.propagation.specular_kernels import circle_newton, go_factors, primitive_specular_points
 
 _NEWTON_STEPS = 40
 """Most Newton iterations on the circle (compiled, :func:`.specular_kernels.circle_newton`;
@@ -220,24 +220,15 @@ def go_amplitude_general(a: NDArray[np.float64], b: NDArray[np.float64], x: NDAr
         to sig = 2, conjugated: -(pi / 4)(sig - 2). 0 for a minimum (convex, plane), pi / 2 for a
         saddle, pi for a maximum (focusing concave patch beyond its focus).
     """
-    d1 = x - a
-    d2 = x - b
-    r1 = np.linalg.norm(d1, axis=1)
-    r2 = np.linalg.norm(d2, axis=1)
-    s1 = d1 / r1[:, None]
-    s2 = d2 / r2[:, None]
-    cos_i = np.abs(np.einsum("ij,ij->i", s1, normal))
-    cos_s = np.abs(np.einsum("ij,ij->i", s2, normal))
-    a1, a2 = np.einsum("ij,ij->i", e1, s1), np.einsum("ij,ij->i", e2, s1)
-    b1, b2 = np.einsum("ij,ij->i", e1, s2), np.einsum("ij,ij->i", e2, s2)
-    c = cos_i + cos_s
-    h11 = (1.0 - a1 * a1) / r1 + (1.0 - b1 * b1) / r2 + c * k11
-    h22 = (1.0 - a2 * a2) / r1 + (1.0 - b2 * b2) / r2 + c * k22
-    h12 = -a1 * a2 / r1 - b1 * b2 / r2 + c * k12
-    det = h11 * h22 - h12 * h12
-    trace = h11 + h22
-    signature = np.where(det < 0, 0, np.where(trace > 0, 2, -2))
-    return cos_i / (r1 * r2 * np.sqrt(np.abs(det))), -(np.pi / 4.0) * (signature - 2)
+    # the formulas above in one compiled loop, term for term (specular_kernels.go_factors):
+    # s1, s2 the unit vectors a -> x and b -> x at distances r1, r2, cos_i = |s1 . n|,
+    # cos_s = |s2 . n|, a_j = e_j . s1, b_j = e_j . s2, c = cos_i + cos_s,
+    # h11 = (1 - a1^2)/r1 + (1 - b1^2)/r2 + c k11, h22 likewise, h12 = -a1 a2/r1 - b1 b2/r2 + c k12,
+    # signature 0 if det H < 0, else 2 if trace H > 0, else -2
+    rows = (np.ascontiguousarray(v, dtype=float) for v in (a, b, x, normal, e1, e2))
+    n = len(x)
+    curvature = (np.ascontiguousarray(np.broadcast_to(np.asarray(k, dtype=float), (n,))) for k in (k11, k22, k12))
+    return go_factors(*rows, *curvature)
 
 
 __all__ = [

@@ -152,11 +152,19 @@ def circle_newton(ax: NDArray[np.float64], ay: NDArray[np.float64], bx: NDArray[
     The loop of :func:`acoustisim.propagation.curved.circle_specular_point`, step for step:
     every row takes every step until no row's step exceeds ``tol`` (rad), at most
     ``max_steps`` steps; each step clipped to +-0.5 rad.
+
+    A row whose step left its angle unchanged has reached a fixed point: every later step
+    would be the same (computed from the same angle), again leave it unchanged, and not exceed
+    ``tol`` (it is below an ulp of the angle, <= 4e-15 rad for |phi| < 20), so the row is not
+    computed any more. The result is bit-for-bit that of stepping every row.
     """
-    n = phi.shape[0]
+    active = np.arange(phi.shape[0])
+    n_active = active.shape[0]
     for _ in range(max_steps):
         moving = False
-        for i in range(n):
+        kept = 0
+        for q in range(n_active):
+            i = active[q]
             r = rad[i]
             c, s = math.cos(phi[i]), math.sin(phi[i])
             xx, xy = r * c, r * s
@@ -172,9 +180,14 @@ def circle_newton(ax: NDArray[np.float64], ay: NDArray[np.float64], bx: NDArray[
                 step = -0.5
             elif step > 0.5:
                 step = 0.5
-            phi[i] = phi[i] - step
+            updated = phi[i] - step
+            if updated != phi[i]:  # (NaN stays active)
+                active[kept] = i
+                kept += 1
+            phi[i] = updated
             if abs(step) > tol:
                 moving = True
+        n_active = kept
         if not moving:
             break
     return phi
@@ -323,4 +336,48 @@ def incidence_cosines(vertices: NDArray[np.float64], normals: NDArray[np.float64
     return out
 
 
-__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "incidence_cosines", "primitive_specular_points", "unfold_chains"]
+@njit(cache=True, nogil=True, inline="always")
+def _dot3(u0: float, u1: float, u2: float, v0: float, v1: float, v2: float) -> float:
+    """u . v summed as ``np.einsum("ij,ij->i", u, v)`` sums 3 terms: (x + z) + y."""
+    return (u0 * v0 + u2 * v2) + u1 * v1
+
+
+@njit(cache=True, nogil=True)
+def go_factors(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.float64], normal: NDArray[np.float64],
+               e1: NDArray[np.float64], e2: NDArray[np.float64], k11: NDArray[np.float64], k22: NDArray[np.float64],
+               k12: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`acoustisim.propagation.curved.go_amplitude_general` (amplitude and phase (n,))
+    of (image) sources ``a``, receivers ``b``, specular points ``x``, normals and tangent
+    bases (n, 3) and curvature tensors (n,): the same formulas, term for term (norms summed
+    x + y + z as ``np.linalg.norm``, dot products (x + z) + y as ``np.einsum``)."""
+    n = x.shape[0]
+    amplitude = np.empty(n)
+    phase = np.empty(n)
+    quarter = -(math.pi / 4.0)
+    for i in range(n):
+        p0, p1, p2 = x[i, 0] - a[i, 0], x[i, 1] - a[i, 1], x[i, 2] - a[i, 2]
+        q0, q1, q2 = x[i, 0] - b[i, 0], x[i, 1] - b[i, 1], x[i, 2] - b[i, 2]
+        r1 = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        r2 = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+        s0, s1, s2 = p0 / r1, p1 / r1, p2 / r1
+        t0, t1, t2 = q0 / r2, q1 / r2, q2 / r2
+        n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
+        cos_i = abs(_dot3(s0, s1, s2, n0, n1, n2))
+        cos_s = abs(_dot3(t0, t1, t2, n0, n1, n2))
+        a1 = _dot3(e1[i, 0], e1[i, 1], e1[i, 2], s0, s1, s2)
+        a2 = _dot3(e2[i, 0], e2[i, 1], e2[i, 2], s0, s1, s2)
+        b1 = _dot3(e1[i, 0], e1[i, 1], e1[i, 2], t0, t1, t2)
+        b2 = _dot3(e2[i, 0], e2[i, 1], e2[i, 2], t0, t1, t2)
+        c = cos_i + cos_s
+        h11 = (1.0 - a1 * a1) / r1 + (1.0 - b1 * b1) / r2 + c * k11[i]
+        h22 = (1.0 - a2 * a2) / r1 + (1.0 - b2 * b2) / r2 + c * k22[i]
+        h12 = -a1 * a2 / r1 - b1 * b2 / r2 + c * k12[i]
+        det = h11 * h22 - h12 * h12
+        trace = h11 + h22
+        signature = 0 if det < 0 else (2 if trace > 0 else -2)
+        amplitude[i] = cos_i / (r1 * r2 * math.sqrt(abs(det)))
+        phase[i] = quarter * (signature - 2)
+    return amplitude, phase
+
+
+__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "go_factors", "incidence_cosines", "primitive_specular_points", "unfold_chains"]
