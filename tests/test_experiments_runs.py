@@ -45,9 +45,16 @@ def test_range_sweep_tiny(tmp_path: Path) -> None:
         if p["threshold"]["detection_rate"] == 1.0:
             assert p["matched"]["range_rms_m"] < p["threshold"]["range_rms_m"]
         assert p["simulate_s_per_ping"] > 0 and p["matched"]["elapsed_s"] > 0
+        # The default detectors include the matched filter with the beam-aware refinement: the same
+        # echoes, refined, so it detects whatever the matched filter detects, also within 0.5 mm.
+        beam = p["beam-matched"]
+        assert beam["detection_rate"] == p["matched"]["detection_rate"] and beam["range_rms_m"] < 0.5e-3
+        assert beam["cpu_s"] >= p["matched"]["cpu_s"] and math.isfinite(beam["range_rms_over_bound"])
+        assert abs(beam["bias_range_parts_m"]["edge"]) < abs(p["matched"]["bias_range_parts_m"]["edge"])
     s = out["summary"]
-    assert set(s) >= {"simulate_s_per_ping", "solve_s_per_position", "threshold", "matched"}
+    assert set(s) >= {"simulate_s_per_ping", "solve_s_per_position", "threshold", "matched", "beam-matched"}
     assert s["matched"]["positions_within_1_5_bound"] <= 2
+    assert 0 <= s["beam-matched"]["positions_bearing_within_1_5_bound"] <= 2
 
 
 def test_angle_sweep_tiny_without_reverberation(tmp_path: Path) -> None:
@@ -116,6 +123,10 @@ def test_full_run(name: str, tmp_path: Path) -> None:
         # the short-range and reverberation limits).
         far = [p for p in payload["positions"] if p["range_m"] >= 0.6]
         assert max(p["matched"]["range_rms_m"] for p in far) < 0.01
+        # The beam-aware refinement removes the beam's bias at every range (0.1 m included): what
+        # is left of its noise-free bias is the frozen reverberation's, ~10 um at most.
+        assert max(abs(p["beam-matched"]["bias_range_parts_m"]["edge"]) for p in payload["positions"]) < 2e-6
+        assert max(p["beam-matched"]["range_rms_m"] for p in payload["positions"]) < 50e-6
     elif name == "angle-sweep":
         assert len(payload["positions"]) == 25
     else:

@@ -230,8 +230,18 @@ def beam_transducers(sonar: Any) -> Any:
     return PistonTransducers.uniform(float(sonar.transducer_diameter_m), (0.0, 1.0, 0.0), 1)
 
 
+def beam_config() -> Any:
+    """binsonar's beam-aware refinement for the sweeps' target: a vertical edge, a rigid 60-degree
+    wedge facing the sonar (``PRISM_ANGLE_DEG``; the head is turned so that it looks along the
+    prism's bisector), the refinement's other settings at their defaults."""
+    from binsonar.localization.beam_model import BeamModelConfig
+    from binsonar.localization.beam_refine import BeamRefinementConfig
+
+    return BeamRefinementConfig(model=BeamModelConfig(target="vertical-edge", wedge_interior_angle_deg=PRISM_ANGLE_DEG))
+
+
 def beam_matched_echoes(recording: Any, matched: Any, transducers: Any, sound_speed_m_s: float) -> tuple[Any, Any, Any]:
-    """The matched filter's first echoes of ping 0 refined by the beam-aware filter (vertical-edge target).
+    """The matched filter's first echoes of ping 0 refined by the beam-aware filter (``beam_config``).
 
     Parameters
     ----------
@@ -247,7 +257,7 @@ def beam_matched_echoes(recording: Any, matched: Any, transducers: Any, sound_sp
     return refine_echoes(recording.waveforms[0], matched.first(0), sample_rate_hz=recording.sample_rate_hz,
                          t0_s=recording.t0_s, template=recording.template,
                          channel_positions_m=recording.channel_positions_m, sound_speed_m_s=sound_speed_m_s,
-                         transducers=transducers)
+                         transducers=transducers, config=beam_config())
 
 
 def noise_free_errors(recording: Any, clean: Any, detectors: tuple[str, ...], truth_tof_s: Any, truth: Any,
@@ -282,7 +292,8 @@ def noise_free_errors(recording: Any, clean: Any, detectors: tuple[str, ...], tr
                 echoes = refine_echoes(record.waveforms[0], plain, sample_rate_hz=record.sample_rate_hz,
                                        t0_s=record.t0_s, template=record.template,
                                        channel_positions_m=record.channel_positions_m,
-                                       sound_speed_m_s=sound_speed_m_s, transducers=transducers)
+                                       sound_speed_m_s=sound_speed_m_s, transducers=transducers,
+                                       config=beam_config())
         else:
             echoes = nearest_echoes(detect(record, method), truth_tof_s)
         r, b = estimate_point(echoes, sound_speed_m_s, half_baseline_m)
