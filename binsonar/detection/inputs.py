@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from binsonar.detection.noise import MAD_TO_SIGMA, robust_subsample, row_median
+from binsonar.detection.noise import MAD_TO_SIGMA, ROBUST_SAMPLES, ROBUST_SEGMENTS, robust_subsample, row_median
 from binsonar.recording import Recording, RecordingError, Template
 
 
@@ -162,11 +162,13 @@ def robust_offsets(waveforms: NDArray[np.float64]) -> tuple[NDArray[np.float64] 
     return dc, sigma.reshape(n_pings, n_channels)
 
 
-def code_offsets(codes: NDArray[np.int16], volts_per_code: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
-    """``robust_offsets`` of records stored as ADC codes, in volts.
+def code_offsets(
+    codes: NDArray[np.int16], volts_per_code: float, full_scales_v: tuple[float, ...] = ()
+) -> tuple[NDArray[np.float64] | None, NDArray[np.float64], NDArray[np.bool_]]:
+    """``robust_offsets`` of records stored as ADC codes, in volts, and their clipping.
 
     The same subsample (``noise.robust_subsample``) and the same selected elements, counted by
-    a histogram of the codes (``code_kernels.median_and_mad``) rather than partitioned: the
+    a histogram of the codes (``code_kernels.code_statistics``) rather than partitioned: the
     median code times ``volts_per_code`` is exactly the median of the volts (scaling by a
     positive number keeps the order); the deviation's median, taken in codes then scaled,
     equals the one taken in volts to the rounding of the volts' differences.
@@ -175,41 +177,32 @@ def code_offsets(codes: NDArray[np.int16], volts_per_code: float) -> tuple[NDArr
     ----------
     codes : ndarray of int16, shape (n_pings, n_channels, n_samples)
     volts_per_code : float
+    full_scales_v : tuple of float
+        Full scales (V) to test: a row is clipped when ``codes * volts_per_code`` reaches one
+        (``_clipped_by_full_scale``, judged on the codes' extremes, scaled: the volts'
+        extremes). Empty: no clipping test, and no pass over the whole record.
 
     Returns
     -------
     dc_v : ndarray, shape (n_pings, n_channels), or None
         None when every median is 0.
     sigma_v : ndarray, shape (n_pings, n_channels)
+    clipped : ndarray of bool, shape (n_pings, n_channels)
     """
-    from binsonar.detection.code_kernels import median_and_mad
-
-    n_pings, n_channels, n = codes.shape
-    sample = np.ascontiguousarray(robust_subsample(codes.reshape(n_pings * n_channels, n)).reshape(n_pings * n_channels, -1))
-    median = np.empty(sample.shape[0], dtype=np.int64)
-    mad = np.empty(sample.shape[0], dtype=np.int64)
-    median_and_mad(sample, median, mad)
-    sigma = (MAD_TO_SIGMA * (mad * volts_per_code)).reshape(n_pings, n_channels)
-    if not np.any(median != 0):
-        return None, sigma
-    return (median * volts_per_code).reshape(n_pings, n_channels), sigma
-
-
-def _clipped_codes(codes: NDArray[np.int16], volts_per_code: float, full_scales_v: list[float]) -> NDArray[np.bool_]:
-    """``_clipped_by_full_scale`` of the volts ``codes * volts_per_code``, for each full scale,
-    from one pass over the codes (their largest and smallest: the volts' extremes, scaled)."""
-    from binsonar.detection.code_kernels import row_extremes
+    from binsonar.detection.code_kernels import code_statistics
 
     n_pings, n_channels, n = codes.shape
     rows = np.ascontiguousarray(codes).reshape(n_pings * n_channels, n)
-    largest = np.empty(rows.shape[0], dtype=np.int64)
-    smallest = np.empty(rows.shape[0], dtype=np.int64)
-    row_extremes(rows, largest, smallest)
-    clipped = np.zeros(rows.shape[0], dtype=bool)
-    for full_scale_v in full_scales_v:  # one or two full scales
-        limit = full_scale_v * (1.0 - 1e-9)
-        clipped |= (largest * volts_per_code >= limit) | (smallest * volts_per_code <= -limit)
-    return clipped.reshape(n_pings, n_channels)
+    if n <= ROBUST_SAMPLES:
+        period, length, segments = n, n, 1
+    else:
+        period, length, segments = n // ROBUST_SEGMENTS, ROBUST_SAMPLES // ROBUST_SEGMENTS, ROBUST_SEGMENTS
+    stats = np.empty((rows.shape[0], 3))
+    code_statistics(rows, np.array([period, length, segments], dtype=np.int64),
+                    np.array((volts_per_code, MAD_TO_SIGMA) + tuple(full_scales_v)), stats)
+    dc = stats[:, 0].reshape(n_pings, n_channels)
+    return (dc if dc.any() else None), stats[:, 1].reshape(n_pings, n_channels), \
+        (stats[:, 2] != 0.0).reshape(n_pings, n_channels)
 
 
 def _code_signals(
@@ -227,14 +220,12 @@ def _code_signals(
 ) -> Signals:
     """``Signals`` of ADC codes: clipping judged on the codes (the ADC's rails
     +/-(2^(bits - 1) - 1) codes, and ``full_scale_v``), offsets and noise from a histogram."""
-    full_scales = [] if full_scale_v is None else [float(full_scale_v)]
+    full_scales: tuple[float, ...] = () if full_scale_v is None else (float(full_scale_v),)
     if adc_bits is not None:
-        full_scales.append((2 ** (int(adc_bits) - 1) - 1) * volts_per_code)
-    if full_scales:
-        clipped = clipped | _clipped_codes(codes, volts_per_code, full_scales)
+        full_scales += ((2 ** (int(adc_bits) - 1) - 1) * volts_per_code,)
     step = adc_step_v if adc_step_v is not None else volts_per_code
-    dc, sigma = code_offsets(codes, volts_per_code)
-    signals = Signals(codes, float(sample_rate_hz), float(t0_s), clipped, template, where,
+    dc, sigma, clipped_now = code_offsets(codes, volts_per_code, full_scales)
+    signals = Signals(codes, float(sample_rate_hz), float(t0_s), clipped | clipped_now, template, where,
                       quantisation_noise_std_v(step), dc, sigma, float(volts_per_code))
     return signals.without_dc() if remove_dc else signals
 

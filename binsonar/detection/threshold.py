@@ -183,30 +183,17 @@ def detect_threshold(
         stop = min(n, int(math.floor((stop_s - t0_s) * fs)) + 1) if math.isfinite(stop_s) else n
         if stop - first < 2:
             raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
-    from binsonar.detection.threshold_kernels import crossings
+    from binsonar.detection.threshold_kernels import threshold_echoes
 
-    # ``first_crossings`` and the echo measures at the crossing, compiled: each searched sample read once,
-    # up to the crossing (tests/test_detection_threshold_kernels.py).
+    # ``first_crossings``, the echo measures at the crossing and the echo values, compiled in one
+    # call: each searched sample read once, up to the crossing (tests/test_detection_threshold_kernels.py).
     rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)
-    scale = 1.0 if volts_per_code is None else float(volts_per_code)
-    found = np.empty(n_rows, dtype=np.int64)
-    measures = np.empty((n_rows, 4))
-    crossings(rows, scale, np.ascontiguousarray(level, dtype=float), offset, first, stop, window, found, measures)
-    out: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n_rows)]
-    hit = np.flatnonzero(found >= 0)
-    if hit.size == 0:
-        return out
-    i = found[hit]
-    before, after, amplitude, total = measures[hit].T
-    frac = np.where(i > 0, _fraction(before, after, level[hit]), 0.0)
-    crossing = t0_s + (i - 1 + frac) / fs
-    tof = crossing - offset_s
-    # A noise-free record has (almost) no noise floor: cap the SNR at 200 dB.
-    noise_var = np.maximum(sigma[hit] ** 2, 1e-20 * total)
-    snr = np.maximum((total - window * sigma[hit] ** 2) / noise_var, 1e-3)
-    slope = np.maximum((after - before) * fs, np.finfo(float).tiny)
-    tof_std = sigma[hit] / slope
-    score = amplitude / level[hit]
-    for k, r in enumerate(hit):
-        out[r].append((float(tof[k]), float(amplitude[k]), float(10 * np.log10(snr[k])), float(score[k]), float(tof_std[k])))
-    return out
+    per_row = np.empty((n_rows, 3))
+    per_row[:, 0] = level
+    per_row[:, 1] = offset
+    per_row[:, 2] = sigma
+    echoes = np.empty((n_rows, 6))
+    threshold_echoes(rows, 1.0 if volts_per_code is None else float(volts_per_code), per_row,
+                     np.array([first, stop, window], dtype=np.int64), np.array([fs, t0_s, offset_s]), echoes)
+    # One conversion to Python floats for all rows (``tolist``).
+    return [[tuple(echo[1:])] if echo[0] else [] for echo in echoes.tolist()]

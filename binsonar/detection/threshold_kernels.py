@@ -136,3 +136,65 @@ def crossings(rows: NDArray, scale: float, level: NDArray[np.float64], offset: N
             energy += v * v
         measures[r, 2] = peak
         measures[r, 3] = energy
+
+
+@njit(cache=True, nogil=True)
+def threshold_echoes(rows: NDArray, scale: float, per_row: NDArray[np.float64], settings: NDArray[np.int64],
+                     constants: NDArray[np.float64], echoes: NDArray[np.float64]) -> None:
+    """``crossings``, then each crossing's echo values: the whole threshold detector after its
+    noise estimate, in one call (numpy reference: ``threshold_echo_values`` in
+    ``tests/test_detection_threshold_kernels.py``, the same operations in the same order).
+    Once a new ping has evicted the caches, each numpy call costs tens of microseconds: the
+    twenty-odd small ones this replaces cost ~0.2 ms per ping.
+
+    Parameters
+    ----------
+    rows, scale
+        As for ``first_crossings``.
+    per_row : ndarray, shape (n_rows, 3)
+        Level (V), DC offset (V) and noise standard deviation sigma (V) of each row.
+    settings : ndarray of int, shape (3,)
+        first, stop_at (searched samples) and window (samples measured from the crossing).
+    constants : ndarray, shape (3,)
+        Sample rate (Hz), t0_s (time of sample 0, s) and the calibrated offset subtracted from
+        the crossing time (s).
+    echoes : ndarray, shape (n_rows, 6), written
+        1 where the row crosses (0 and NaN values elsewhere), then tof_s (the crossing linearly
+        interpolated between the samples around it, minus the offset), amplitude (the largest
+        |x - dc| over the window, V), snr_db (the window's energy above the noise over sigma^2,
+        at least -30 dB, capped near 200 dB for a noise-free record), score (amplitude /
+        level) and tof_std_s (sigma over the crossing's slope).
+    """
+    n_rows = rows.shape[0]
+    level = np.ascontiguousarray(per_row[:, 0])
+    offset = np.ascontiguousarray(per_row[:, 1])
+    found = np.empty(n_rows, dtype=np.int64)
+    measures = np.empty((n_rows, 4))
+    window = settings[2]
+    crossings(rows, scale, level, offset, settings[0], settings[1], window, found, measures)
+    fs, t0_s, offset_s = constants[0], constants[1], constants[2]
+    tiny = np.finfo(np.float64).tiny
+    for r in range(n_rows):
+        i = found[r]
+        if i < 0:
+            echoes[r, 0] = 0.0
+            for q in range(1, 6):
+                echoes[r, q] = np.nan
+            continue
+        before, after, amplitude, total = measures[r, 0], measures[r, 1], measures[r, 2], measures[r, 3]
+        sigma = per_row[r, 2]
+        frac = 0.0
+        if i > 0:  # ``threshold._fraction``
+            rise = after - before
+            frac = (level[r] - before) / rise if rise > 0 else 1.0
+            frac = min(max(frac, 0.0), 1.0)
+        crossing = t0_s + (i - 1 + frac) / fs
+        noise_var = max(sigma ** 2, 1e-20 * total)  # a noise-free record: the SNR capped at 200 dB
+        snr = max((total - window * sigma ** 2) / noise_var, 1e-3)
+        slope = max((after - before) * fs, tiny)
+        echoes[r, 0] = 1.0
+        echoes[r, 1] = crossing - offset_s
+        echoes[r, 2] = amplitude
+        echoes[r, 3] = 10 * np.log10(snr)
+        echoes[r, 4] = amplitude / level[r]
+        echoes[r, 5] = sigma / slope
