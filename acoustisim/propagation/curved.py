@@ -225,10 +225,19 @@ def go_amplitude_general(a: NDArray[np.float64], b: NDArray[np.float64], x: NDAr
     # cos_s = |s2 . n|, a_j = e_j . s1, b_j = e_j . s2, c = cos_i + cos_s,
     # h11 = (1 - a1^2)/r1 + (1 - b1^2)/r2 + c k11, h22 likewise, h12 = -a1 a2/r1 - b1 b2/r2 + c k12,
     # signature 0 if det H < 0, else 2 if trace H > 0, else -2
-    rows = (np.ascontiguousarray(v, dtype=float) for v in (a, b, x, normal, e1, e2))
+    return go_factors_at(np.arange(len(x)), a, b, x, normal, e1, e2, k11, k22, k12)
+
+
+def go_factors_at(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.float64],
+                  normal: NDArray[np.float64], e1: NDArray[np.float64], e2: NDArray[np.float64],
+                  k11: NDArray[np.float64] | float, k22: NDArray[np.float64] | float,
+                  k12: NDArray[np.float64] | float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`go_amplitude_general` of the ``rows`` (r,) of its arguments (n, 3) and (n,) (or
+    scalar curvatures), without gathering them first. Returns amplitude and phase (r,)."""
     n = len(x)
+    vectors = (np.ascontiguousarray(v, dtype=float) for v in (a, b, x, normal, e1, e2))
     curvature = (np.ascontiguousarray(np.broadcast_to(np.asarray(k, dtype=float), (n,))) for k in (k11, k22, k12))
-    return go_factors(*rows, *curvature)
+    return go_factors(np.ascontiguousarray(rows, dtype=np.int64), *vectors, *curvature)
 
 
 __all__ = [
@@ -238,6 +247,7 @@ __all__ = [
     "cylinder_specular_point",
     "go_amplitude",
     "go_amplitude_general",
+    "go_factors_at",
     "specular_points",
     "sphere_specular_point",
 ]

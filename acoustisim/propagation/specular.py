@@ -42,12 +42,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.curved import go_amplitude, go_amplitude_general, specular_points
+from acoustisim.propagation.curved import go_amplitude_general, go_factors_at, specular_points
 from acoustisim.propagation.image_source import _INSIDE_TOL, _ON_PLANE_TOL_M, PlanarMirrors, backtrace, unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.specular_chains import (chain_legs, duplicate_keys, fill_mixed, fill_planar,
-                                                    mixed_candidates, unblocked_chains, write_rows)
+                                                    first_distinct_rows, mixed_candidates, unblocked_chains,
+                                                    vertex_groups, write_rows)
 from acoustisim.propagation.specular_kernels import incidence_cosines
 
 _REAL_TOL = 1e-12
@@ -401,9 +402,8 @@ def _planar_and_mixed(context: SolveContext, prepared: PreparedScene, max_order:
                             cursor)
         chain_base += seq_b.shape[0] * seq_a.shape[0] * len(prepared.curved)
         lo = hi
-    rows = picked[mixed_start:cursor]
-    chains.spreading[mixed_start:cursor] = go_amplitude(a_pt[rows], b_pt[rows], x[rows], normal[rows], e1[rows],
-                                                        e2[rows], k1[rows], k2[rows])
+    chains.spreading[mixed_start:cursor] = go_factors_at(picked[mixed_start:cursor], a_pt, b_pt, x, normal, e1, e2,
+                                                         k1, k2, 0.0)[0]
     return _head(chains, cursor), chain_base
 
 
@@ -423,30 +423,28 @@ def _reflection_products(chains: _Merged, rows: NDArray[np.int64], prepared: Pre
                          context: SolveContext) -> NDArray[np.complex128]:
     """Product over the vertices of the chains ``rows`` of R(cos theta_incidence): (c,) complex.
 
-    One ``Material.reflection_coefficient`` call per (reflector kind, material) over every
-    vertex, then the factors multiplied in vertex order per chain.
+    One ``Material.reflection_coefficient`` call per distinct material (equal materials of
+    different reflector kinds share it) over every vertex on it, then the factors multiplied
+    in vertex order per chain.
     """
     rho, c = context.density_kg_m3, context.sound_speed_m_s
-    tables = {"mirror": prepared.mirrors.materials, "curved": tuple(r.material for r in prepared.curved),
-              "smooth": tuple(r.material for r in prepared.smooth)}
+    tables = (prepared.mirrors.materials, tuple(r.material for r in prepared.curved),
+              tuple(r.material for r in prepared.smooth))
+    distinct: dict[Any, int] = {}
+    code_of = np.array([distinct.setdefault(m, len(distinct)) for table in tables for m in table], dtype=np.int64)
+    kind_offset = np.cumsum([0] + [len(table) for table in tables[:-1]]).astype(np.int64)
     # |cos| of the incidence angle at each vertex (a zero-length leg, two reflections on a corner
     # line, arrives along the previous direction mirrored by the previous surface)
-    cos_i = incidence_cosines(chains.vertices[rows], chains.normal[rows], chains.order[rows])
-    kind, material = chains.kind[rows], chains.material[rows]
+    cos_i = incidence_cosines(chains.vertices[rows], chains.normal[rows], chains.order[rows]).ravel()
+    positions, starts = vertex_groups(rows, chains.kind, chains.material, code_of, kind_offset, len(distinct))
     factor = np.ones(cos_i.shape, dtype=complex)
-    for code, source in enumerate(_SOURCES):
-        at = kind == code
-        if not at.any():
-            continue
-        index = material[at]
-        cos_at = cos_i[at]
-        r = np.ones(index.size, dtype=complex)
-        for m in np.unique(index):
-            sel = index == m
-            r[sel] = tables[source][int(m)].reflection_coefficient(cos_at[sel], rho, c)
-        factor[at] = r
-    total = np.ones(cos_i.shape[0], dtype=complex)
-    for j in range(cos_i.shape[1]):
+    for material, code in distinct.items():
+        at = positions[starts[code]:starts[code + 1]]
+        if at.size:
+            factor[at] = material.reflection_coefficient(cos_i[at], rho, c)
+    factor = factor.reshape(rows.size, -1)
+    total = np.ones(rows.size, dtype=complex)
+    for j in range(factor.shape[1]):
         total *= factor[:, j]
     return total
 
@@ -520,21 +518,4 @@ def _first_of_duplicates(chains: _Merged, rows: NDArray[np.int64]) -> NDArray[np
                                               MAX_INTERACTIONS, 1e-9))
 
 
-def first_distinct_rows(key: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Sorted indices of the first occurrence of each distinct row of ``key`` (n, c).
-
-    As ``np.unique(key, axis=0, return_index=True)`` (sorted), faster: one wrapping 64-bit hash
-    per row (odd multipliers), unique over the hashes; exact, as every row must equal the first
-    row of its hash, else (a collision) unique over the whole rows as byte strings.
-    """
-    key = np.ascontiguousarray(key, dtype=np.int64)
-    multipliers = np.arange(1, 2 * key.shape[1], 2, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)
-    hashes = (key.view(np.uint64) * multipliers).sum(axis=1, dtype=np.uint64)
-    _, first, inverse = np.unique(hashes, return_index=True, return_inverse=True)
-    if not np.array_equal(key[first[inverse]], key):
-        _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize * key.shape[1]))).ravel(),
-                             return_index=True)
-    return np.sort(first)
-
-
-__all__ = ["direct_rows", "specular_rows"]
+__all__ = ["direct_rows", "first_distinct_rows", "specular_rows"]

@@ -434,5 +434,95 @@ def write_rows(chains: NDArray[np.int64], path_id_base: int, kind: int, chain: N
                 out_points[i, q, d] = vertices[c, q + 1, d]
 
 
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+"""Odd 64-bit multiplier (2^64 / golden ratio) of the row hashes of :func:`first_distinct_rows`."""
+
+
+@njit(cache=True, nogil=True)
+def first_distinct_rows(key: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Sorted indices of the first occurrence of each distinct row of ``key`` (n, c).
+
+    As ``np.sort(np.unique(key, axis=0, return_index=True)[1])``: each row hashed (a wrapping
+    64-bit sum of its columns times the odd multipliers (2 j + 1) x ``_GOLDEN``), rows sorted by
+    hash (stable, so by index within a hash), and within each run of equal hashes a row kept
+    unless it equals a row kept before it in the run (whole-row comparison: collisions are
+    exact).
+    """
+    n, c = key.shape
+    hashes = np.zeros(n, dtype=np.uint64)
+    for i in range(n):
+        acc = np.uint64(0)
+        for j in range(c):
+            acc += np.uint64(key[i, j]) * (np.uint64(2 * j + 1) * _GOLDEN)
+        hashes[i] = acc
+    order = np.argsort(hashes, kind="mergesort")
+    keep = np.zeros(n, dtype=np.bool_)
+    start = 0
+    while start < n:
+        stop = start + 1
+        while stop < n and hashes[order[stop]] == hashes[order[start]]:
+            stop += 1
+        for p in range(start, stop):
+            i = order[p]
+            seen = False
+            for q in range(start, p):
+                other = order[q]
+                if keep[other]:
+                    same = True
+                    for j in range(c):
+                        if key[i, j] != key[other, j]:
+                            same = False
+                            break
+                    if same:
+                        seen = True
+                        break
+            keep[i] = not seen
+        start = stop
+    return np.flatnonzero(keep)
+
+
+@njit(cache=True, nogil=True)
+def vertex_groups(chains: NDArray[np.int64], kind: NDArray[np.int64], material: NDArray[np.int64],
+                  code_of: NDArray[np.int64], kind_offset: NDArray[np.int64], n_codes: int
+                  ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The interactions of ``chains`` (c,) grouped by reflection code, by a counting sort.
+
+    Parameters
+    ----------
+    chains : ndarray of int64, shape (c,)
+        Rows of the padded ``kind`` and ``material`` (n, K).
+    code_of : ndarray of int64, shape (t,)
+        Code (0..``n_codes`` - 1) of each entry of the concatenated material tables of the
+        reflector kinds; kind k's entry j is ``kind_offset[k] + j``.
+
+    Returns
+    -------
+    positions : ndarray of int64, shape (v,)
+        Flat positions ``i * K + j`` (slot j of the i-th chain) of the real interactions,
+        grouped by code, in increasing position within a group.
+    starts : ndarray of int64, shape (n_codes + 1,)
+        Group q is ``positions[starts[q]:starts[q + 1]]``.
+    """
+    big = kind.shape[1]
+    counts = np.zeros(n_codes + 1, dtype=np.int64)
+    for i in range(chains.shape[0]):
+        c = chains[i]
+        for j in range(big):
+            if kind[c, j] >= 0:
+                counts[code_of[kind_offset[kind[c, j]] + material[c, j]] + 1] += 1
+    starts = np.cumsum(counts)
+    fill = starts[:-1].copy()
+    positions = np.empty(starts[-1], dtype=np.int64)
+    for i in range(chains.shape[0]):
+        c = chains[i]
+        for j in range(big):
+            if kind[c, j] >= 0:
+                q = code_of[kind_offset[kind[c, j]] + material[c, j]]
+                positions[fill[q]] = i * big + j
+                fill[q] += 1
+    return positions, starts
+
+
 __all__ = ["CURVED_KIND", "MIRROR_KIND", "chain_legs", "duplicate_keys", "fill_mixed", "fill_planar",
-           "mixed_candidates", "unblocked_chains", "write_rows"]
+           "first_distinct_rows", "mixed_candidates", "unblocked_chains", "vertex_groups",
+           "write_rows"]

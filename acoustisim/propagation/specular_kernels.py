@@ -343,18 +343,20 @@ def _dot3(u0: float, u1: float, u2: float, v0: float, v1: float, v2: float) -> f
 
 
 @njit(cache=True, nogil=True)
-def go_factors(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.float64], normal: NDArray[np.float64],
-               e1: NDArray[np.float64], e2: NDArray[np.float64], k11: NDArray[np.float64], k22: NDArray[np.float64],
-               k12: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`acoustisim.propagation.curved.go_amplitude_general` (amplitude and phase (n,))
-    of (image) sources ``a``, receivers ``b``, specular points ``x``, normals and tangent
-    bases (n, 3) and curvature tensors (n,): the same formulas, term for term (norms summed
-    x + y + z as ``np.linalg.norm``, dot products (x + z) + y as ``np.einsum``)."""
-    n = x.shape[0]
+def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.float64],
+               normal: NDArray[np.float64], e1: NDArray[np.float64], e2: NDArray[np.float64],
+               k11: NDArray[np.float64], k22: NDArray[np.float64], k12: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`acoustisim.propagation.curved.go_amplitude_general` (amplitude and phase (r,)) of
+    the ``rows`` (r,) of (image) sources ``a``, receivers ``b``, specular points ``x``, normals
+    and tangent bases (n, 3) and curvature tensors (n,): the same formulas, term for term
+    (norms summed x + y + z as ``np.linalg.norm``, dot products (x + z) + y as ``np.einsum``)."""
+    n = rows.shape[0]
     amplitude = np.empty(n)
     phase = np.empty(n)
     quarter = -(math.pi / 4.0)
-    for i in range(n):
+    for out in range(n):
+        i = rows[out]
         p0, p1, p2 = x[i, 0] - a[i, 0], x[i, 1] - a[i, 1], x[i, 2] - a[i, 2]
         q0, q1, q2 = x[i, 0] - b[i, 0], x[i, 1] - b[i, 1], x[i, 2] - b[i, 2]
         r1 = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
@@ -375,8 +377,8 @@ def go_factors(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.flo
         det = h11 * h22 - h12 * h12
         trace = h11 + h22
         signature = 0 if det < 0 else (2 if trace > 0 else -2)
-        amplitude[i] = cos_i / (r1 * r2 * math.sqrt(abs(det)))
-        phase[i] = quarter * (signature - 2)
+        amplitude[out] = cos_i / (r1 * r2 * math.sqrt(abs(det)))
+        phase[out] = quarter * (signature - 2)
     return amplitude, phase
 
 
