@@ -261,6 +261,9 @@ def refine_tofs(rows: ArrayLike, tof_s: ArrayLike, *, sample_rate_hz: float, t0_
         raise RecordingError(f"beam refinement: sound_speed_m_s must be > 0, got {sound_speed_m_s!r}")
     positions = np.asarray(channel_positions_m, dtype=float)
     geometry = ArrayGeometry.from_channel_positions(positions, transducers.transmitter_channel)
+    # Each channel's DC offset (its median, robust to the echoes) out: a segment's rectangular cut
+    # of a constant would leak into the band's low bins.
+    x = x - np.median(x, axis=1, keepdims=True)
     model = config.model
     # Segment: the widest search window plus the expected echo's span (template, beam spread,
     # edge tail): a segment that long holds a(t - tau) for every searched tau, so the circular
@@ -336,5 +339,63 @@ def refine_echoes(rows: ArrayLike, echoes: Sequence[Any], *, sample_rate_hz: flo
                  for ch, e in enumerate(triple))
 
 
-__all__ = ["BeamRefinement", "BeamRefinementConfig", "correlation_maximum", "refine_echoes", "refine_tofs",
-           "template_spectrum"]
+def refine_detection(result: Any, recording: Any, transducers: PistonTransducers | None,
+                     config: BeamRefinementConfig = BeamRefinementConfig(), *,
+                     sound_speed_m_s: float | None = None) -> Any:
+    """A matched-filter ``DetectionResult`` whose first echo per channel and ping has beam-aware TOFs.
+
+    For ``binsonar detect`` / scripts: each ping's earliest echoes (``result.first(ping)``) are
+    taken as one target's (the plain matched filter reports one echo per channel) and refined
+    with ``refine_echoes``; other echoes, and pings without a left or right echo, are kept as
+    they are. The result's ``method`` gains the suffix "+beam".
+
+    Parameters
+    ----------
+    result : DetectionResult
+        From ``binsonar.detection.detect(recording, "matched", ...)`` (or another method that
+        times an echo by the template's envelope peak).
+    recording : Recording
+        The recording it ran on; with ``result.n_pings == 1`` and several pings in the recording,
+        the pings' mean (the averaged detection).
+    transducers : PistonTransducers or None
+        None returns ``result`` unchanged.
+    config : BeamRefinementConfig
+    sound_speed_m_s : float, optional
+        Default: the recording's.
+
+    Raises
+    ------
+    RecordingError
+        No template or no sound speed in the recording.
+    """
+    if transducers is None:
+        return result
+    where = getattr(recording, "source", "") or "recording"
+    if recording.template is None:
+        raise RecordingError(f"{where}: beam refinement needs the recording's template")
+    c = sound_speed_m_s if sound_speed_m_s is not None else recording.sound_speed_m_s
+    if c is None:
+        raise RecordingError(f"{where}: beam refinement needs a sound speed (the recording has none)")
+    waveforms = np.asarray(recording.waveforms, dtype=float)
+    if result.n_pings == 1 and waveforms.shape[0] > 1:
+        waveforms = waveforms.mean(axis=0, keepdims=True)
+    if result.n_pings != waveforms.shape[0]:
+        raise RecordingError(f"{where}: the detection has {result.n_pings} ping(s), the recording {waveforms.shape[0]}")
+    template = recording.template
+    if not math.isclose(template.sample_rate_hz, recording.sample_rate_hz, rel_tol=1e-9):
+        from binsonar.detection.inputs import as_signals, resolve_template
+
+        template = resolve_template(template, as_signals(recording), "matched")
+    pings = []
+    for ping, channels in enumerate(result.echoes):  # pings, not samples: one refinement each
+        refined = refine_echoes(waveforms[ping], result.first(ping), sample_rate_hz=recording.sample_rate_hz,
+                                t0_s=recording.t0_s, template=template,
+                                channel_positions_m=recording.channel_positions_m, sound_speed_m_s=float(c),
+                                transducers=transducers, config=config)
+        pings.append(tuple((new,) + tuple(echoes[1:]) if echoes else echoes
+                           for new, echoes in zip(refined, channels)))
+    return replace(result, echoes=tuple(pings), method=f"{result.method}+beam")
+
+
+__all__ = ["BeamRefinement", "BeamRefinementConfig", "correlation_maximum", "refine_detection", "refine_echoes",
+           "refine_tofs", "template_spectrum"]
