@@ -373,7 +373,7 @@ def edge_line_integral_numpy(weight: NDArray[np.float64], excess_s: NDArray[np.f
     return np.einsum("cn,cnk->ck", weight, beam * phase)
 
 
-__all__ = [
+__all__ = (
     "BeamModelConfig", "PistonTransducers", "TARGET_CLASSES", "edge_line_integral_numpy", "expected_response",
     "jinc_table", "off_axis_angles", "piston_directivity", "wedge_beta",
-]
+)

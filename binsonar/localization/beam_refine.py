@@ -397,5 +397,5 @@ def refine_detection(result: Any, recording: Any, transducers: PistonTransducers
     return replace(result, echoes=tuple(pings), method=f"{result.method}+beam")
 
 
-__all__ = ["BeamRefinement", "BeamRefinementConfig", "correlation_maximum", "refine_detection", "refine_echoes",
-           "refine_tofs", "template_spectrum"]
+__all__ = ("BeamRefinement", "BeamRefinementConfig", "correlation_maximum", "refine_detection", "refine_echoes",
+           "refine_tofs", "template_spectrum")
