@@ -21,7 +21,9 @@ at its default sonar pose, with the tracer's own ray directions for the seed:
   beforehand), on an Embree scene built here from the ray caster's triangles: the baseline
   the issue names; ``raw intersect xN``: the same rays in the tracer's chunks of
   ``CHUNK_RAYS`` on N threads (embreex releases the GIL), the baseline of the threaded tracer;
-* ``raw same work``: the raw Embree calls the exact tracer makes (that INTERSECT, plus one
+* ``raw same work``: the raw Embree calls the exact tracer made before it found first hits
+  without Embree (:mod:`acoustisim.propagation.diffuse_hits`: on the thesis tank, a box with
+  convex objects, it asks Embree about no ray; the count is printed) (that INTERSECT, plus one
   OCCLUDED call on as many hit -> receiver legs as it sends to Embree: facing the receiver,
   crossing the box of an object without face planes; the legs crossing only convex objects'
   boxes are decided by the face planes, without Embree, and on the thesis tank, whose objects
@@ -216,6 +218,9 @@ def main() -> int:
     print(f"  legs hit -> receiver crossing an object's box (first bounce): {box_legs}; decided by the convex "
           f"objects' face planes: {convex_legs}; sent to Embree: {embree_legs} "
           f"({getattr(exact, 'embree_legs', '?')} over {args.bounces} bounce(s))")
+    print(f"  rays whose first hit the tracer asked Embree for: {getattr(exact, 'embree_rays', n)} of {n} x "
+          f"{args.bounces} bounce(s) (the others: the tank's exit face and the convex objects' face planes, "
+          f"acoustisim.propagation.diffuse_hits)")
     print("  wall-clock medians; CPU-time medians (process, all threads) in brackets")
     for name, (wall, cpu) in results.items():
         print(f"  {name:20s} {wall * 1e3:9.2f} ms [{cpu * 1e3:8.2f}]   {n / wall / 1e6:7.3f} M rays/s "

@@ -293,9 +293,15 @@ class _LobeTable:
 
 @dataclass(frozen=True, eq=False)
 class _DrawBuffers:
-    """Buffers of :meth:`_LobeTable.draw` for up to ``capacity`` rays, reused by the chunks one
-    tracer thread draws (the drawn arrays are read by the chunk's first bounce only: fresh
-    memory costs more, in page faults, than the kernels that fill it)."""
+    """Buffers of :meth:`_LobeTable.draw` for up to ``capacity`` rays, and of each bounce's hit
+    triangles and pair states, reused by the chunks one tracer thread traces (each is read
+    within its bounce, or the chunk's first bounce only: fresh memory costs more, in page
+    faults, than the kernels that fill it).
+
+    ``triangle`` and ``pending`` (capacity,) hold a bounce's first hits
+    (:func:`~acoustisim.propagation.diffuse_hits.first_hits`); ``state`` and ``pair_gain``
+    (capacity x receivers,) its (hit, receiver) pairs
+    (:func:`~acoustisim.propagation.diffuse_kernels.scatter_and_pair`)."""
 
     uniform: NDArray[np.float64]
     angle32: NDArray[np.float32]
@@ -303,12 +309,21 @@ class _DrawBuffers:
     directions: NDArray[np.float64]
     directions32: NDArray[np.float32]
     solid_angle: NDArray[np.float64]
+    triangle: NDArray[np.int32] | None = None
+    pending: NDArray[np.int64] | None = None
+    state: NDArray[np.int8] | None = None
+    pair_gain: NDArray[np.float64] | None = None
 
     @classmethod
-    def create(cls, capacity: int) -> "_DrawBuffers":
-        """Uninitialised buffers for ``capacity`` rays."""
+    def create(cls, capacity: int, receivers: int = 0) -> "_DrawBuffers":
+        """Uninitialised buffers for ``capacity`` rays (the bounce buffers with ``receivers`` > 0)."""
+        bounce = receivers > 0
         return cls(np.empty(2 * capacity), np.empty(capacity, dtype=np.float32), np.empty(capacity, dtype=np.float32),
-                   np.empty(3 * capacity), np.empty((capacity, 3), dtype=np.float32), np.empty(capacity))
+                   np.empty(3 * capacity), np.empty((capacity, 3), dtype=np.float32), np.empty(capacity),
+                   np.empty(capacity, dtype=np.int32) if bounce else None,
+                   np.empty(capacity, dtype=np.int64) if bounce else None,
+                   np.empty(capacity * receivers, dtype=np.int8) if bounce else None,
+                   np.empty(capacity * receivers) if bounce else None)
 
 
 def sample_directions(
@@ -601,14 +616,15 @@ def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | 
 
 
 def _hit_triangles(tracer: _Tracer, origins: NDArray[np.float64], directions: NDArray[np.float64],
-                   directions32: NDArray[np.float32] | None) -> tuple[NDArray[np.int32], int]:
+                   directions32: NDArray[np.float32] | None, buffers: _DrawBuffers) -> tuple[NDArray[np.int32], int]:
     """The first-hit triangle (m,) of each ray from ``origins`` (3, m) (or (3, 1), shared)
     along ``directions`` (3, m), and the number of rays Embree was asked about.
 
     Found by :func:`~acoustisim.propagation.diffuse_hits.first_hits` where the scene allows,
     else (and for the rays it leaves pending) by Embree, on float32 rows equal to those the
     tracer always gave it (``directions32``: the first bounce's, (m, 3), whose origin is the
-    transmitter; None: a later bounce's, made here).
+    transmitter; None: a later bounce's, made here). The triangles are written into
+    ``buffers.triangle`` (a view of it is returned) unless Embree finds them all.
     """
     raycaster = tracer.raycaster
     shift = raycaster.shift_m
@@ -618,7 +634,7 @@ def _hit_triangles(tracer: _Tracer, origins: NDArray[np.float64], directions: ND
         origins32 = tracer.origins32[:m] if first else _float32_rows(origins, shift, m)
         rows32 = directions32 if directions32 is not None else _float32_rows(directions, None, m)
         return raycaster.first_hit_triangles32(origins32, rows32), m
-    triangle, pending = np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int64)
+    triangle, pending = buffers.triangle[:m], buffers.pending[:m]
     k = first_hits(origins, directions, *tracer.hits, triangle, pending)
     if k:
         rays = pending[:k]
@@ -644,7 +660,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     event_row, reception_row = base  # where the next bounce's events and receptions go
     buffers = getattr(tracer.buffers, "draw", None)  # this thread's, reused chunk after chunk
     if buffers is None:
-        buffers = tracer.buffers.draw = _DrawBuffers.create(min(tracer.n_rays, CHUNK_RAYS))
+        buffers = tracer.buffers.draw = _DrawBuffers.create(min(tracer.n_rays, CHUNK_RAYS), n_rx)
     directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng, buffers, tracer.cells)
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
@@ -653,7 +669,8 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     legs = [0, 0, 0]  # sent to Embree, decided by the convex objects' planes; rays sent to Embree
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
-        triangle, embree_rays = _hit_triangles(tracer, origins, directions, directions32 if bounce == 0 else None)
+        triangle, embree_rays = _hit_triangles(tracer, origins, directions, directions32 if bounce == 0 else None,
+                                               buffers)
         legs[2] += embree_rays
         keep = bounce + 1 < tracer.bounces  # the rays continue
         # the events go straight to the output, from row event_row on
@@ -662,7 +679,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
         # next-event estimation to every receiver; Embree tests the legs that may be blocked
         # by a non-convex object
         pairs = m * n_rx
-        state, pair_gain = np.empty(pairs, dtype=np.int8), np.empty(pairs)
+        state, pair_gain = buffers.state[:pairs], buffers.pair_gain[:pairs]
         legs_max = pairs if tracer.queues else 0  # no Embree buffers when every leg is decided here
         leg_start, leg_unit = np.empty((legs_max, 3), dtype=np.float32), np.empty((legs_max, 3), dtype=np.float32)
         leg_length, leg_pair = np.empty(legs_max, dtype=np.float32), np.empty(legs_max, dtype=np.int64)
