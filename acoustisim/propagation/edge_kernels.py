@@ -12,8 +12,11 @@ passes over temporary arrays. Here each branch, element or row is one loop itera
 2. :func:`visibility_rays32`: the occlusion queries of every element's centre, written as
    Embree's float32 buffers (one batch,
    :meth:`~acoustisim.propagation.raycast.RayCaster.occluded_segments32`, between the kernels);
+   ``edge_paths`` first decides most legs exactly without Embree
+   (:mod:`~acoustisim.propagation.edge_visibility`) and asks Embree about the others only;
 3. :func:`gauss_point_gains`: per element, the Gauss points along the edge, their path lengths
-   m + l, and their gains (the element's BTM integral split between them);
+   m + l, and their gains (the element's BTM integral split between them): two compiled loops
+   around numpy's vectorised ``log1p``, ``sinh`` and ``arctan2``;
 4. :func:`fill_edge_rows`: the rows above the amplitude floor, with dense path ids per
    (chain, channel), the points and the unit leg directions, and the padding conventions of
    :func:`~acoustisim.propagation.paths.empty_paths_array`.
@@ -21,13 +24,14 @@ passes over temporary arrays. Here each branch, element or row is one loop itera
 The per-branch and per-pair constants (the graded grid's intervals, the angular factors of the
 four beta terms, the apex model's constants) stay in numpy (a few hundred pairs). The
 arithmetic is the former numpy code's term for term and in the same order (the four terms
-summed 0 + t0 + t1 + t2 + t3, squares as products), so the elements are bit-identical to the
-numpy reference and the gains agree with it to round-off of the elementary functions (libm
-here, numpy's own SIMD loops there): ``tests/test_edges_kernels.py`` keeps the numpy code and
-holds every row to 1e-12 relative (on the thesis tank: gains within 1.1e-15, directions within
-an ulp, everything else byte-identical). No
-``fastmath`` (it would reassociate sums). ``cache=True`` stores the compiled code beside this
-file: the first call in a fresh checkout compiles for a few seconds.
+summed 0 + t0 + t1 + t2 + t3, squares as products), so the elements, points and path lengths
+are bit-identical to the numpy reference, and the gains agree with it to the round-off of the
+elementary functions (``hypot`` is libm's in both; ``log1p``, ``sinh`` and ``arctan2`` are
+numpy's own loops in both, which may use SIMD code within 4 ulp of libm's, so the last bits of
+the gains depend on the CPU numpy dispatches to): ``tests/test_edges_kernels.py`` keeps the
+numpy code and holds every row to 1e-12 relative. No ``fastmath`` (it would reassociate sums).
+``cache=True`` stores the compiled code beside this file: the first call in a fresh checkout
+compiles for a few seconds.
 """
 
 from __future__ import annotations
@@ -206,6 +210,124 @@ def branch_elements(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _gauss_point_arguments(
+    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
+    nu: NDArray[np.float64], r_s: NDArray[np.float64], z_s: NDArray[np.float64], r_r: NDArray[np.float64],
+    z_r: NDArray[np.float64], nk: NDArray[np.float64], ml_star: NDArray[np.float64], z_star: NDArray[np.float64],
+    num: NDArray[np.float64], gap: NDArray[np.float64], s_gap: NDArray[np.float64],
+    gauss_x: NDArray[np.float64], gauss_w: NDArray[np.float64], whole: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+           NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The first half of :func:`gauss_point_gains`: everything up to its elementary functions.
+
+    Returns
+    -------
+    log_arg : ndarray, shape (n, g)
+        ``c1 + sqrt(c1 (c1 + 2))`` at each Gauss point (eta = log1p of it).
+    half_nu : ndarray, shape (n, 1)
+        0.5 nu of each element's pair (sinh's argument is ``half_nu * eta``).
+    ml : ndarray, shape (n, g)
+        m l at each point (m^2).
+    apex_sum : ndarray, shape (n,)
+        The quadrature of the apex model, sum_g w_g model_g / (m l)* (1/m^2).
+    atan_y, atan_x : ndarray, shape (n, 4)
+        Per element and term, the arguments of the apex model integral's atan2.
+    z, path_length : ndarray, shape (n, g), or (n, 0) with ``whole``
+        The points and their m + l (m).
+    """
+    n = pair.size
+    n_g = gauss_x.size
+    log_arg = np.empty((n, n_g))
+    half_nu = np.empty((n, 1))
+    ml_out = np.empty((n, n_g))
+    apex_out = np.empty(n)
+    atan_y = np.empty((n, 4))
+    atan_x = np.empty((n, 4))
+    zs_out = np.empty((n, 0 if whole else n_g))
+    paths = np.empty((n, 0 if whole else n_g))
+    for e in range(n):
+        p = pair[e]
+        nu_, rs, zs, rr, zr = nu[p], r_s[p], z_s[p], r_r[p], z_r[p]
+        nk_, mls, zst = nk[p], ml_star[p], z_star[p]
+        z0, z1 = z_start[e], z_end[e]
+        half_len = 0.5 * (z1 - z0)
+        centre = 0.5 * (z0 + z1)
+        half_nu[e, 0] = 0.5 * nu_
+        apex_sum = 0.0
+        for g in range(n_g):
+            z = centre + gauss_x[g] * half_len
+            a = z - zs
+            b = z - zr
+            m = math.hypot(rs, a)
+            l_ = math.hypot(rr, b)
+            ml = m * l_
+            rsr = rs * rr
+            t = rs * b + rr * a
+            c1 = max(t * t / ((ml + rsr - a * b) * rsr), 0.0)
+            log_arg[e, g] = c1 + math.sqrt(c1 * (c1 + 2.0))
+            ml_out[e, g] = ml
+            mk = nk_ * (z - zst)
+            model = 0.5 * (mk * mk)
+            apex = 0.0
+            for i in range(4):
+                den = model + gap[p, i]
+                apex += num[p, i] / den if den > 0.0 else 0.0
+            apex_sum += gauss_w[g] * apex / mls
+            if not whole:
+                # the point and its m + l: the same z, legs and hypot as the gain's (x h = h x exactly)
+                zs_out[e, g] = z
+                paths[e, g] = m + l_
+        apex_out[e] = apex_sum
+        a0 = nk_ * (z0 - zst)
+        a1 = nk_ * (z1 - zst)
+        da = nk_ * (z1 - z0)
+        prod = a0 * a1
+        for i in range(4):
+            s = s_gap[p, i]
+            atan_y[e, i] = da * s
+            atan_x[e, i] = s * s + prod
+    return log_arg, half_nu, ml_out, apex_out, atan_y, atan_x, zs_out, paths
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gauss_point_sums(
+    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
+    nu: NDArray[np.float64], num: NDArray[np.float64], gap: NDArray[np.float64], coef: NDArray[np.float64],
+    sh: NDArray[np.float64], ml: NDArray[np.float64], apex_sum: NDArray[np.float64], atan: NDArray[np.float64],
+    gauss_w: NDArray[np.float64], whole: bool,
+) -> NDArray[np.float64]:
+    """The second half of :func:`gauss_point_gains`: the gains from sinh(nu eta / 2) at the
+    points (``sh``, shape (n, g)) and the apex model's atan2 terms (``atan``, shape (n, 4))."""
+    n = pair.size
+    n_g = gauss_w.size
+    gains = np.empty((n, 1 if whole else n_g))
+    exact_part = np.empty(n_g)
+    for e in range(n):
+        p = pair[e]
+        half_len = 0.5 * (z_end[e] - z_start[e])
+        for g in range(n_g):
+            hyperbolic = 2.0 * (sh[e, g] * sh[e, g])
+            exact = 0.0
+            for i in range(4):
+                den = hyperbolic + gap[p, i]
+                exact += num[p, i] / den if den > 0.0 else 0.0
+            exact_part[g] = gauss_w[g] * exact / ml[e, g]
+        model_integral = 0.0
+        for i in range(4):
+            model_integral += coef[p, i] * atan[e, i]
+        scale = -(nu[p] / (4.0 * np.pi))
+        if whole:
+            exact_sum = 0.0
+            for g in range(n_g):
+                exact_sum += exact_part[g]
+            gains[e, 0] = scale * ((exact_sum - apex_sum[e]) * half_len + model_integral)
+            continue
+        correction = (model_integral - apex_sum[e] * half_len) / n_g
+        for g in range(n_g):
+            gains[e, g] = scale * (exact_part[g] * half_len + correction)
+    return gains
+
+
 def gauss_point_gains(
     pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
     nu: NDArray[np.float64], r_s: NDArray[np.float64], z_s: NDArray[np.float64], r_r: NDArray[np.float64],
@@ -214,6 +336,16 @@ def gauss_point_gains(
     gauss_x: NDArray[np.float64], gauss_w: NDArray[np.float64], whole: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Gains, points and path lengths of every element's Gauss points (or each element's gain).
+
+    Two compiled loops around numpy's vectorised elementary functions: the arguments per point
+    and element (:func:`_gauss_point_arguments`, with libm's ``hypot`` for the legs, so that
+    the points and path lengths are those of the former single loop, byte for byte), then
+    ``log1p``, ``sinh`` and ``arctan2`` over whole arrays (numpy's SIMD loops: some 3 to 6 ns
+    per value on AVX-512, where libm's scalar calls took 30 to 40 ns and were two thirds of the
+    former loop), then the sums (:func:`_gauss_point_sums`). The arithmetic is the former
+    loop's in the same order; the gains differ from it only by the elementary functions'
+    rounding (numpy's SIMD loops are within 4 ulp, libm within 1: a few 1e-16 relative, see
+    ``tests/test_edges_kernels.py``), as the numpy reference the loop replaced did.
 
     Parameters
     ----------
@@ -240,68 +372,16 @@ def gauss_point_gains(
         along the edge (m) and its m + l (m). See
         :func:`~acoustisim.propagation.btm.element_gains` with ``per_point=True``.
     """
-    n = pair.size
-    n_g = gauss_x.size
-    gains = np.empty((n, 1 if whole else n_g))
-    zs_out = np.empty((n, 0 if whole else n_g))
-    paths = np.empty((n, 0 if whole else n_g))
-    exact_part = np.empty(n_g)
-    for e in range(n):
-        p = pair[e]
-        nu_, rs, zs, rr, zr = nu[p], r_s[p], z_s[p], r_r[p], z_r[p]
-        nk_, mls, zst = nk[p], ml_star[p], z_star[p]
-        z0, z1 = z_start[e], z_end[e]
-        half_len = 0.5 * (z1 - z0)
-        centre = 0.5 * (z0 + z1)
-        apex_sum = 0.0
-        for g in range(n_g):
-            z = centre + gauss_x[g] * half_len
-            a = z - zs
-            b = z - zr
-            m = math.hypot(rs, a)
-            l_ = math.hypot(rr, b)
-            ml = m * l_
-            rsr = rs * rr
-            t = rs * b + rr * a
-            c1 = max(t * t / ((ml + rsr - a * b) * rsr), 0.0)
-            eta = math.log1p(c1 + math.sqrt(c1 * (c1 + 2.0)))
-            sh = math.sinh(0.5 * nu_ * eta)
-            hyperbolic = 2.0 * (sh * sh)
-            mk = nk_ * (z - zst)
-            model = 0.5 * (mk * mk)
-            exact = 0.0
-            apex = 0.0
-            for i in range(4):
-                den = hyperbolic + gap[p, i]
-                exact += num[p, i] / den if den > 0.0 else 0.0
-            for i in range(4):
-                den = model + gap[p, i]
-                apex += num[p, i] / den if den > 0.0 else 0.0
-            exact_part[g] = gauss_w[g] * exact / ml
-            apex_sum += gauss_w[g] * apex / mls
-            if not whole:
-                # the point and its m + l: the same z, legs and hypot as the gain's (x h = h x exactly)
-                zs_out[e, g] = z
-                paths[e, g] = m + l_
-        a0 = nk_ * (z0 - zst)
-        a1 = nk_ * (z1 - zst)
-        da = nk_ * (z1 - z0)
-        prod = a0 * a1
-        model_integral = 0.0
-        for i in range(4):
-            s = s_gap[p, i]
-            model_integral += coef[p, i] * math.atan2(da * s, s * s + prod)
-        scale = -(nu_ / (4.0 * np.pi))
-        if whole:
-            exact_sum = 0.0
-            for g in range(n_g):
-                exact_sum += exact_part[g]
-            gains[e, 0] = scale * ((exact_sum - apex_sum) * half_len + model_integral)
-            continue
-        correction = (model_integral - apex_sum * half_len) / n_g
-        for g in range(n_g):
-            gains[e, g] = scale * (exact_part[g] * half_len + correction)
-    return gains, zs_out, paths
+    log_arg, half_nu, ml, apex_sum, atan_y, atan_x, z, path_length = _gauss_point_arguments(
+        pair, z_start, z_end, nu, r_s, z_s, r_r, z_r, nk, ml_star, z_star, num, gap, s_gap, gauss_x, gauss_w,
+        bool(whole),
+    )
+    sh = np.log1p(log_arg, out=log_arg)  # eta
+    np.multiply(half_nu, sh, out=sh)  # (0.5 nu) eta, as the loop's 0.5 * nu * eta
+    np.sinh(sh, out=sh)
+    atan = np.arctan2(atan_y, atan_x, out=atan_y)
+    gains = _gauss_point_sums(pair, z_start, z_end, nu, num, gap, coef, sh, ml, apex_sum, atan, gauss_w, bool(whole))
+    return gains, z, path_length
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
