@@ -70,7 +70,7 @@ def test_refinement_matches_the_full_filters_refinement(dc):
     n_lags = 2 * REFINE_HALF_WIDTH + 1
     values = np.empty((3, n_lags), dtype=complex)
     refined = np.empty((3, 2))
-    settings = np.array([3, 2 * plan.half + 1, lo, hi, matched.analytic_offset])
+    settings = np.array([3, 2 * plan.half + 1, lo, hi, matched.analytic_offset, 1])
     local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
                               values, refined)
     # The numpy definition: the largest |z| over the candidates' lags, then the direct z.
@@ -145,7 +145,7 @@ def test_detection_path_equals_the_numpy_path_at_edges(n, bounds, k, dc):
     z, start, *_ = _candidate_correlations(plan, rows, k, bounds, offsets)
     values = np.empty((3, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
     refined = np.empty((3, 2))
-    settings = np.array([k, 2 * plan.half + 1, bounds[0], bounds[1], plan.matched.analytic_offset])
+    settings = np.array([k, 2 * plan.half + 1, bounds[0], bounds[1], plan.matched.analytic_offset, 1])
     local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
                               values, refined)
     # Same picks and the same refinement up to the order of ~1000-term sums: lags to 1e-9
@@ -222,3 +222,43 @@ def test_compiled_echo_values_equal_the_matched_filters(t0_s, pfa):
                                     constants[-1], t0_s), axis=1)
     assert np.all(np.abs(echoes - expected) <= 1e-15 * np.abs(expected))
     assert echoes[2, 3] < 1.0 < echoes[0, 3]
+
+
+@pytest.mark.parametrize(
+    "n, bounds, k, dc",
+    [
+        (N, (0, N - 201), 3, False),
+        (N, (0, N - 201), 5, True),
+        (N, (30_000, 30_100), 3, True),
+        (N, (30_000, 30_002), 2, False),  # fewer lags than the decimation
+        (N, (N - 400, N - 201), 3, False),
+        (700, (0, 499), 3, True),
+    ],
+)
+def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, dc):
+    # The detection path's z at every ``decimation``-th lag (a short inverse FFT of the band)
+    # and the wider direct search around its largest sample give the full-rate path's vertex.
+    from binsonar.detection import local_kernels
+
+    plan = plan_local(_template(), n, FS)
+    stride = plan.decimation
+    assert stride == 5 and plan.segment_fft // stride >= 2 * plan.segment_weights.size  # 625 -> 125 >= 90
+    rows, offsets = _rows(5, dc)
+    rows = np.ascontiguousarray(rows[:, :n])
+    lag_ref, peak_ref = _reference_peaks(plan, rows, k, bounds, offsets)
+    z_full, start = _candidate_correlations(plan, rows, k, bounds, offsets)
+    z, start_decimated = _candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
+    assert np.array_equal(start, start_decimated)
+    # Exact sampling of the band-limited z, times the stride (the inverse FFT normalises by its
+    # length, N / stride); float32 FFTs: 1e-6 of the peak, as above.
+    width = 2 * plan.half + 1
+    sampled = z_full[:, :width:stride]
+    assert np.max(np.abs(z[:, :sampled.shape[1]] / stride - sampled)) < 1e-6 * np.max(np.abs(z_full))
+    values = np.empty((3, 2 * (REFINE_HALF_WIDTH + stride - 1) + 1), dtype=complex)
+    refined = np.empty((3, 2))
+    settings = np.array([k, width, bounds[0], bounds[1], plan.matched.analytic_offset, stride])
+    local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts,
+                              settings, values, refined)
+    # The same direct values around the same largest |z|: the vertex to 1e-9 samples, as above.
+    assert np.max(np.abs(refined[:, 0] - lag_ref)) < 1e-9
+    assert np.max(np.abs(refined[:, 1] / peak_ref - 1.0)) < 1e-9

@@ -162,6 +162,16 @@ class LocalPlan:
     """``local_kernels.echo_rows``'s constants but the first (t0_s) and last (threshold factor),
     shape (8,): sample rate, template t0_s, ``white_noise_power`` of 1 V, peak response, the
     template's largest |sample|, RMS bandwidth."""
+    decimation: int = 1
+    """D: the candidates' z is computed at every D-th lag only, by an inverse FFT of
+    ``segment_fft // D`` points of the band (exact: z is band-limited to the band's bins, all
+    below ``segment_fft // D``, so the short inverse FFT gives D z at lags start + D j);
+    the largest of those picks the neighbourhood that the direct correlations then search at
+    every lag (``REFINE_HALF_WIDTH + D - 1`` each side). D is the largest divisor of
+    ``segment_fft`` that leaves at least two samples per cycle of the band's highest
+    frequency (``segment_fft // D >= 2 k_hi``): 5 for the 5 us pulse (625 -> 125 points, the
+    band 45 bins), where |z| (an envelope ~30 samples wide at half height) is sampled every 5
+    lags, so the largest sample is within D - 1 lags of the largest |z|."""
     _factors: dict = field(default_factory=dict, init=False, repr=False)
     """Memo of ``matched.threshold_factor`` by (pfa, searched lags): a pure function of the plan,
     a fixed-point iteration of ~20-50 Python steps (~20-50 us per ping) otherwise."""
@@ -253,6 +263,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     k_hi = min(spectrum.size, k_hi + 2)
     weights = 2.0 * np.conj(spectrum[:k_hi])
     weights[0] *= 0.5
+    decimation = max(d for d in range(1, segment_fft + 1) if segment_fft % d == 0 and segment_fft // d >= 2 * k_hi)
     partial = np.concatenate([[0.0], np.cumsum(taps)])
     return LocalPlan(
         matched=matched,
@@ -273,6 +284,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         echo_constants=np.array([0.0, fs, matched.template.t0_s, float(white_noise_power(matched, 1.0)),
                                  matched.peak_response, float(np.max(np.abs(matched.template.samples))),
                                  matched.rms_bandwidth_hz, 0.0]),
+        decimation=int(decimation),
     )
 
 
@@ -415,6 +427,7 @@ def _candidate_correlations(
     lag_bounds: tuple[int, int],
     dc: NDArray[np.float64] | None = None,
     scale: float = 1.0,
+    stride: int = 1,
 ) -> tuple[NDArray[np.complex64], NDArray[np.int64]]:
     """z around each row's ``candidates`` coarse picks: what ``coarse_lags`` then
     ``segment_correlation`` give, from one compiled pass (``local_kernels.coarse_stretches``)
@@ -429,11 +442,19 @@ def _candidate_correlations(
     bytes and about half the time of the float64 FFTs (measured ~0.12 against ~0.25 ms for 9
     stretches of 625 samples, warm).
 
+    Parameters
+    ----------
+    scale : float
+        Volts per unit of ``rows`` (1.0 for volts, the code step for int16 codes).
+    stride : int
+        1: z at every lag; ``plan.decimation``: at every stride-th lag (times stride: the
+        inverse FFT normalises by its length).
+
     Returns
     -------
-    z : ndarray, shape (n_rows * candidates, segment_fft), complex64
-        Row r's pick k at r * candidates + k; its first 2 half + 1 entries are z at lags
-        ``start + 0 .. 2 half``.
+    z : ndarray, shape (n_rows * candidates, segment_fft // stride), complex64
+        Row r's pick k at r * candidates + k; its entries j with stride j <= 2 half are z at
+        lags ``start + stride j`` (times stride).
     start : ndarray of int, shape (n_rows * candidates,)
     """
     import scipy.fft as sfft
@@ -449,7 +470,9 @@ def _candidate_correlations(
     local_kernels.coarse_stretches(rows, scale, _offsets(dc, n_rows), plan.tone_lanes, settings, segments, start)
     spectrum = sfft.rfft(segments, axis=-1, overwrite_x=True)
     band = plan.segment_weights32.size
-    weighted = np.zeros((count, plan.segment_fft), dtype=np.complex64)  # the band, zero above it
+    # The band, zero above it, inverse transformed on segment_fft // stride points: z at every
+    # ``stride``-th lag, over ``stride`` (``LocalPlan.decimation``).
+    weighted = np.zeros((count, plan.segment_fft // stride), dtype=np.complex64)
     np.multiply(spectrum[:, :band], plan.segment_weights32, out=weighted[:, :band])
     return sfft.ifft(weighted, axis=-1, overwrite_x=True), start
 
@@ -522,10 +545,11 @@ def detect_local_matched(
     k = int(candidates)
     width = 2 * plan.half + 1
     rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)  # contiguous blocks
-    z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc, scale)  # (n_rows * k, >= width)
-    values = np.empty((n_rows, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
+    stride = plan.decimation
+    z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc, scale, stride)
+    values = np.empty((n_rows, 2 * (REFINE_HALF_WIDTH + stride - 1) + 1), dtype=complex)
     refined = np.empty((n_rows, 2))
-    settings = np.array([k, width, lag_lo, lag_hi, matched.analytic_offset], dtype=np.int64)
+    settings = np.array([k, width, lag_lo, lag_hi, matched.analytic_offset, stride], dtype=np.int64)
     from binsonar.detection import local_kernels
 
     # Sub-sample refinement as the full matched filter's (direct z around the peak, then

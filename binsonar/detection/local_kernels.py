@@ -303,16 +303,18 @@ def local_peaks(
     taps : ndarray, shape (4, m_a + 1)
         ``LocalPlan.tap_parts``: the analytic template's conjugate (real, imaginary; first m_a
         columns) and its running sums, 0 first.
-    settings : ndarray of int, shape (5,)
+    settings : ndarray of int, shape (6,)
         candidates, width, lag_lo, lag_hi, analytic_offset (index of template sample 0 in the
-        taps).
+        taps), stride (z holds every stride-th lag: entry j is lag ``starts + stride j``).
     values : ndarray, shape (n_rows, 2 R + 1), complex, written
         Direct z (``rows - dc``; 0 at lags outside [lag_lo, lag_hi]) at the peak's lag + (-R .. R),
-        as ``matched.lags_time_domain`` minus ``matched.dc_correlation``.
+        as ``matched.lags_time_domain`` minus ``matched.dc_correlation`` (R >= stride keeps the
+        largest |z| among them when z is sampled every stride lags: ``LocalPlan.decimation``).
     refined : ndarray, shape (n_rows, 2), written
         ``matched.refine`` of ``values``: fractional lag and |z|^2 at the vertex.
     """
     candidates, width, lag_lo, lag_hi, analytic_offset = settings[0], settings[1], settings[2], settings[3], settings[4]
+    stride = settings[5]
     n_rows = rows.shape[0]
     n_lags = values.shape[1]
     reach = n_lags // 2
@@ -322,8 +324,8 @@ def local_peaks(
         best = -2.0
         for k in range(candidates):
             i = r * candidates + k
-            for j in range(width):
-                lag = starts[i] + j
+            for j in range((width + stride - 1) // stride):
+                lag = starts[i] + stride * j
                 c = z[i, j]
                 p = c.real * c.real + c.imag * c.imag if lag_lo <= lag <= lag_hi else -1.0
                 if p > best:
