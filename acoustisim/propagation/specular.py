@@ -49,7 +49,7 @@ from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.specular_chains import (chain_legs, duplicate_keys, fill_mixed, fill_planar,
                                                     first_distinct_rows, mixed_candidates, unblocked_chains,
                                                     vertex_groups, write_rows)
-from acoustisim.propagation.specular_kernels import incidence_cosines
+from acoustisim.propagation.specular_kernels import incidence_cosines, unfold_reversed
 
 _REAL_TOL = 1e-12
 """|Im R| below this fraction of |R| counts as a real coefficient (sign kept in the gain)."""
@@ -122,18 +122,17 @@ class _Sides:
     one reflector visibility table (shared by every split of a chain order)."""
 
     before: dict[int, tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]]
-    after: dict[int, tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
-                           NDArray[np.bool_]]]
+    after: dict[int, tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]]
 
 
 def _sides(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bool_], lengths: Iterable[int],
            first: NDArray[np.bool_], last: NDArray[np.bool_]) -> _Sides:
     """Sequences of each of ``lengths`` mirrors before a reflector (from the transmitter, with
     their images and validity) and after it (in path order, from the reflector to the
-    receiver; the receiver's images once per (sequence, receiver): rows ``ra`` of the
-    sequences, ``rr`` of the receivers)."""
+    receiver; the receiver's images once per (sequence, receiver): row ``q * r + i`` for
+    sequence q and receiver i)."""
     tx = context.transmitter_m
-    n_rx = context.receivers_m.shape[0]
+    receivers = np.ascontiguousarray(context.receivers_m, dtype=float)
     any_seen = np.any(seen_by, axis=0)
     before, after = {}, {}
     for k in lengths:
@@ -141,39 +140,24 @@ def _sides(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bo
         images_b, ok_b = unfold(mirrors, tx, seq_b)
         before[k] = (seq_b, images_b, ok_b)
         seq_a = mirrors.sequences(k, any_seen, last)
-        ra = np.repeat(np.arange(seq_a.shape[0]), n_rx)
-        rr = np.tile(np.arange(n_rx), seq_a.shape[0])
-        images_a, ok_a = unfold(mirrors, context.receivers_m[rr], seq_a[ra][:, ::-1])
-        after[k] = (seq_a, ra, rr, images_a, ok_a)
+        images_a, ok_a = unfold_reversed(mirrors.point, mirrors.normal, receivers, seq_a)
+        after[k] = (seq_a, images_a, ok_a)
     return _Sides(before, after)
 
 
 def _candidates(context: SolveContext, mirrors: PlanarMirrors, seen_by: NDArray[np.bool_], n_before: int,
-                n_after: int, first: NDArray[np.bool_], last: NDArray[np.bool_],
-                sides: _Sides | None = None) -> _Candidates:
+                n_after: int, first: NDArray[np.bool_], last: NDArray[np.bool_]) -> _Candidates:
     """Every (before sequence, after sequence, receiver, reflector) whose images are valid, pruned
-    by the mirror/reflector visibility table ``seen_by`` (r, m); ``sides``: :func:`_sides` of
-    the same table when the caller has them."""
+    by the mirror/reflector visibility table ``seen_by`` (r, m)."""
     n_refl = seen_by.shape[0]
-    if sides is None:
-        sides = _sides(context, mirrors, seen_by, sorted({n_before, n_after}), first, last)
+    n_rx = context.receivers_m.shape[0]
+    sides = _sides(context, mirrors, seen_by, sorted({n_before, n_after}), first, last)
     seq_b, images_b, ok_b = sides.before[n_before]
-    seq_a, ra, rr, images_a, ok_a = sides.after[n_after]
-    ib = np.flatnonzero(ok_b)
-    iar = np.flatnonzero(ok_a)
-    # every (ib, iar, reflector) triple, in that nesting order
-    gb = np.repeat(ib, iar.size * n_refl)
-    gar = np.tile(np.repeat(iar, n_refl), ib.size)
-    gr = np.tile(np.arange(n_refl), ib.size * iar.size)
-    keep = np.ones(gb.size, dtype=bool)
-    if n_before:
-        keep &= seen_by[gr, seq_b[gb, -1]]
-    if n_after:
-        keep &= seen_by[gr, seq_a[ra[gar], 0]]
-    gb, gar, gr = gb[keep], gar[keep], gr[keep]
-    ga = ra[gar]
+    seq_a, images_a, ok_a = sides.after[n_after]
+    gb, gar, gr, _, _ = mixed_candidates(seen_by, seq_b, images_b, ok_b, seq_a, n_rx, images_a, ok_a)
+    ga = gar // n_rx
     return _Candidates(
-        reflector=gr, channel=rr[gar], chain=(gb * seq_a.shape[0] + ga) * n_refl + gr,
+        reflector=gr, channel=gar % n_rx, chain=(gb * seq_a.shape[0] + ga) * n_refl + gr,
         images_before=images_b[gb], images_after=images_a[gar], seq_before=seq_b[gb], seq_after=seq_a[ga],
         n_chains=seq_b.shape[0] * seq_a.shape[0] * n_refl,
     )
@@ -370,8 +354,8 @@ def _planar_and_mixed(context: SolveContext, prepared: PreparedScene, max_order:
         sides = _sides(context, mirrors, seen_by, range(max_order), first, last)
         for n_before, n_after in splits:
             seq_b, images_b, ok_b = sides.before[n_before]
-            seq_a, ra, rr, images_a, ok_a = sides.after[n_after]
-            candidates.append(mixed_candidates(seen_by, seq_b, images_b, ok_b, seq_a, ra, images_a, ok_a))
+            seq_a, images_a, ok_a = sides.after[n_after]
+            candidates.append(mixed_candidates(seen_by, seq_b, images_b, ok_b, seq_a, n_rx, images_a, ok_a))
         capacity += sum(cand[0].size for cand in candidates)
     chains = _allocate(capacity, max_order)
     out = (chains.order, chains.vertices, chains.surface, chains.patch, chains.normal, chains.kind, chains.material,
@@ -394,9 +378,9 @@ def _planar_and_mixed(context: SolveContext, prepared: PreparedScene, max_order:
     lo = 0
     for (n_before, n_after), (before, after_row, refl, a_end, b_end) in zip(splits, candidates):
         seq_b, images_b, _ = sides.before[n_before]
-        seq_a, ra, rr, images_a, _ = sides.after[n_after]
+        seq_a, images_a, _ = sides.after[n_after]
         hi = lo + before.size
-        cursor = fill_mixed(*geometry, seq_b, images_b, seq_a, ra, rr, images_a, before, after_row, refl, a_end,
+        cursor = fill_mixed(*geometry, seq_b, images_b, seq_a, n_rx, images_a, before, after_row, refl, a_end,
                             b_end, x[lo:hi], normal[lo:hi], valid[lo:hi], surfaces, patches, chain_base, tx,
                             receivers, _ON_PLANE_TOL_M, _INSIDE_TOL, *out, chains.channel, chains.chain, picked, lo,
                             cursor)

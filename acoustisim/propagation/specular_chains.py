@@ -133,9 +133,8 @@ def fill_planar(point: NDArray[np.float64], normal: NDArray[np.float64], disc_ra
 @njit(cache=True, nogil=True)
 def mixed_candidates(seen_by: NDArray[np.bool_], sequences_before: NDArray[np.int64],
                      images_before: NDArray[np.float64], unfolded_before: NDArray[np.bool_],
-                     sequences_after: NDArray[np.int64], after_sequence: NDArray[np.int64],
-                     images_after: NDArray[np.float64], unfolded_after: NDArray[np.bool_]
-                     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
+                     sequences_after: NDArray[np.int64], n_receivers: int, images_after: NDArray[np.float64],
+                     unfolded_after: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
                                 NDArray[np.float64]]:
     """The candidates of one split [n_before mirrors, a curved reflector, n_after mirrors].
 
@@ -148,9 +147,10 @@ def mixed_candidates(seen_by: NDArray[np.bool_], sequences_before: NDArray[np.in
         images across them, ``unfolded_before`` (sb,) their validity.
     sequences_after : ndarray of int64, shape (sa, n_after)
         Mirror sequences from the reflector to a receiver, in path order.
-    after_sequence : ndarray of int64, shape (sar,)
-        The sequence of each (sequence, receiver) row of ``images_after`` (sar, n_after + 1, 3)
-        (the receiver's images across the reversed sequence), ``unfolded_after`` (sar,).
+    n_receivers : int
+        r; row ``q * r + i`` of ``images_after`` (sa r, n_after + 1, 3) is receiver i's images
+        across the reversed sequence q (``specular_kernels.unfold_reversed``), with validity
+        ``unfolded_after`` (sa r,).
 
     Returns
     -------
@@ -186,7 +186,7 @@ def mixed_candidates(seen_by: NDArray[np.bool_], sequences_before: NDArray[np.in
             for r in range(n_refl):
                 if n_before > 0 and not seen_by[r, sequences_before[gb, n_before - 1]]:
                     continue
-                if n_after > 0 and not seen_by[r, sequences_after[after_sequence[gar], 0]]:
+                if n_after > 0 and not seen_by[r, sequences_after[gar // n_receivers, 0]]:
                     continue
                 before[n], after_row[n], reflector[n] = gb, gar, r
                 for q in range(3):
@@ -202,8 +202,7 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
                d01: NDArray[np.float64], d11: NDArray[np.float64], den: NDArray[np.float64],
                mirror_surface: NDArray[np.int64], mirror_patch: NDArray[np.int64],
                mirror_material: NDArray[np.int64], sequences_before: NDArray[np.int64],
-               images_before: NDArray[np.float64], sequences_after: NDArray[np.int64],
-               after_sequence: NDArray[np.int64], after_receiver: NDArray[np.int64],
+               images_before: NDArray[np.float64], sequences_after: NDArray[np.int64], n_receivers: int,
                images_after: NDArray[np.float64], before: NDArray[np.int64], after_row: NDArray[np.int64],
                reflector: NDArray[np.int64], a_end: NDArray[np.float64], b_end: NDArray[np.float64],
                x: NDArray[np.float64], x_normal: NDArray[np.float64], x_valid: NDArray[np.bool_],
@@ -220,8 +219,8 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
     ----------
     point ... mirror_material
         As in :func:`fill_planar`.
-    sequences_before, images_before, sequences_after, after_sequence, images_after
-        As in :func:`mixed_candidates`; ``after_receiver`` (sar,) the receiver of each after row.
+    sequences_before, images_before, sequences_after, n_receivers, images_after
+        As in :func:`mixed_candidates`.
     before, after_row, reflector, a_end, b_end
         The candidates (:func:`mixed_candidates`).
     x, x_normal : ndarray, shape (n, 3); x_valid : ndarray of bool, shape (n,)
@@ -230,7 +229,7 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
         Surface index and patch label of each curved reflector.
     chain_base : int
         Chain number of the split's (0, 0, 0) triple: a candidate's chain is
-        ``chain_base + (before * sa + after_sequence[after_row]) * c + reflector``.
+        ``chain_base + (before * sa + after_row // r) * c + reflector``.
     out_candidate : ndarray of int64, shape (capacity,)
         Receives ``candidate_base`` + the candidate of each row written (to pick amplitudes).
 
@@ -251,7 +250,7 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
             continue
         row = cursor
         gb, gar, r = before[i], after_row[i], reflector[i]
-        ga = after_sequence[gar]
+        ga = gar // n_receivers
         x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
         ok = backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, images_before, gb,
                            sequences_before, gb, False, x0, x1, x2, on_plane_tol, inside_tol, out_vertices, row, 1, 1)
@@ -265,7 +264,7 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
         if not ok:
             continue
         cursor += 1
-        rx = after_receiver[gar]
+        rx = gar % n_receivers
         out_order[row] = order
         out_vertices[row, 0, 0] = transmitter[0]
         out_vertices[row, 0, 1] = transmitter[1]
@@ -290,7 +289,7 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
         e0, e1, e2 = x0 - a_end[i, 0], x1 - a_end[i, 1], x2 - a_end[i, 2]
         f0, f1, f2 = x0 - b_end[i, 0], x1 - b_end[i, 1], x2 - b_end[i, 2]
         out_length[row] = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) + math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-        out_channel[row] = after_receiver[gar]
+        out_channel[row] = rx
         out_chain[row] = chain_base + (gb * n_seq_after + ga) * n_refl + r
         out_candidate[row] = candidate_base + i
     return cursor

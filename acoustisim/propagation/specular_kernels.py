@@ -58,6 +58,34 @@ def unfold_chains(point: NDArray[np.float64], normal: NDArray[np.float64], start
     return images, valid
 
 
+@njit(cache=True, nogil=True)
+def unfold_reversed(point: NDArray[np.float64], normal: NDArray[np.float64], starts: NDArray[np.float64],
+                    sequences: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`unfold_chains` of every start point (r, 3) across every sequence (s, k) taken in
+    reverse order: row ``q * r + i`` is start i across ``sequences[q, ::-1]`` (images
+    (s r, k + 1, 3), validity (s r,)), without materialising the repeated rows."""
+    s, k = sequences.shape
+    r = starts.shape[0]
+    images = np.empty((s * r, k + 1, 3))
+    valid = np.ones(s * r, dtype=np.bool_)
+    for q in range(s):
+        for i in range(r):
+            row = q * r + i
+            x0, x1, x2 = starts[i, 0], starts[i, 1], starts[i, 2]
+            images[row, 0, 0], images[row, 0, 1], images[row, 0, 2] = x0, x1, x2
+            ok = True
+            for j in range(k):
+                m = sequences[q, k - 1 - j]
+                d = _signed_distance(x0, x1, x2, point, normal, m)
+                ok = ok and d > 0.0
+                x0 = x0 - 2.0 * d * normal[m, 0]
+                x1 = x1 - 2.0 * d * normal[m, 1]
+                x2 = x2 - 2.0 * d * normal[m, 2]
+                images[row, j + 1, 0], images[row, j + 1, 1], images[row, j + 1, 2] = x0, x1, x2
+            valid[row] = ok
+    return images, valid
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _contains(x0: float, x1: float, x2: float, m: int, point: NDArray[np.float64],
               disc_radius: NDArray[np.float64], a: NDArray[np.float64], v0: NDArray[np.float64],
@@ -382,4 +410,5 @@ def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.fl
     return amplitude, phase
 
 
-__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "go_factors", "incidence_cosines", "primitive_specular_points", "unfold_chains"]
+__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "go_factors", "incidence_cosines", "primitive_specular_points", "unfold_chains",
+           "unfold_reversed"]
