@@ -64,6 +64,7 @@ from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import SharpEdges, sharp_edges
 from acoustisim.propagation.edge_kernels import fill_edge_rows, gauss_point_gains, visibility_rays32
+from acoustisim.propagation.edge_order import solver_order
 from acoustisim.propagation.edge_visibility import VisibilityScreen, screened_visibility_rays32
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 from acoustisim.propagation.raycast import DEFAULT_EPS_M
@@ -370,7 +371,7 @@ def edge_paths(context: SolveContext, config: SolverConfig,
     if keep.size == 0:
         return empty_paths_array(0)
     if sort_rows:  # stable: ties keep the default order
-        keep = keep[np.lexsort((path_length[keep] / float(c), pair_rx[pair[keep]]))]
+        keep = solver_order(keep, pair, path_length, pair_rx, float(c), n_rx)
     # the kernel writes every field: the mechanism's columns, the padding of empty_paths_array
     # and zeros in the others (no separate zeroing pass over the buffer)
     rows = np.empty(keep.size, dtype=PATH_DTYPE)
