@@ -26,6 +26,12 @@ reverberation counted as Gaussian interference.
 The threshold detector is the seed's: a preset level and an offset calibrated once per sweep
 (``calibrate_threshold``).
 
+``BEAM_MATCHED`` ("beam-matched") is the matched filter's echoes refined by binsonar's
+beam-aware TOF estimator (``binsonar.localization.beam_refine``): the harness hands binsonar the
+simulated head's piston diameter (``beam_transducers``: what a real user reads in the V318's
+datasheet; the recording format carries none) and the target class (``beam_config``: a vertical
+edge, a rigid 60-degree wedge facing the sonar). Its CPU time includes the matched filter's pass.
+
 The deterministic part: every repeat of a position has the same echo and only new noise, so
 the error splits into a bias, the same in every repeat, and a scatter. The bias is measured
 directly by running each detector on the noise-free averaged record (``Simulation.clean``),
