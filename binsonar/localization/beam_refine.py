@@ -22,6 +22,12 @@ aperture (``PistonTransducers``), so the refinement takes it as an explicit inpu
    and polished by Newton's method on the band-limited |z|^2 (its derivatives are exact sums).
 5. Repeat 2-4 (``iterations``) with the refined TOFs.
 
+The correlation runs on a segment of the record that holds the whole expected echo for every
+searched delay (template, beam spread, edge tail), so it equals the full correlation. This needs
+an echo of finite extent: a template with a mean (no high-pass in it), phase-rotated as an
+edge's echo is (-45 deg), has Hilbert tails ~1/t beyond any segment; the transmitted pulse
+through the receiver's band-pass, as a recording stores it, has none.
+
 With vanishing pistons (D = 1) and a point target, A_c = T and the result is the plain matched
 filter's continuous envelope maximum (its log-parabolic vertex differs by well under a
 nanosecond, tested). Costs: one FFT of a short segment per channel and iteration, and for an
