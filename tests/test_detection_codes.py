@@ -1,4 +1,4 @@
-"""Records as int16 ADC codes: the detectors that read codes (threshold, local-matched) give the
+"""Records as int16 ADC codes: the detectors that read codes (threshold, local-matched, matched) give the
 echoes they give on the volts ``codes * volts_per_code``, and so does every other method (it
 converts); the code statistics (median, MAD, extremes by counting) equal numpy's; clipping is
 judged at the ADC's rails on the codes; bad code input is refused with a clear message.
@@ -107,10 +107,10 @@ def test_codes_give_the_echoes_of_their_volts(method):
     from_array = detect(codes, method, sample_rate_hz=FS, template=template, volts_per_code=Q)
     from_recording = detect(Recording(None, FS, template=template, codes=codes, volts_per_code=Q, adc_bits=BITS),
                             method)
-    # Threshold: the same products code * step, the same comparisons: identical values.
-    # Local matched: the block correlations and direct sums are scaled once instead of per
-    # sample (relative rounding of ~1e-16 per operation over ~200-term sums): 1e-12. The
-    # other methods convert the codes to the same volts: identical.
+    # Threshold and matched: the same products code * step, the same operations on them:
+    # identical values. Local matched: the block correlations and direct sums are scaled once
+    # instead of per sample (relative rounding of ~1e-16 per operation over ~200-term sums):
+    # 1e-12. The other methods convert the codes to the same volts: identical.
     rtol = 1e-12 if method == "local-matched" else 0.0
     _assert_same_echoes(reference, from_array, rtol)
     _assert_same_echoes(reference, from_recording, rtol)

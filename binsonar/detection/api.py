@@ -45,10 +45,10 @@ TAKES_ROBUST_SIGMA = frozenset({"threshold", "local-matched"})
 # no pass over the record to make that copy. The others get ``Signals.without_dc()``.
 FOLDS_DC = frozenset({"threshold", "local-matched", "matched"})
 # Base methods that read int16 ADC codes as they are (``Signals.volts_per_code``: a quarter of
-# the bytes of the volts), converting to volts only the samples they measure, with the result
+# the bytes of the volts), converting to volts only the samples they use, with the result
 # they give on the volts to rounding (``tests/test_detection_codes.py``). They take the codes
 # when they run without averaging or band-pass; the others, and those, get volts.
-TAKES_CODES = frozenset({"threshold", "local-matched"})
+TAKES_CODES = frozenset({"threshold", "local-matched", "matched"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -414,7 +414,7 @@ def detect(
         otherwise look noise-free (zero TOF std, SNRs of 150 dB, spurious CFAR echoes).
     volts_per_code : float, optional
         Arrays only: ``data`` are integer ADC codes (int16 range) of this step (V). The methods
-        in ``TAKES_CODES`` (threshold, local-matched) read the codes as they are (a quarter of
+        in ``TAKES_CODES`` (threshold, local-matched, matched) read the codes as they are (a quarter of
         the bytes of volts); the others get volts. The echoes are those of the volts
         ``data * volts_per_code``, to rounding.
     adc_bits : int, optional

@@ -62,6 +62,18 @@ one (cold) read of the record: the block correlations ~1.15 (the coarse kernel a
 4,096 samples per row, which numpy's SIMD selection does faster than a compiled quickselect)
 ~0.6, the short FFTs ~0.45, the rest (Python between the kernels, the refinement) ~0.3.
 
+Records of int16 ADC codes (``volts_per_code``: ``api.TAKES_CODES``) are read as they are, 2
+bytes a sample instead of 8: the block correlations of the codes are scaled to volts once per
+block, the stretches and the direct correlations are made of code * volts_per_code, and the
+robust DC and noise come from a histogram of the codes (``code_kernels``) instead of two
+partitions. The candidates' inverse FFT runs on the band only, decimated
+(``LocalPlan.decimation``: 125 points instead of 625 for the 5 us pulse; ~22 against ~67 us
+for the 9 stretches, warm). Measured on the loaded team machine (CPU clock, interleaved with the
+record's rfft), prepared ``run`` on the codes ~1.1-1.4 ms against ~1.6-2.0 ms on the float64
+volts in the same runs; what remains is mostly fixed cost per call once a new ping has evicted
+the caches (a record of 3 x 8,192 codes still takes ~0.9 ms cold, ~0.55 ms warm): the Python
+and numpy calls between the kernels, scipy's FFT dispatch, and the kernels' dispatch.
+
 A row's DC offset (``dc_v``, still in the samples) is folded in rather than removed from a
 copy of the record: the block correlations of x - dc are those of x minus dc times the sum of
 the tone table (exact, one constant per row); the stretches are copies anyway, from which dc

@@ -445,8 +445,12 @@ def lags_time_domain(
     row_index: NDArray[np.intp],
     lags: NDArray[np.intp],
     stride: int = 1,
+    scale: float = 1.0,
 ) -> NDArray[np.complex128]:
     """Analytic correlation z at equally spaced integer lags, computed directly (plain filter).
+
+    ``rows`` may be int16 ADC codes with ``scale`` their volts per code: the gathered samples
+    are converted (code * scale, the volts numpy makes of the whole record).
 
     Parameters
     ----------
@@ -474,6 +478,8 @@ def lags_time_domain(
     else:
         inside = (index >= 0) & (index < n)
         segment = np.where(inside, rows[row_index[:, np.newaxis], np.minimum(np.maximum(index, 0), n - 1)], 0.0)
+    if scale != 1.0 or segment.dtype != np.float64:
+        segment = segment * float(scale)
     # (k, w, m_a) overlapping windows as a strided view of the segment (read only, no copy).
     s0, s1 = segment.strides
     windows = as_strided(segment, shape=(segment.shape[0], w, taps.size), strides=(s0, stride * s1, s1), writeable=False)
@@ -595,19 +601,21 @@ def refine_peaks(
     coarse_lags: NDArray[np.float64],
     half_width: int | None = None,
     dc: NDArray[np.float64] | None = None,
+    scale: float = 1.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Refine coarse peaks (full-rate lags) to sub-sample lags and peak powers.
 
     Uses the time-domain analytic template for the plain matched filter and the band spectrum
     for a weighted (whitened) one. ``dc`` (shape (n_rows,), plain filter only): offsets still
-    in ``rows``, whose correlation (``dc_correlation``) is subtracted.
+    in ``rows``, whose correlation (``dc_correlation``) is subtracted. ``scale``: volts per unit
+    of ``rows`` (int16 ADC codes; plain filter only).
     """
     if peak_rows.size == 0:
         return np.zeros(0), np.zeros(0)
     w = refine_window(plan) if half_width is None else int(half_width)
     lags = np.rint(coarse_lags).astype(np.intp)[:, np.newaxis] + np.arange(-w, w + 1)
     if plan.analytic_template_conj.size:
-        values = lags_time_domain(plan, rows, peak_rows, lags)
+        values = lags_time_domain(plan, rows, peak_rows, lags, scale=scale)
         if dc is not None:
             values -= dc_correlation(plan, rows.shape[1], dc[peak_rows], lags)
     else:
@@ -703,6 +711,7 @@ def detect_matched(
     noise_floor_v: float = 0.0,
     single: bool = True,
     dc_v: NDArray[np.float64] | None = None,
+    volts_per_code: float | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Strongest matched-filter echo of each row (the seed's global-maximum peak detection).
 
@@ -729,6 +738,10 @@ def detect_matched(
         DC offset of each row still in ``rows`` (``Signals.dc_v``): removed in the FFT's input
         copy and subtracted from the direct correlations (``dc_correlation``), so the result is
         that of ``rows - dc_v`` without a copy of the record.
+    volts_per_code : float, optional
+        ``rows`` are int16 ADC codes of this step (V). With the overlap-save plan they are read
+        as they are (the blocks' gather and the refinement convert the samples they use, to
+        the same volts); with a record-size spectrum they are converted first.
 
     Returns
     -------
@@ -736,9 +749,15 @@ def detect_matched(
     """
     pfa = check_pfa(pfa)
     dc = None if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
+    scale = 1.0
+    if volts_per_code is not None:
+        if plan.blocks is None:
+            rows = rows * float(volts_per_code)
+        else:
+            scale = float(volts_per_code)
     if plan.blocks is not None:  # overlap-save: no record-size spectrum (refinement in the time domain)
         spectrum = None
-        z = block_envelope(plan.blocks, rows, dc, single)
+        z = block_envelope(plan.blocks, rows, dc, single, scale)
     else:
         spectrum = filtered_spectrum(plan, rows, single=single, dc=dc)
         z = envelope(plan, spectrum)
@@ -751,7 +770,7 @@ def detect_matched(
     else:  # no cell inside the searched lags (as the mask's argmax: cell 0)
         coarse = np.zeros(rows.shape[0], dtype=np.intp)
     row_index = np.arange(rows.shape[0])
-    lag, peak = refine_peaks(plan, rows, spectrum, row_index, coarse * plan.decimation, dc=dc)
+    lag, peak = refine_peaks(plan, rows, spectrum, row_index, coarse * plan.decimation, dc=dc, scale=scale)
     factor = plan.threshold_factor(pfa, lags[1] - lags[0])  # pfa over the searched lags only
     values = echo_values(plan, lag, peak, noise, factor, t0_s)
     out: list[list[tuple[float, float, float, float, float]]] = []

@@ -207,10 +207,12 @@ def plan_blocks(
 
 
 def block_samples(
-    plan: BlockEnvelopePlan, rows: NDArray[np.float64], dc: NDArray[np.float64] | None = None, single: bool = True
+    plan: BlockEnvelopePlan, rows: NDArray[np.float64], dc: NDArray[np.float64] | None = None, single: bool = True,
+    scale: float = 1.0,
 ) -> NDArray[np.floating]:
     """The blocks of every row, offsets removed, shape (n_rows, n_blocks, L): float32 with
-    ``single`` (the default), else float64. Samples outside the record are 0.
+    ``single`` (the default), else float64. Samples outside the record are 0. ``rows`` may be
+    int16 ADC codes with ``scale`` their volts per code (read as they are, 2 bytes a sample).
 
     One compiled pass over the record (``overlap_save_kernels.gather_blocks``: the cast, the
     offset subtraction and the blocks' overlap together).
@@ -222,12 +224,14 @@ def block_samples(
         raise ValueError(f"block_samples: rows have {n} samples, the plan is for {plan.n_samples}")
     out = np.empty((n_rows, plan.n_blocks, plan.block), dtype=np.float32 if single else np.float64)
     offset = np.zeros(n_rows) if dc is None else np.ascontiguousarray(dc, dtype=float).reshape(n_rows)
-    gather_blocks(np.ascontiguousarray(rows, dtype=float), offset, plan.hop, plan.lead, out)
+    rows = np.ascontiguousarray(rows, dtype=np.int16 if np.issubdtype(rows.dtype, np.integer) else float)
+    gather_blocks(rows, offset, float(scale), plan.hop, plan.lead, out)
     return out
 
 
 def block_envelope(
-    plan: BlockEnvelopePlan, rows: NDArray[np.float64], dc: NDArray[np.float64] | None = None, single: bool = True
+    plan: BlockEnvelopePlan, rows: NDArray[np.float64], dc: NDArray[np.float64] | None = None, single: bool = True,
+    scale: float = 1.0,
 ) -> NDArray[np.complexfloating]:
     """Decimated analytic filter output z at lags 0, D, 2D, .., shape (n_rows, n_cells).
 
@@ -240,11 +244,13 @@ def block_envelope(
         Volts.
     dc : ndarray, shape (n_rows,), optional
         Offsets still in ``rows``: the result is that of ``rows - dc``.
+    scale : float
+        Volts per unit of ``rows``: 1.0 for volts, the code step for int16 ADC codes.
     """
     import scipy.fft as sfft
 
     n_rows = rows.shape[0]
-    blocks = block_samples(plan, rows, dc, single)
+    blocks = block_samples(plan, rows, dc, single, scale)
     spectrum = sfft.rfft(blocks, axis=-1, overwrite_x=True)[..., : plan.weights.size]
     spectrum *= plan.weights.astype(np.complex64) if single else plan.weights
     z = sfft.ifft(spectrum, plan.n_env, axis=-1, overwrite_x=True)[..., : plan.per_block]

@@ -14,14 +14,17 @@ from numpy.typing import NDArray
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def gather_blocks(rows: NDArray[np.float64], dc: NDArray[np.float64], hop: int, lead: int,
+def gather_blocks(rows: NDArray, dc: NDArray[np.float64], scale: float, hop: int, lead: int,
                   out: NDArray[np.floating]) -> None:
-    """``out[r, b, j] = rows[r, b hop - lead + j] - dc[r]``, 0 where the index is outside the row.
+    """``out[r, b, j] = rows[r, b hop - lead + j] scale - dc[r]``, 0 where the index is outside
+    the row.
 
     Parameters
     ----------
-    rows : ndarray, shape (n_rows, n_samples), float64
+    rows : ndarray, shape (n_rows, n_samples), float64 volts or int16 ADC codes
     dc : ndarray, shape (n_rows,)
+    scale : float
+        Volts per unit of ``rows`` (1.0 for volts).
     hop, lead : int
         Block b starts at sample b hop - lead.
     out : ndarray, shape (n_rows, n_blocks, block), float32 or float64, written
@@ -39,6 +42,6 @@ def gather_blocks(rows: NDArray[np.float64], dc: NDArray[np.float64], hop: int, 
             source = rows[r, start + lo: start + hi]
             target = out[r, b, lo:hi]
             for j in range(hi - lo):
-                target[j] = source[j] - d
+                target[j] = source[j] * scale - d
             for j in range(hi, block):
                 out[r, b, j] = 0.0
