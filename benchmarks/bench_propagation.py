@@ -18,16 +18,39 @@ and the CPU time of
 ``acoustisim/propagation/columns.py``, e.g. ``git show 21590e5:acoustisim/propagation/columns.py
 > /tmp/columns_before.py``) timed interleaved with it as the same-run baseline.
 
-Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]``
-(``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine).
+The per-pose figures include ``specular_rows`` alone (the specular solve without the solver's
+direct rows, checks and assembly). ``--before-tree DIR`` (an older checkout's root, holding its
+``acoustisim`` and ``scenes``, e.g. ``git archive b6e1281 acoustisim scenes | tar -x -C
+/tmp/before``) adds a same-run A/B of the per-pose figures: this script is run on that tree and
+on this one in alternating subprocesses (``--rounds`` each, ``PYTHONPATH`` set to the tree), and
+the medians over the rounds and their ratios are printed. ``--deterministic-only`` prints only
+the per-pose figures (what the A/B runs).
+
+Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]
+[--before-tree DIR [--rounds R]] [--deterministic-only]``
+(``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine; the A/B adds about 10 s
+per round and tree).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+_FIGURES = {
+    "specular_rows": "specular_rows alone (no solve overhead)",
+    "specular": "specular only (direct + specular)",
+    "edges": "edges only graded edges",
+    "both": "both (direct + specular + edges) graded edges",
+}
+"""The per-pose CPU-time medians compared by ``--before-tree`` (key: label)."""
 
 
 def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
@@ -37,6 +60,57 @@ def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
         function()
         times.append(clock() - start)
     return float(np.median(times))
+
+
+def _per_pose(prepared, repeats: int, fine: bool) -> dict[str, tuple[float, int]]:
+    """CPU-time medians (s) and row counts per pose of the deterministic solves (``_FIGURES``;
+    with ``fine``, also the edge solves with the fine 1/16-period discretisation, the same-run
+    baseline of the graded one)."""
+    from acoustisim.propagation import SolverConfig, solve
+    from acoustisim.propagation.context import SolveContext
+    from acoustisim.propagation.specular import specular_rows
+
+    scene = prepared.scene
+    context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
+    out = {"specular_rows": (_median_time(lambda: specular_rows(context, prepared, 3), repeats, time.process_time),
+                             len(specular_rows(context, prepared, 3)))}
+    cases = [("specular", ("direct", "specular"), True), ("edges", ("edge",), True),
+             ("both", ("direct", "specular", "edge"), True)]
+    if fine:
+        cases += [("edges fine", ("edge",), False), ("both fine", ("direct", "specular", "edge"), False)]
+    for key, mechanisms, adaptive in cases:
+        config = SolverConfig(max_order=3, mechanisms=mechanisms, amplitude_floor_db=None, edge_adaptive=adaptive)
+        n_rows = len(solve(prepared, config=config))
+        out[key] = (_median_time(lambda: solve(prepared, config=config), repeats, time.process_time), n_rows)
+    return out
+
+
+def _print_per_pose(prepared, repeats: int, fine: bool) -> None:
+    labels = dict(_FIGURES, **{"edges fine": "edges only fine edges (1/16 period)",
+                               "both fine": "both (direct + specular + edges) fine edges (1/16 period)"})
+    print(f"  CPU-time medians per pose over {repeats} (goal < 20 ms for direct + specular + edges):")
+    for key, (cpu, n_rows) in _per_pose(prepared, repeats, fine).items():
+        print(f"    {labels[key]}: {cpu * 1e3:.2f} ms, {n_rows} rows")
+
+
+def _before_and_after(args) -> None:
+    """The per-pose figures of ``args.before_tree`` and of this tree, in alternating subprocesses."""
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(Path(__file__).resolve().parents[1])}
+    runs: dict[str, list[dict[str, list]]] = {name: [] for name in trees}
+    for _ in range(args.rounds):
+        for name, root in trees.items():
+            env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
+            command = [sys.executable, __file__, "--json", "--repeats", str(args.repeats)]
+            result = subprocess.run(command, env=env, cwd=root, capture_output=True, text=True, check=True)
+            runs[name].append(json.loads(result.stdout.strip().splitlines()[-1]))
+    print(f"  A/B against {trees['before']}: per-pose CPU medians, median over {args.rounds} alternating "
+          f"subprocess rounds of {max(3, args.repeats)} repeats each:")
+    for key, label in _FIGURES.items():
+        before = float(np.median([run[key][0] for run in runs["before"]]))
+        now = float(np.median([run[key][0] for run in runs["now"]]))
+        rows = (runs["before"][0][key][1], runs["now"][0][key][1])
+        print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, before / now = "
+              f"{before / now:.2f} (rows {rows[0]} / {rows[1]})")
 
 
 def _floor_and_columns(prepared, args) -> None:
@@ -117,6 +191,11 @@ def main() -> None:
                         help="also a 1.3-million-triangle user mesh without primitive (smooth-mesh tracer; ~1 min)")
     parser.add_argument("--columns-rays", type=int, default=200_000)
     parser.add_argument("--columns-before", default=None, help="an older columns.py to time against")
+    parser.add_argument("--before-tree", default=None,
+                        help="an older checkout's root (acoustisim and scenes): same-run A/B of the per-pose figures")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating subprocess rounds of --before-tree")
+    parser.add_argument("--deterministic-only", action="store_true", help="only the per-pose figures (and the A/B)")
+    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
 
     import trimesh
@@ -131,6 +210,14 @@ def main() -> None:
     start = time.perf_counter()
     prepared = prepare(scene)
     prepare_s = time.perf_counter() - start
+    if args.json:  # one side of the --before-tree A/B: the per-pose figures, as JSON
+        print(json.dumps(_per_pose(prepared, max(3, args.repeats), fine=False)))
+        return
+    if args.deterministic_only:
+        _print_per_pose(prepared, max(3, args.repeats), fine=False)
+        if args.before_tree:
+            _before_and_after(args)
+        return
     specular = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None)
     paths = solve(prepared, config=specular)
     t_specular = _median_time(lambda: solve(prepared, config=specular), args.repeats)
@@ -149,18 +236,9 @@ def main() -> None:
           f"{len(paths)} paths; process CPU time median {cpu_specular * 1e3:.2f} ms (less sensitive to other load)")
     print(f"  baseline raw Embree occlusion of {n_legs} segments: median {t_raw * 1e3:.3f} ms "
           f"(solve / baseline = {t_specular / t_raw:.1f})")
-    # edge diffraction: graded elements (the default) against the fine 1/16-period discretisation
-    repeats = max(3, args.repeats)
-    print("  CPU-time medians per pose (goal < 20 ms for direct + specular + edges):")
-    for label, mechanisms in (("specular only (direct + specular)", ("direct", "specular")),
-                              ("edges only", ("edge",)),
-                              ("both (direct + specular + edges)", ("direct", "specular", "edge"))):
-        for adaptive in ((True,) if "edge" not in mechanisms else (True, False)):
-            config = SolverConfig(max_order=3, mechanisms=mechanisms, amplitude_floor_db=None, edge_adaptive=adaptive)
-            n_rows = len(solve(prepared, config=config))
-            cpu = _median_time(lambda: solve(prepared, config=config), repeats, time.process_time)
-            mode = "" if "edge" not in mechanisms else (" graded edges" if adaptive else " fine edges (1/16 period)")
-            print(f"    {label}{mode}: {cpu * 1e3:.2f} ms, {n_rows} rows")
+    _print_per_pose(prepared, max(3, args.repeats), fine=True)
+    if args.before_tree:
+        _before_and_after(args)
 
     _floor_and_columns(prepared, args)
 
