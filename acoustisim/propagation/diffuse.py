@@ -234,8 +234,9 @@ class _LobeTable:
         # bin i goes to the first cell whose cumulative mass exceeds (i + 1/2) / _GUIDE_BINS of
         # the total (searchsorted(mass, quantiles, side="right"), as one linear merge)
         guide = np.empty(_GUIDE_BINS, dtype=np.int32)  # 256 KiB: gathered once per lobe ray
-        kernels.guide_table(mass, guide)
-        share = np.bincount(guide, minlength=_COS_CELLS) / _GUIDE_BINS
+        counts = np.empty(_COS_CELLS, dtype=np.int64)
+        kernels.guide_table(mass, guide, counts)
+        share = counts / _GUIDE_BINS
         lobe_pdf = share / (2.0 * np.pi * (2.0 / _COS_CELLS))  # per steradian, per cell
         return cls(edges, guide, lobe_pdf)
 

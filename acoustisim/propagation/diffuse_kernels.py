@@ -94,19 +94,23 @@ def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int32]) -> None:
+def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int32], counts: NDArray[np.int64]) -> None:
     """The equiprobable bins of a tabulated density: bin i (of ``guide.size``) gets the first
     cell whose cumulative ``mass`` (non-decreasing) exceeds (i + 1/2) mass[-1] / guide.size
     (at most the last cell), as ``numpy.searchsorted(mass, quantiles, side="right")`` would,
-    in one linear merge of the sorted quantiles with the cells."""
+    in one linear merge of the sorted quantiles with the cells; ``counts`` (n_cells,) gets the
+    bins of each cell (``numpy.bincount(guide, minlength=n_cells)``)."""
     n_cells = mass.size
     step = mass[n_cells - 1] / guide.size
+    counts[:] = 0
     cell = 0
     for i in range(guide.size):
         quantile = (i + 0.5) * step
         while cell < n_cells and mass[cell] <= quantile:
             cell += 1
-        guide[i] = min(cell, n_cells - 1)
+        chosen = min(cell, n_cells - 1)
+        guide[i] = chosen
+        counts[chosen] += 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -13,10 +13,12 @@ arguments once per solve.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from acoustisim.propagation import diffuse_kernels as kernels
@@ -174,33 +176,50 @@ def receiver_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
         leg passes to the slab test) when the receiver lies within 1e-9 m of the projected
         rectangle.
     """
-    k, n_rx = lo.shape[0], receivers.shape[0]
-    out = np.zeros((n_rx, k, 6))
-    if k == 0:
-        return out
-    rows = np.arange(k)
-    axis = np.argmax(hi - lo, axis=1)
-    u, v = (axis + 1) % 3, (axis + 2) % 3
-    lu, lv, hu, hv = lo[rows, u], lo[rows, v], hi[rows, u], hi[rows, v]
-    corners = np.stack([np.stack([lu, lv], -1), np.stack([hu, lv], -1), np.stack([hu, hv], -1),
-                        np.stack([lu, hv], -1)], axis=1)  # (k, 4, 2)
-    q = np.stack([receivers[:, u], receivers[:, v]], axis=-1)  # (n_rx, k, 2)
-    rel = corners[None] - q[:, :, None, :]  # (n_rx, k, 4, 2)
-    inside = ((lu - 1e-9 <= q[..., 0]) & (q[..., 0] <= hu + 1e-9) & (lv - 1e-9 <= q[..., 1])
-              & (q[..., 1] <= hv + 1e-9))
-    centre = rel.mean(axis=2, keepdims=True)
-    # signed angle of each corner from the centre direction (all within +-90 degrees when q is
-    # outside the rectangle)
-    angle = np.arctan2(centre[..., 0] * rel[..., 1] - centre[..., 1] * rel[..., 0], np.sum(rel * centre, axis=-1))
-    right = np.take_along_axis(rel, np.argmin(angle, axis=2)[..., None, None], axis=2)[:, :, 0]
-    left = np.take_along_axis(rel, np.argmax(angle, axis=2)[..., None, None], axis=2)[:, :, 0]
-    right[inside], left[inside] = 0.0, 0.0
-    receiver_index, box_index = np.indices((n_rx, k))
-    u3, v3 = u[box_index], v[box_index]
-    # N1 . e = R_u e_v - R_v e_u;  N2 . e = e_u L_v - e_v L_u
-    out[receiver_index, box_index, v3], out[receiver_index, box_index, u3] = right[..., 0], -right[..., 1]
-    out[receiver_index, box_index, 3 + u3], out[receiver_index, box_index, 3 + v3] = left[..., 1], -left[..., 0]
+    lo, hi = np.ascontiguousarray(lo, dtype=float), np.ascontiguousarray(hi, dtype=float)
+    receivers = np.ascontiguousarray(receivers, dtype=float)
+    out = np.zeros((receivers.shape[0], lo.shape[0], 6))
+    _wedges_into(lo, hi, receivers, out)
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _wedges_into(lo: NDArray[np.float64], hi: NDArray[np.float64], receivers: NDArray[np.float64],
+                 out: NDArray[np.float64]) -> None:
+    """:func:`receiver_wedges` into ``out`` (n_rx, k, 6), zeroed (a compiled loop: the boxes
+    and receivers are a handful, numpy's per-call cost would dominate)."""
+    for b in range(lo.shape[0]):
+        # the projection axis: the box's longest side (the first of equal ones)
+        axis = 0
+        for a in range(1, 3):
+            if hi[b, a] - lo[b, a] > hi[b, axis] - lo[b, axis]:
+                axis = a
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        cu = (lo[b, u], hi[b, u], hi[b, u], lo[b, u])  # the projected rectangle's corners
+        cv = (lo[b, v], lo[b, v], hi[b, v], hi[b, v])
+        for j in range(receivers.shape[0]):
+            qu, qv = receivers[j, u], receivers[j, v]
+            if lo[b, u] - 1e-9 <= qu <= hi[b, u] + 1e-9 and lo[b, v] - 1e-9 <= qv <= hi[b, v] + 1e-9:
+                continue  # inside the projected rectangle: no wedge (zeros)
+            mu_, mv = 0.0, 0.0  # the corners' mean direction from q
+            for c in range(4):
+                mu_ += cu[c] - qu
+                mv += cv[c] - qv
+            mu_, mv = 0.25 * mu_, 0.25 * mv
+            # the corners of least and largest signed angle from the mean direction (all
+            # within +-90 degrees: q is outside the rectangle)
+            low, high = math.inf, -math.inf
+            ru, rv, lu, lv = 0.0, 0.0, 0.0, 0.0
+            for c in range(4):
+                eu, ev = cu[c] - qu, cv[c] - qv
+                angle = math.atan2(mu_ * ev - mv * eu, eu * mu_ + ev * mv)
+                if angle < low:
+                    low, ru, rv = angle, eu, ev
+                if angle > high:
+                    high, lu, lv = angle, eu, ev
+            # N1 . e = R_u e_v - R_v e_u;  N2 . e = e_u L_v - e_v L_u
+            out[j, b, v], out[j, b, u] = ru, -rv
+            out[j, b, 3 + u], out[j, b, 3 + v] = lv, -lu
 
 
 def shared_wedges(lo: NDArray[np.float64], hi: NDArray[np.float64],
