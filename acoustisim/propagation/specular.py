@@ -419,14 +419,15 @@ def _reflection_products(chains: _Merged, rows: NDArray[np.int64], prepared: Pre
     kind_offset = np.cumsum([0] + [len(table) for table in tables[:-1]]).astype(np.int64)
     # |cos| of the incidence angle at each vertex (a zero-length leg, two reflections on a corner
     # line, arrives along the previous direction mirrored by the previous surface)
-    cos_i = incidence_cosines(chains.vertices[rows], chains.normal[rows], chains.order[rows]).ravel()
+    cosines = incidence_cosines(chains.vertices[rows], chains.normal[rows], chains.order[rows])
+    cos_i = cosines.ravel()
     positions, starts = vertex_groups(rows, chains.kind, chains.material, code_of, kind_offset, len(distinct))
     factor = np.ones(cos_i.shape, dtype=complex)
     for material, code in distinct.items():
         at = positions[starts[code]:starts[code + 1]]
         if at.size:
             factor[at] = material.reflection_coefficient(cos_i[at], rho, c)
-    factor = factor.reshape(rows.size, -1)
+    factor = factor.reshape(cosines.shape)
     total = np.ones(rows.size, dtype=complex)
     for j in range(factor.shape[1]):
         total *= factor[:, j]
