@@ -46,8 +46,10 @@ Elements whose gain is below 1e-6 of the strongest element (-120 dB, far below a
 ADC's 72 dB) are dropped.
 
 The per-element work (discretisation, visibility segments, Gauss-point gains, rows) runs in the
-compiled loops of :mod:`acoustisim.propagation.edge_kernels`; the visibility stays one Embree
-batch.
+compiled loops of :mod:`acoustisim.propagation.edge_kernels`. Visibility: the legs that can be
+decided exactly without Embree are (:mod:`acoustisim.propagation.edge_visibility`: all of them
+on the thesis tank), the others go to Embree in one batch, with the same answers. With
+``sort_rows`` the rows come out in the solver's order (:mod:`acoustisim.propagation.edge_order`).
 """
 
 from __future__ import annotations
