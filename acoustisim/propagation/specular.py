@@ -1,8 +1,9 @@
 """Direct and specular paths: image sources on planar mirrors, specular points on curved objects.
 
-Chains, for every receiver at once (numpy over candidates; the per-chain walks, the unfolding,
-back-tracing with its polygon tests, the curved specular points and the incidence angles, are
-compiled loops in :mod:`.specular_kernels`):
+Chains, for every receiver at once (the per-chain walks, the unfolding, back-tracing with its
+polygon tests, the curved specular points, their amplitudes and the incidence angles, are
+compiled loops in :mod:`.specular_kernels`; the loops over candidates that write the chains,
+their legs, duplicate keys and rows, in :mod:`.specular_chains`):
 
 * planar chains of 1..``max_order`` mirrors (image-source method, :mod:`.image_source`);
 * mixed chains: planar mirrors, then one curved object (sphere, cylinder side), then planar
@@ -17,11 +18,12 @@ compiled loops in :mod:`.specular_kernels`):
 Paths through a right-angle corner line (tank corners, a post meeting the surface or the floor)
 are found in both reflection orders with coincident points and kept once.
 
-The chains of every order and kind are then stacked into one padded array (:class:`_Merged`),
-so that what follows is one pass over all of them: every leg of every valid candidate is
-checked for occlusion in one batched Embree query (legs ending on a mirror or a curved object
-ignore that patch, see :mod:`.raycast`), duplicates are dropped, the reflection coefficients
-evaluated, the rows written.
+The chains of every order and kind are written straight into one padded array
+(:class:`_Merged`; the smooth-mesh chains, built in numpy, are padded and appended), so that
+what follows is one pass over all of them: every leg of every valid candidate is checked for
+occlusion in one batched Embree query (legs ending on a mirror or a curved object ignore that
+patch, see :mod:`.raycast`), duplicates are dropped, the reflection coefficients evaluated
+(one call per distinct material), the rows written.
 
 Gains (pressure factor relative to the source at 1 m): planar chains prod(R) / L with L the
 distance from the last image to the receiver; mixed chains prod(R) x the geometric-optics
@@ -301,13 +303,14 @@ def _merge(groups: list[_Chains]) -> _Merged:
 
 
 def _allocate(capacity: int, big: int) -> _Merged:
-    """Padded chain arrays for up to ``capacity`` chains of order <= ``big``, with the padding
-    values pre-set (surfaces, patches, kinds -1; normals, materials, phases 0)."""
+    """Padded chain arrays for up to ``capacity`` chains of order <= ``big``, uninitialised
+    (the fill kernels write every field of every row, padding included) but for the phases
+    (none, 0)."""
     return _Merged(
         order=np.empty(capacity, dtype=np.int64), vertices=np.empty((capacity, big + 2, 3)),
-        surface=np.full((capacity, big), -1, dtype=np.int64), patch=np.full((capacity, big), -1, dtype=np.int64),
-        normal=np.zeros((capacity, big, 3)), kind=np.full((capacity, big), -1, dtype=np.int64),
-        material=np.zeros((capacity, big), dtype=np.int64), length=np.empty(capacity), spreading=np.empty(capacity),
+        surface=np.empty((capacity, big), dtype=np.int64), patch=np.empty((capacity, big), dtype=np.int64),
+        normal=np.empty((capacity, big, 3)), kind=np.empty((capacity, big), dtype=np.int64),
+        material=np.empty((capacity, big), dtype=np.int64), length=np.empty(capacity), spreading=np.empty(capacity),
         channel=np.empty(capacity, dtype=np.int64), chain=np.empty(capacity, dtype=np.int64),
         has_phase=np.zeros(capacity, dtype=bool), phase=np.zeros(capacity))
 

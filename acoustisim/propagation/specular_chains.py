@@ -8,7 +8,8 @@ pose, but hundreds of small numpy calls. Here each candidate is one loop iterati
 back-traces its planar points (:func:`.specular_kernels.backtrace_one`) and, if the chain is
 valid, writes its row straight into the padded chain arrays of the solve
 (``specular._Merged`` layout: a chain of order k < K fills slots 0..k-1; its vertices k+2..
-repeat the receiver; surfaces, patches and kinds are -1 beyond, normals 0, materials 0):
+repeat the receiver; surfaces, patches and kinds are -1 beyond, normals 0, materials 0, all
+written here):
 
 1. :func:`fill_planar`: the chains of one mirror sequence length, every receiver;
 2. :func:`mixed_candidates`: the (before sequence, after sequence and receiver, curved
@@ -52,6 +53,18 @@ def _write_mirror_slot(row: int, slot: int, m: int, mirror_normal: NDArray[np.fl
     out_normal[row, slot, 2] = mirror_normal[m, 2]
     out_kind[row, slot] = MIRROR_KIND
     out_material[row, slot] = mirror_material[m]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _write_padding(row: int, first: int, out_surface: NDArray[np.int64], out_patch: NDArray[np.int64],
+                   out_normal: NDArray[np.float64], out_kind: NDArray[np.int64], out_material: NDArray[np.int64]) -> None:
+    """The padding values in interaction slots ``first``.. of a row."""
+    for q in range(first, out_surface.shape[1]):
+        out_surface[row, q] = -1
+        out_patch[row, q] = -1
+        out_normal[row, q, 0], out_normal[row, q, 1], out_normal[row, q, 2] = 0.0, 0.0, 0.0
+        out_kind[row, q] = -1
+        out_material[row, q] = 0
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -121,6 +134,7 @@ def fill_planar(point: NDArray[np.float64], normal: NDArray[np.float64], disc_ra
             for q in range(k):
                 _write_mirror_slot(row, q, sequences[j, q], normal, mirror_surface, mirror_patch, mirror_material,
                                    out_surface, out_patch, out_normal, out_kind, out_material)
+            _write_padding(row, k, out_surface, out_patch, out_normal, out_kind, out_material)
             e0, e1, e2 = images[j, k, 0] - r0, images[j, k, 1] - r1, images[j, k, 2] - r2
             length = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
             out_length[row] = length
@@ -134,7 +148,8 @@ def fill_planar(point: NDArray[np.float64], normal: NDArray[np.float64], disc_ra
 def mixed_candidates(seen_by: NDArray[np.bool_], sequences_before: NDArray[np.int64],
                      images_before: NDArray[np.float64], unfolded_before: NDArray[np.bool_],
                      sequences_after: NDArray[np.int64], n_receivers: int, images_after: NDArray[np.float64],
-                     unfolded_after: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
+                     unfolded_after: NDArray[np.bool_]
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
                                 NDArray[np.float64]]:
     """The candidates of one split [n_before mirrors, a curved reflector, n_after mirrors].
 
@@ -286,6 +301,7 @@ def fill_mixed(point: NDArray[np.float64], normal: NDArray[np.float64], disc_rad
         for q in range(n_after):
             _write_mirror_slot(row, n_before + 1 + q, sequences_after[ga, q], normal, mirror_surface, mirror_patch,
                                mirror_material, out_surface, out_patch, out_normal, out_kind, out_material)
+        _write_padding(row, order, out_surface, out_patch, out_normal, out_kind, out_material)
         e0, e1, e2 = x0 - a_end[i, 0], x1 - a_end[i, 1], x2 - a_end[i, 2]
         f0, f1, f2 = x0 - b_end[i, 0], x1 - b_end[i, 1], x2 - b_end[i, 2]
         out_length[row] = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) + math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)

@@ -410,5 +410,5 @@ def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.fl
     return amplitude, phase
 
 
-__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "go_factors", "incidence_cosines", "primitive_specular_points", "unfold_chains",
-           "unfold_reversed"]
+__all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "go_factors", "incidence_cosines",
+           "primitive_specular_points", "unfold_chains", "unfold_reversed"]
