@@ -38,10 +38,12 @@ def tank():
 
 
 def _run(hits: BoxTankHits, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """first_hits of rows (n, 3): the triangles (-9 where pending) and the pending rays."""
+    """first_hits of rows (n, 3) (origins (n, 3), or (3,): one shared, as the tracer's first
+    bounce passes the transmitter): the triangles (-9 where pending) and the pending rays."""
     n = directions.shape[0]
     triangle, pending = np.full(n, -9, dtype=np.int32), np.empty(n, dtype=np.int64)
-    k = first_hits(np.ascontiguousarray(origins.T), np.ascontiguousarray(directions.T), *hits.kernel_arguments(),
+    columns = np.asarray(origins, dtype=float).reshape(-1, 3).T
+    k = first_hits(np.ascontiguousarray(columns), np.ascontiguousarray(directions.T), *hits.kernel_arguments(),
                    triangle, pending)
     return triangle, pending[:k]
 
@@ -86,7 +88,7 @@ def test_first_hits_equal_embree_but_for_grazing_rays(tank, origin):
         origins = rng.uniform([0.01, 0.01, 0.01], [8.99, 2.99, 0.99], (n, 3))
         directions = rng.normal(size=(n, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    triangle, pending = _run(hits, origins, directions)
+    triangle, pending = _run(hits, origins[0] if origin == "transmitter" else origins, directions)
     embree = raycaster.intersect(origins, directions)
     decided = np.ones(n, dtype=bool)
     decided[pending] = False
@@ -194,7 +196,7 @@ def test_a_non_convex_object_sends_only_the_rays_near_it_to_embree():
     origins = np.broadcast_to(np.asarray(scene.sonar.position_m, dtype=float), (20_000, 3))
     directions = rng.normal(size=(20_000, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    triangle, pending = _run(hits, origins, directions)
+    triangle, pending = _run(hits, origins[0], directions)
     embree = raycaster.intersect(origins, directions)
     assert 0 < pending.size < 2_000
     ring_box = (hits.box_lo[-1], hits.box_hi[-1])
@@ -204,3 +206,34 @@ def test_a_non_convex_object_sends_only_the_rays_near_it_to_embree():
     decided = np.ones(20_000, dtype=bool)
     decided[pending] = False
     assert _same_plane(raycaster, triangle[decided], embree.triangle[decided]).mean() > 0.9995
+
+
+def test_rays_aimed_at_every_object_are_decided_as_embree_decides(tank):
+    # Rays from the transmitter to every vertex of every object, pulled 0.1 mm towards the
+    # object's centre (the silhouette's extreme points are the nearest the edge of the cone of
+    # directions that screens the boxes for a shared origin: a cone too narrow misses them),
+    # and to random points of each object's box: the answers are Embree's planes but for
+    # grazing rays.
+    scene, raycaster = tank
+    hits = raycaster.box_tank_hits
+    origin = np.asarray(scene.sonar.position_m, dtype=float)
+    rng = np.random.default_rng(12)
+    targets = []
+    for k, (lo, hi) in enumerate(zip(hits.box_lo, hits.box_hi)):
+        rows = raycaster.surface_index == len(scene.boundaries) + k
+        vertices = raycaster.vertices[np.unique(raycaster.faces[rows])]
+        inward = vertices.mean(axis=0) - vertices
+        targets += [vertices + 1e-4 * inward / np.linalg.norm(inward, axis=1, keepdims=True),
+                    rng.uniform(lo, hi, (2_000, 3))]
+    directions = np.concatenate(targets) - origin
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    origins = np.broadcast_to(origin, directions.shape)
+    triangle, pending = _run(hits, origin, directions)  # one origin: the boxes' cones screen the rays
+    assert pending.size == 0
+    embree = raycaster.intersect(origins, directions)
+    on_objects = raycaster.surface_index[triangle] >= len(scene.boundaries)
+    assert on_objects.mean() > 0.3  # the objects are hit
+    other = np.flatnonzero(~_same_plane(raycaster, triangle, embree.triangle))
+    assert other.size <= 5
+    hit_points = origins[other] + embree.distance_m[other, None] * directions[other]
+    assert np.all(_edge_distance(raycaster, embree.triangle[other], hit_points) < GRAZING_M)

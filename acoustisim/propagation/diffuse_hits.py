@@ -12,12 +12,13 @@ exactly in float64, without a ray-tracing query:
   that face containing the exit point (a 2-D edge-function test);
 * a convex object: the ray, clipped against the object's face planes (Cyrus and Beck 1978, as
   :func:`~acoustisim.propagation.convex_occlusion.segment_crosses_convex`), enters the solid at
-  ``t_enter`` through the plane of the largest entry distance; the first triangle of every mesh
-  triangle crossed by the ray is at ``t_enter`` (a convex surface is crossed once on the way in),
-  so the nearest object entry closer than the box exit is the first hit, even for objects that
-  overlap. Only rays crossing an object's bounding box are clipped; the hit triangle is the
-  triangle whose plane is the entering one (every triangle of that plane has its normal, offset
-  and surface).
+  ``t_enter`` through the plane of the largest entry distance; the first crossing of the
+  object's surface is at ``t_enter`` (a convex surface is crossed once on the way in), so the
+  nearest object entry closer than the box exit is the first hit, even for objects that
+  overlap. Only rays crossing an object's bounding box are clipped (and, when every ray starts
+  at one origin, the transmitter, only those inside the cone of directions of the box's
+  bounding sphere are tested against the box: one dot product); the hit triangle is a triangle
+  of the entering plane (every triangle of that plane has its normal, offset and surface).
 
 A ray the rules above cannot decide is left *pending*, for an Embree query: its origin outside
 the box or inside an object, an object without face planes (not convex) on its way, an exit
@@ -241,6 +242,22 @@ plane_offset, plane_triangle
     tank[0], tank[1] = lo, hi
     boxes = np.empty((n_objects, 2, 3))  # (lo, hi) of each object
     boxes[:, 0], boxes[:, 1] = box_lo, box_hi
+    # with one origin, each box's cone of directions from it (the cone of the box's bounding
+    # sphere: axis and cosine of the half angle, -2 when the origin is inside the sphere): a
+    # ray outside the cone misses the box, at one dot product instead of the slab test
+    cone = np.empty((n_objects, 4))
+    cone[:, :3], cone[:, 3] = 0.0, -2.0
+    for b in range(n_objects if one_origin else 0):
+        wx = 0.5 * (box_lo[b, 0] + box_hi[b, 0]) - origins[0, 0]
+        wy = 0.5 * (box_lo[b, 1] + box_hi[b, 1]) - origins[1, 0]
+        wz = 0.5 * (box_lo[b, 2] + box_hi[b, 2]) - origins[2, 0]
+        radius = 0.5 * math.sqrt((box_hi[b, 0] - box_lo[b, 0]) ** 2 + (box_hi[b, 1] - box_lo[b, 1]) ** 2
+                                 + (box_hi[b, 2] - box_lo[b, 2]) ** 2)
+        distance = math.sqrt(wx * wx + wy * wy + wz * wz)
+        if distance > 1.001 * radius:
+            cone[b, 0], cone[b, 1], cone[b, 2] = wx / distance, wy / distance, wz / distance
+            # the half angle's cosine, lowered by 1e-9 for the rounding of these few operations
+            cone[b, 3] = math.sqrt(1.0 - (radius / distance) ** 2) - 1e-9
     n_pending = 0
     for ray in range(directions.shape[1]):
         o = 0 if one_origin else ray
@@ -265,7 +282,10 @@ plane_offset, plane_triangle
             best, face = t, 5 - sz
         hit = -2  # the box face
         undecided = False
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
         for b in range(n_objects):
+            if cone[b, 0] * dx + cone[b, 1] * dy + cone[b, 2] * dz < cone[b, 3] * length:
+                continue  # outside the box's cone
             if not _in_box(ox, oy, oz, ix, iy, iz, sx, sy, sz, boxes, b, best):
                 continue
             first, last = plane_start[b], plane_start[b + 1]
