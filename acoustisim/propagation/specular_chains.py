@@ -538,6 +538,48 @@ def vertex_groups(chains: NDArray[np.int64], kind: NDArray[np.int64], material: 
     return positions, starts
 
 
+@njit(cache=True, nogil=True)
+def occlusion_queries32(origins: NDArray[np.float64], directions: NDArray[np.float64], lengths: NDArray[np.float64],
+                        shift: NDArray[np.float64], eps: float
+                        ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.int64]]:
+    """The legs (:func:`chain_legs`) as Embree's float32 buffers, as
+    ``RayCaster.occluded_rays`` builds them, with the same operations in the same order (so the
+    same buffers): start ``eps d + o`` minus ``shift`` rounded once to float32, direction
+    rounded to float32, length ``L - 2 eps``; legs with ``L <= 2 eps`` are never blocked and
+    get no query.
+
+    Returns
+    -------
+    starts32, directions32 : ndarray of float32, shape (q, 3)
+    lengths32 : ndarray of float32, shape (q,)
+        The queries (for ``RayCaster.occluded_segments32``).
+    leg : ndarray of int64, shape (q,)
+        The leg of each query.
+    """
+    n = lengths.shape[0]
+    q = 0
+    for i in range(n):
+        if lengths[i] > 2.0 * eps:
+            q += 1
+    starts32 = np.empty((q, 3), dtype=np.float32)
+    directions32 = np.empty((q, 3), dtype=np.float32)
+    lengths32 = np.empty(q, dtype=np.float32)
+    leg = np.empty(q, dtype=np.int64)
+    q = 0
+    for i in range(n):
+        if not lengths[i] > 2.0 * eps:
+            continue
+        for k in range(3):
+            start = eps * directions[i, k]
+            start += origins[i, k]
+            starts32[q, k] = np.float32(start - shift[k])
+            directions32[q, k] = np.float32(directions[i, k])
+        lengths32[q] = np.float32(lengths[i] - 2.0 * eps)
+        leg[q] = i
+        q += 1
+    return starts32, directions32, lengths32, leg
+
+
 __all__ = ["CURVED_KIND", "MIRROR_KIND", "chain_legs", "duplicate_keys", "fill_mixed", "fill_planar",
-           "first_distinct_rows", "mixed_candidates", "unblocked_chains", "vertex_groups",
+           "first_distinct_rows", "mixed_candidates", "occlusion_queries32", "unblocked_chains", "vertex_groups",
            "write_rows"]
