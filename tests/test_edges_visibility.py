@@ -122,7 +122,7 @@ def test_screen_decisions_equal_embree_over_poses(tank):
 
 def test_rows_equal_the_embree_only_visibility(tank):
     hidden = 0
-    for sonar in [tank.scene.sonar] + _poses(tank, 5, seed=5):
+    for sonar in [tank.scene.sonar] + _poses(tank, 9, seed=5):
         context = SolveContext.build(tank.scene, sonar, tank.raycaster)
         for config in (SolverConfig(), SolverConfig(edge_adaptive=False)):
             screened = edges_module.edge_paths(context, config, tank.diffracting_edges, sort_rows=True)
@@ -194,3 +194,30 @@ def test_non_convex_object_is_left_to_embree_unless_a_convex_one_blocks():
     # crossing the open ball's box only: Embree; through the wall as well: blocked; clear of both
     assert got.tolist() == [UNDECIDED, BLOCKED, CLEAR]
     assert raycaster.occluded(origins, targets).tolist() == [True, True, False]
+
+
+def test_pair_pre_screen_masks():
+    from acoustisim.propagation.edge_visibility import WALL_BIT, _triangle_screen
+
+    cube = plate("cube", (4.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.2, 0.2, 0.2, "steel")
+    diamond = plate("diamond", (6.0, 1.5, 0.5), (1.0, 1.0, 0.0), 0.2, 0.2, 0.2, "steel")  # turned 45 degrees
+    scene = _box_scene([cube, diamond])
+    screen, planes = VisibilityScreen.create(scene), RayCaster.from_scene(scene).convex_planes
+    assert np.all(planes.convex)
+    args = screen.kernel_arguments(planes)
+    tol = screen.tolerance
+
+    def mask(a, b, t):
+        return _triangle_screen(np.array(a, dtype=float), np.array(b, dtype=float), np.array(t, dtype=float), *args)
+
+    # far from everything: nothing to test
+    assert mask((1.0, 0.5, 0.5), (1.0, 0.6, 0.5), (2.0, 0.5, 0.5)) == 0
+    # in a corner of the diamond's box but 0.08 m outside its face of normal (1, 1, 0): its box
+    # is met, that face plane separates
+    assert mask((6.13, 1.63, 0.45), (6.13, 1.63, 0.55), (6.135, 1.635, 0.5)) == 0
+    # across the cube: test it (bit 0), and only it
+    assert mask((3.0, 1.5, 0.45), (3.0, 1.5, 0.55), (5.0, 1.5, 0.5)) == 1
+    # reaching past both: the cube and the diamond (bits 0 and 1)
+    assert mask((3.0, 1.5, 0.45), (3.0, 1.5, 0.55), (7.0, 1.5, 0.5)) == 3
+    # a corner within the margin of the floor: the walls too
+    assert mask((1.0, 0.5, 0.5 * tol), (1.0, 0.6, 0.5), (2.0, 0.5, 0.5)) == 1 << WALL_BIT

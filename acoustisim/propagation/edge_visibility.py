@@ -11,6 +11,10 @@ some 13 000 queries per pose, most of which can be decided exactly without Embre
   at least ``tolerance`` from every boundary passes at least that far from every wall;
 * a leg missing an object's axis-aligned box grown by ``tolerance`` passes at least that far
   from the object;
+* per (edge, receiver) pair and leg, the legs of all its elements lie in one triangle (the
+  segment of its probes and the target): an object whose box the triangle's box misses, or
+  with a face plane the triangle lies outside of, is skipped for all of them, as are the walls
+  when the triangle lies in the shrunk water box;
 * a leg crossing the box of a convex object (a closed mesh with every vertex inside every face
   plane, :mod:`~acoustisim.propagation.convex_occlusion`) is clipped against the object's face
   planes moved ``tolerance`` outwards (P+) and inwards (P-) (Cyrus and Beck 1978): a segment
@@ -50,6 +54,13 @@ TOLERANCE_ULPS = 20.0
 
 CLEAR, BLOCKED, UNDECIDED = 0, 1, 2
 """Decisions of :func:`screen_leg`."""
+
+MASK_BITS = 62
+"""Objects with an index below this are pre-screened once per (edge, receiver) pair and leg
+(:func:`_pair_screens`); further ones are tested on every leg."""
+
+WALL_BIT = 62
+"""The bit of a pre-screen mask saying the walls must be tested."""
 
 
 def screen_tolerance(bounds_m: NDArray[np.float64]) -> float:
@@ -202,7 +213,7 @@ def _convex_decision(p0: tuple[float, float, float], p1: tuple[float, float, flo
 def screen_leg(p0: tuple[float, float, float], p1: tuple[float, float, float], tolerance: float,
                water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
                box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
-               offset: NDArray[np.float64], hint: NDArray[np.int64]) -> int:
+               offset: NDArray[np.float64], hint: NDArray[np.int64], mask: int = -1) -> int:
     """CLEAR, BLOCKED or UNDECIDED (left to Embree) for the segment p0 -> p1 (m).
 
     Parameters
@@ -214,12 +225,19 @@ def screen_leg(p0: tuple[float, float, float], p1: tuple[float, float, float], t
     hint : ndarray of int64, shape (k,)
         Per object, a plane that separated an earlier segment from it (or -1), tested first;
         updated.
+    mask : int, optional
+        What to test (:func:`_triangle_screen`): the walls when bit :data:`WALL_BIT` is set,
+        object j < :data:`MASK_BITS` when bit j is; -1 (default): everything.
     """
-    if not (_inside(p0[0], p0[1], p0[2], water_lo, water_hi) & _inside(p1[0], p1[1], p1[2], water_lo, water_hi)):
-        return UNDECIDED
+    if (mask >> WALL_BIT) & 1 == 1:
+        if not (_inside(p0[0], p0[1], p0[2], water_lo, water_hi) & _inside(p1[0], p1[1], p1[2], water_lo, water_hi)):
+            return UNDECIDED
     decision = CLEAR
     inverse = (_inverse(p1[0] - p0[0]), _inverse(p1[1] - p0[1]), _inverse(p1[2] - p0[2]))  # (0 for 0)
     for j in range(box_lo.shape[0]):
+        if j < MASK_BITS:
+            if (mask >> j) & 1 == 0:
+                continue
         if not _crosses_box(p0, inverse, box_lo, box_hi, j):
             continue
         first, last = plane_start[j], plane_start[j + 1]
@@ -238,6 +256,89 @@ def screen_leg(p0: tuple[float, float, float], p1: tuple[float, float, float], t
         if here == UNDECIDED:
             decision = UNDECIDED
     return decision
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[np.float64], tolerance: float,
+                     water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
+                     box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
+                     offset: NDArray[np.float64]) -> int:
+    """What a segment within the triangle a, b, t (each shape (3,), m) must still be tested
+    against, as a bit mask for :func:`screen_leg`: bit j (j < :data:`MASK_BITS`) for object j
+    unless the triangle keeps at least ``tolerance`` from it (the triangle's box grown by
+    ``tolerance`` apart from the object's grown box, or one of the object's face planes with
+    the three corners more than twice ``tolerance`` outside), and bit :data:`WALL_BIT` unless
+    the three corners lie in the shrunk water box. Objects from :data:`MASK_BITS` on are
+    always tested."""
+    mask = np.int64(0)
+    for c in range(3):
+        if not ((water_lo[c] <= a[c]) & (a[c] <= water_hi[c]) & (water_lo[c] <= b[c]) & (b[c] <= water_hi[c])
+                & (water_lo[c] <= t[c]) & (t[c] <= water_hi[c])):
+            mask |= np.int64(1) << WALL_BIT
+    lo0 = min(min(a[0], b[0]), t[0]) - tolerance
+    lo1 = min(min(a[1], b[1]), t[1]) - tolerance
+    lo2 = min(min(a[2], b[2]), t[2]) - tolerance
+    hi0 = max(max(a[0], b[0]), t[0]) + tolerance
+    hi1 = max(max(a[1], b[1]), t[1]) + tolerance
+    hi2 = max(max(a[2], b[2]), t[2]) + tolerance
+    margin = 2.0 * tolerance
+    for j in range(min(box_lo.shape[0], MASK_BITS)):
+        apart = ((hi0 < box_lo[j, 0]) | (lo0 > box_hi[j, 0]) | (hi1 < box_lo[j, 1]) | (lo1 > box_hi[j, 1])
+                 | (hi2 < box_lo[j, 2]) | (lo2 > box_hi[j, 2]))
+        if apart:
+            continue
+        separated = False
+        for i in range(plane_start[j], plane_start[j + 1]):
+            ha = (normal[i, 0] * a[0] + normal[i, 1] * a[1] + normal[i, 2] * a[2]) - offset[i]
+            hb = (normal[i, 0] * b[0] + normal[i, 1] * b[1] + normal[i, 2] * b[2]) - offset[i]
+            ht = (normal[i, 0] * t[0] + normal[i, 1] * t[1] + normal[i, 2] * t[2]) - offset[i]
+            if (ha > margin) & (hb > margin) & (ht > margin):
+                separated = True
+                break
+        if not separated:  # (an object without planes is never separated here)
+            mask |= np.int64(1) << j
+    return mask
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pair_screens(
+    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
+    pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], start: NDArray[np.float64],
+    direction: NDArray[np.float64], offset: NDArray[np.float64], tx: NDArray[np.float64],
+    rx: NDArray[np.float64], tolerance: float, water_lo: NDArray[np.float64], water_hi: NDArray[np.float64],
+    box_lo: NDArray[np.float64], box_hi: NDArray[np.float64], plane_start: NDArray[np.int64],
+    plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64],
+) -> NDArray[np.int64]:
+    """Per pair and leg (0: to the transmitter, 1: to its receiver), what every such leg of the
+    pair's elements must be tested against (:func:`_triangle_screen`'s mask), decided once for
+    the pair: the legs run from probes on the segment between the pair's first and last
+    probes (along its edge) to one target, so they lie in the triangle of those three points
+    (up to the probes' round-off, 1e-16 m, far inside the margins)."""
+    n_pairs = pair_edge.size
+    z_lo = np.full(n_pairs, np.inf)
+    z_hi = np.full(n_pairs, -np.inf)
+    for i in range(pair.size):
+        z = 0.5 * (z_start[i] + z_end[i])
+        p = pair[i]
+        z_lo[p] = min(z_lo[p], z)
+        z_hi[p] = max(z_hi[p], z)
+    screens = np.zeros((n_pairs, 2), dtype=np.int64)
+    a = np.empty(3)
+    b = np.empty(3)
+    t = np.empty(3)
+    for p in range(n_pairs):
+        if z_lo[p] > z_hi[p]:  # no element
+            continue
+        e = pair_edge[p]
+        for c in range(3):
+            a[c] = start[e, c] + z_lo[p] * direction[e, c] + offset[e, c]
+            b[c] = start[e, c] + z_hi[p] * direction[e, c] + offset[e, c]
+        for leg in range(2):
+            for c in range(3):
+                t[c] = tx[c] if leg == 0 else rx[pair_rx[p], c]
+            screens[p, leg] = _triangle_screen(a, b, t, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start,
+                                               plane_normal, plane_offset)
+    return screens
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -280,6 +381,8 @@ def screened_visibility_rays32(
     element = np.empty(2 * n, dtype=np.int64)
     two_eps = 2.0 * eps
     hint = np.full(box_lo.shape[0], -1, dtype=np.int64)
+    screens = _pair_screens(pair, z_start, z_end, pair_edge, pair_rx, start, direction, offset, tx, rx, tolerance,
+                            water_lo, water_hi, box_lo, box_hi, plane_start, plane_normal, plane_offset)
     q = 0
     for i in range(n):
         p = pair[i]
@@ -290,6 +393,9 @@ def screened_visibility_rays32(
         o1 = start[e, 1] + z * direction[e, 1] + offset[e, 1]
         o2 = start[e, 2] + z * direction[e, 2] + offset[e, 2]
         for leg in range(2):
+            mask = screens[p, leg]
+            if mask == 0:  # clear of everything (a receiver at the transmitter has no own leg anyway)
+                continue
             if leg == 0:
                 t0, t1, t2 = tx[0], tx[1], tx[2]
             elif own_leg_rx[ch]:
@@ -306,7 +412,7 @@ def screened_visibility_rays32(
             p0 = (o0 + eps * d0, o1 + eps * d1, o2 + eps * d2)
             p1 = (o0 + far * d0, o1 + far * d1, o2 + far * d2)
             decision = screen_leg(p0, p1, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, plane_normal,
-                                  plane_offset, hint)
+                                  plane_offset, hint, mask)
             if decision == BLOCKED:
                 visible[i] = False
                 break
