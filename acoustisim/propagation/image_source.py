@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
 from acoustisim.propagation.raycast import RayCaster
-from acoustisim.propagation.specular_kernels import backtrace_chains, unfold_chains
+from acoustisim.propagation.specular_kernels import backtrace_chains, sequences_between, unfold_chains
 from acoustisim.scene import Scene, SceneObject
 
 CACHED_SEQUENCE_ROWS = 200_000
@@ -235,12 +235,11 @@ class PlanarMirrors:
                 return mirror_sequences(self.sees, length, first, last)
             cache[length] = mirror_sequences(self.sees, length)
         seqs = cache[length]
-        keep = np.ones(seqs.shape[0], dtype=bool)
-        if first is not None:
-            keep &= np.asarray(first, dtype=bool)[seqs[:, 0]]
-        if last is not None:
-            keep &= np.asarray(last, dtype=bool)[seqs[:, -1]]
-        return seqs[keep]
+        if first is None and last is None:
+            return seqs.copy()  # (the cache stays the caller's to read only)
+        anything = np.ones(self.count, dtype=bool)
+        return sequences_between(seqs, anything if first is None else np.ascontiguousarray(first, dtype=bool),
+                                 anything if last is None else np.ascontiguousarray(last, dtype=bool))
 
     def contains(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether points (n, 3) on the planes of mirrors (n,) lie inside their polygons (or discs)."""

@@ -410,5 +410,22 @@ def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.fl
     return amplitude, phase
 
 
+@njit(cache=True, nogil=True)
+def sequences_between(sequences: NDArray[np.int64], first: NDArray[np.bool_],
+                      last: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """The rows (in order) of ``sequences`` (s, k >= 1) whose first mirror is allowed by
+    ``first`` (m,) and last by ``last`` (m,)."""
+    s, k = sequences.shape
+    out = np.empty((s, k), dtype=np.int64)
+    n = 0
+    for i in range(s):
+        if first[sequences[i, 0]] and last[sequences[i, k - 1]]:
+            for j in range(k):
+                out[n, j] = sequences[i, j]
+            n += 1
+    return out[:n].copy()
+
+
 __all__ = ["backtrace_chains", "backtrace_one", "circle_newton", "go_factors", "incidence_cosines",
-           "primitive_specular_points", "unfold_chains", "unfold_reversed"]
+           "primitive_specular_points", "sequences_between", "unfold_chains",
+           "unfold_reversed"]
