@@ -15,8 +15,9 @@ methods with goals, threshold, local-matched and matched, and ``f64`` for the ot
 - ``f64``: a ``Recording`` of one ping (1, 3, n) in float64 volts (what last sessions timed);
 - ``i16``: the same ping as int16 ADC codes of a 12-bit ADC (+/-2.5 V full scale, 1.22 mV a
   code), a ``Recording`` that carries its codes (``read_recording(..., keep_codes=True)``):
-  threshold and local-matched read the codes (2 bytes a sample), the others convert them to
-  volts; clipping is checked on the codes (the ADC's rails);
+  threshold, local-matched and matched read the codes (2 bytes a sample), the others convert
+  them to volts; clipping is checked on the codes (the ADC's rails, one pass over the codes;
+  the f64 recording has no ``adc_bits`` and is not checked);
 - ``array``: the float64 volts as a plain (3, n) array with ``sample_rate_hz`` (adds one
   pass over the samples for the NaN/inf check).
 
@@ -183,7 +184,7 @@ def main() -> int:
             detect(one, method, sample_rate_hz=FS, template=template)  # warm-up: imports, compiled kernels
             detector.detect(one, method, sample_rate_hz=FS, template=template)  # plans the set-up once
             prepared = prepare(method, sample_rate_hz=FS, n_samples=args.samples, template=template)
-            prepared.run(one, volts_per_code=None)
+            prepared.run(one)
             other: dict = {}
             m = paired_medians({
                 "detect": lambda: detect(one, method, sample_rate_hz=FS, template=template),
