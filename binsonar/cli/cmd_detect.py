@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.recording is None:
         raise RecordingError("detect: a recording file (PING.h5) is required")
-    recording = read_recording(args.recording)
+    recording = read_recording(args.recording, keep_codes=True)
     template = None
     if args.template is not None:
         import numpy as np
