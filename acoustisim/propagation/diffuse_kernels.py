@@ -49,6 +49,7 @@ PRIME_Z = np.uint64(0xCB1AB31F)
 _S30 = np.uint64(30)
 _S27 = np.uint64(27)
 _S31 = np.uint64(31)
+_S11 = np.uint64(11)
 _S32 = np.uint64(32)
 _LOW32 = np.uint64(0xFFFFFFFF)
 _TWO_PI = 2.0 * math.pi
@@ -61,6 +62,18 @@ def splitmix64(x: np.uint64) -> np.uint64:
     z = (z ^ (z >> _S30)) * MIX1
     z = (z ^ (z >> _S27)) * MIX2
     return z ^ (z >> _S31)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def splitmix_uniforms(key: np.uint64, start: int, out: NDArray[np.float64]) -> None:
+    """Uniform numbers in [0, 1) (53 random bits each) number ``start`` onwards of the SplitMix64
+    sequence whose state starts at ``key`` (Steele, Lea and Flood 2014: state k is
+    ``key + (k + 1) GOLDEN``, output its finaliser), into ``out`` (n,). A counter-based stream:
+    any stretch of it is computed independently of the others."""
+    state = key + np.uint64(start) * GOLDEN
+    for i in range(out.size):
+        out[i] = np.float64(splitmix64(state) >> _S11) * 2.0**-53
+        state += GOLDEN
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -695,6 +708,6 @@ __all__ = [
     "guide_table",
     "pack_rows",
     "move_chunk",
-    "cell_table", "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64",
+    "cell_table", "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64", "splitmix_uniforms",
     "transmit_directions", "write_receptions",
 ]
