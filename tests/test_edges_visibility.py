@@ -13,7 +13,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from numba import njit
 
 from acoustisim.medium import Medium
 from acoustisim.propagation import SolverConfig, prepare
@@ -24,7 +23,7 @@ from acoustisim.propagation.edge_visibility import (
     CLEAR,
     UNDECIDED,
     VisibilityScreen,
-    screen_leg,
+    screen_legs,
     screen_tolerance,
 )
 from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
@@ -35,24 +34,19 @@ from scenes.builders import plate, sphere
 from scenes.builtin import builtin_scene
 
 
-@njit(cache=False)
-def _decide(p0, p1, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset):
-    """screen_leg of each segment p0[i] -> p1[i] (shapes (n, 3)), a fresh hint per call."""
-    out = np.empty(p0.shape[0], dtype=np.int64)
-    hint = np.full(box_lo.shape[0], -1, dtype=np.int64)
-    for i in range(p0.shape[0]):
-        out[i] = screen_leg((p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]), tolerance, water_lo,
-                            water_hi, box_lo, box_hi, plane_start, normal, offset, hint)
-    return out
-
-
 def _decisions(screen: VisibilityScreen, planes, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """The screen's decision for legs origin -> target shrunk by Embree's eps at both ends."""
     leg = targets - origins
     length = np.linalg.norm(leg, axis=1, keepdims=True)
     unit = leg / length
     p0, p1 = origins + DEFAULT_EPS_M * unit, origins + (length - DEFAULT_EPS_M) * unit
-    return _decide(np.ascontiguousarray(p0), np.ascontiguousarray(p1), *screen.kernel_arguments(planes))
+    return _decide(p0, p1, screen, planes)
+
+
+def _decide(p0, p1, screen, planes):
+    """screen_legs of the segments p0[i] -> p1[i] (shapes (n, 3)), testing everything."""
+    p0, p1 = np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(p1, dtype=float)
+    return screen_legs(p0, p1, np.full(p0.shape[0], -1, dtype=np.int64), *screen.kernel_arguments(planes))
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +166,7 @@ def test_convex_decisions_of_single_legs():
     # the segments Embree would be asked about (already shrunk)
     p0 = np.array([a for a, _, _ in legs.values()])
     p1 = np.array([b for _, b, _ in legs.values()])
-    got = _decide(p0, p1, *screen.kernel_arguments(planes))
+    got = _decide(p0, p1, screen, planes)
     want = np.array([w for _, _, w in legs.values()])
     assert dict(zip(legs, got.tolist())) == dict(zip(legs, want.tolist()))
 

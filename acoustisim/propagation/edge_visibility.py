@@ -53,7 +53,7 @@ TOLERANCE_ULPS = 20.0
 """The screen's margin, in float32 ulps (2^-23) of the scene's bounding-box diagonal."""
 
 CLEAR, BLOCKED, UNDECIDED = 0, 1, 2
-"""Decisions of :func:`screen_leg`."""
+"""Decisions of :func:`screen_legs`."""
 
 MASK_BITS = 62
 """Objects with an index below this are pre-screened once per (edge, receiver) pair and leg
@@ -114,7 +114,7 @@ class VisibilityScreen:
 
     def kernel_arguments(self, planes: ConvexPlanes | None) -> tuple[Any, ...]:
         """(tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset) for
-        :func:`screen_leg`.
+        :func:`screen_legs`.
 
         ``planes``: the objects' face planes
         (:attr:`~acoustisim.propagation.raycast.RayCaster.convex_planes`: object j's are rows
@@ -128,12 +128,6 @@ class VisibilityScreen:
         else:
             start, normal, offset = np.zeros(n_objects + 1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
         return (self.tolerance, self.water_lo, self.water_hi, self.box_lo, self.box_hi, start, normal, offset)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _inside(x0: float, x1: float, x2: float, lo: NDArray[np.float64], hi: NDArray[np.float64]) -> bool:
-    # (& on booleans: numba makes a chained ``and`` of comparisons much slower)
-    return (lo[0] <= x0) & (x0 <= hi[0]) & (lo[1] <= x1) & (x1 <= hi[1]) & (lo[2] <= x2) & (x2 <= hi[2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -152,21 +146,6 @@ def _slab(enter: float, leave: float, a: float, inverse: float, lo: float, hi: f
     s_lo = (lo - a) * inverse
     s_hi = (hi - a) * inverse
     return max(enter, min(s_lo, s_hi)), min(leave, max(s_lo, s_hi))
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _crosses_box(p0: tuple[float, float, float], inverse: tuple[float, float, float], lo: NDArray[np.float64],
-                 hi: NDArray[np.float64], j: int) -> bool:
-    """Whether the segment ``p0 + s (p1 - p0)``, 0 <= s <= 1, meets box j (the slab test),
-    given the inverses of ``p1 - p0``'s components (0 for a zero component)."""
-    enter, leave = _slab(0.0, 1.0, p0[0], inverse[0], lo[j, 0], hi[j, 0])
-    if enter > leave:
-        return False
-    enter, leave = _slab(enter, leave, p0[1], inverse[1], lo[j, 1], hi[j, 1])
-    if enter > leave:
-        return False
-    enter, leave = _slab(enter, leave, p0[2], inverse[2], lo[j, 2], hi[j, 2])
-    return enter <= leave
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -210,52 +189,75 @@ def _convex_decision(p0: tuple[float, float, float], p1: tuple[float, float, flo
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def screen_leg(p0: tuple[float, float, float], p1: tuple[float, float, float], tolerance: float,
-               water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
-               box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
-               offset: NDArray[np.float64], hint: NDArray[np.int64], mask: int = -1) -> int:
-    """CLEAR, BLOCKED or UNDECIDED (left to Embree) for the segment p0 -> p1 (m).
+def screen_legs(p0: NDArray[np.float64], p1: NDArray[np.float64], mask: NDArray[np.int64], tolerance: float,
+                water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
+                box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
+                offset: NDArray[np.float64]) -> NDArray[np.int8]:
+    """CLEAR, BLOCKED or UNDECIDED (left to Embree) for each segment p0 -> p1.
+
+    One loop over the segments with every test written out (a call per segment passing the
+    arrays cost more than the tests themselves).
 
     Parameters
     ----------
-    p0, p1 : tuple of float
-        The segment's ends (m): the leg shrunk by Embree's ``eps`` at both ends.
+    p0, p1 : ndarray, shape (n, 3)
+        The segments' ends (m): the legs shrunk by Embree's ``eps`` at both ends.
+    mask : ndarray of int64, shape (n,)
+        What to test per segment (:func:`_triangle_screen`): the walls when bit
+        :data:`WALL_BIT` is set, object j < :data:`MASK_BITS` when bit j is (-1: everything;
+        objects from :data:`MASK_BITS` on are always tested).
     tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset
         :meth:`VisibilityScreen.kernel_arguments`.
-    hint : ndarray of int64, shape (k,)
-        Per object, a plane that separated an earlier segment from it (or -1), tested first;
-        updated.
-    mask : int, optional
-        What to test (:func:`_triangle_screen`): the walls when bit :data:`WALL_BIT` is set,
-        object j < :data:`MASK_BITS` when bit j is; -1 (default): everything.
+
+    Returns
+    -------
+    ndarray of int8, shape (n,)
     """
-    if (mask >> WALL_BIT) & 1 == 1:
-        if not (_inside(p0[0], p0[1], p0[2], water_lo, water_hi) & _inside(p1[0], p1[1], p1[2], water_lo, water_hi)):
-            return UNDECIDED
-    decision = CLEAR
-    inverse = (_inverse(p1[0] - p0[0]), _inverse(p1[1] - p0[1]), _inverse(p1[2] - p0[2]))  # (0 for 0)
-    for j in range(box_lo.shape[0]):
-        if j < MASK_BITS:
-            if (mask >> j) & 1 == 0:
+    n = p0.shape[0]
+    decisions = np.empty(n, dtype=np.int8)
+    n_boxes = box_lo.shape[0]
+    hint = np.full(n_boxes, -1, dtype=np.int64)  # per object, the plane that last separated a segment
+    for s in range(n):
+        a = (p0[s, 0], p0[s, 1], p0[s, 2])
+        b = (p1[s, 0], p1[s, 1], p1[s, 2])
+        m = mask[s]
+        decision = CLEAR
+        if (m >> WALL_BIT) & 1 == 1:  # both ends in the shrunk water box, or Embree
+            inside = ((water_lo[0] <= a[0]) & (a[0] <= water_hi[0]) & (water_lo[1] <= a[1]) & (a[1] <= water_hi[1])
+                      & (water_lo[2] <= a[2]) & (a[2] <= water_hi[2]) & (water_lo[0] <= b[0]) & (b[0] <= water_hi[0])
+                      & (water_lo[1] <= b[1]) & (b[1] <= water_hi[1]) & (water_lo[2] <= b[2]) & (b[2] <= water_hi[2]))
+            if not inside:
+                decisions[s] = UNDECIDED
                 continue
-        if not _crosses_box(p0, inverse, box_lo, box_hi, j):
-            continue
-        first, last = plane_start[j], plane_start[j + 1]
-        if first == last:  # not convex: Embree decides, unless another object blocks
-            decision = UNDECIDED
-            continue
-        h = hint[j]
-        if h >= 0:
-            if (_height(p0, normal, offset, h) > tolerance) & (_height(p1, normal, offset, h) > tolerance):
+        inv0, inv1, inv2 = _inverse(b[0] - a[0]), _inverse(b[1] - a[1]), _inverse(b[2] - a[2])
+        for j in range(n_boxes):
+            if j < MASK_BITS:
+                if (m >> j) & 1 == 0:
+                    continue
+            # the slab test against the object's grown box
+            enter, leave = _slab(0.0, 1.0, a[0], inv0, box_lo[j, 0], box_hi[j, 0])
+            enter, leave = _slab(enter, leave, a[1], inv1, box_lo[j, 1], box_hi[j, 1])
+            enter, leave = _slab(enter, leave, a[2], inv2, box_lo[j, 2], box_hi[j, 2])
+            if enter > leave:
                 continue
-        here, separating = _convex_decision(p0, p1, normal, offset, first, last, tolerance)
-        if separating >= 0:
-            hint[j] = separating
-        if here == BLOCKED:
-            return BLOCKED
-        if here == UNDECIDED:
-            decision = UNDECIDED
-    return decision
+            first, last = plane_start[j], plane_start[j + 1]
+            if first == last:  # not convex: Embree decides, unless another object blocks
+                decision = UNDECIDED
+                continue
+            h = hint[j]
+            if h >= 0:
+                if (_height(a, normal, offset, h) > tolerance) & (_height(b, normal, offset, h) > tolerance):
+                    continue
+            here, separating = _convex_decision(a, b, normal, offset, first, last, tolerance)
+            if separating >= 0:
+                hint[j] = separating
+            if here == BLOCKED:
+                decision = BLOCKED
+                break
+            if here == UNDECIDED:
+                decision = UNDECIDED
+        decisions[s] = decision
+    return decisions
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -264,7 +266,7 @@ def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[
                      box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
                      offset: NDArray[np.float64]) -> int:
     """What a segment within the triangle a, b, t (each shape (3,), m) must still be tested
-    against, as a bit mask for :func:`screen_leg`: bit j (j < :data:`MASK_BITS`) for object j
+    against, as a bit mask for :func:`screen_legs`: bit j (j < :data:`MASK_BITS`) for object j
     unless the triangle keeps at least ``tolerance`` from it (the triangle's box grown by
     ``tolerance`` apart from the object's grown box, or one of the object's face planes with
     the three corners more than twice ``tolerance`` outside), and bit :data:`WALL_BIT` unless
@@ -351,7 +353,7 @@ def screened_visibility_rays32(
     box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], plane_normal: NDArray[np.float64],
     plane_offset: NDArray[np.float64],
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.int64]]:
-    """Every element's legs screened (:func:`screen_leg`), and Embree's float32 queries of the
+    """Every element's legs screened (:func:`screen_legs`), and Embree's float32 queries of the
     undecided ones.
 
     The legs, probes and queries are those of
@@ -373,17 +375,18 @@ def screened_visibility_rays32(
         is blocked.
     """
     n = pair.size
-    visible = np.ones(n, dtype=np.bool_)
-    # at most two legs per element
-    starts32 = np.empty((2 * n, 3), dtype=np.float32)
-    directions32 = np.empty((2 * n, 3), dtype=np.float32)
-    lengths32 = np.empty(2 * n, dtype=np.float32)
-    element = np.empty(2 * n, dtype=np.int64)
-    two_eps = 2.0 * eps
-    hint = np.full(box_lo.shape[0], -1, dtype=np.int64)
     screens = _pair_screens(pair, z_start, z_end, pair_edge, pair_rx, start, direction, offset, tx, rx, tolerance,
                             water_lo, water_hi, box_lo, box_hi, plane_start, plane_normal, plane_offset)
-    q = 0
+    # the legs to test (at most two per element): the segment Embree would be asked about, in
+    # float64, its direction and length, and what to test it against
+    leg_element = np.empty(2 * n, dtype=np.int64)
+    p0 = np.empty((2 * n, 3))
+    p1 = np.empty((2 * n, 3))
+    unit = np.empty((2 * n, 3))
+    length = np.empty(2 * n)
+    mask = np.empty(2 * n, dtype=np.int64)
+    two_eps = 2.0 * eps
+    k = 0
     for i in range(n):
         p = pair[i]
         e = pair_edge[p]
@@ -393,8 +396,7 @@ def screened_visibility_rays32(
         o1 = start[e, 1] + z * direction[e, 1] + offset[e, 1]
         o2 = start[e, 2] + z * direction[e, 2] + offset[e, 2]
         for leg in range(2):
-            mask = screens[p, leg]
-            if mask == 0:  # clear of everything (a receiver at the transmitter has no own leg anyway)
+            if screens[p, leg] == 0:  # clear of everything (a receiver at the transmitter has no own leg anyway)
                 continue
             if leg == 0:
                 t0, t1, t2 = tx[0], tx[1], tx[2]
@@ -403,36 +405,44 @@ def screened_visibility_rays32(
             else:
                 break
             s0, s1, s2 = t0 - o0, t1 - o1, t2 - o2
-            length = math.sqrt((s0 * s0 + s1 * s1) + s2 * s2)
-            if not length > two_eps:
+            norm = math.sqrt((s0 * s0 + s1 * s1) + s2 * s2)
+            if not norm > two_eps:  # never blocked
                 continue
-            d0, d1, d2 = s0 / length, s1 / length, s2 / length
-            # the segment Embree is asked about (in float64)
-            far = length - eps
-            p0 = (o0 + eps * d0, o1 + eps * d1, o2 + eps * d2)
-            p1 = (o0 + far * d0, o1 + far * d1, o2 + far * d2)
-            decision = screen_leg(p0, p1, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, plane_normal,
-                                  plane_offset, hint, mask)
-            if decision == BLOCKED:
-                visible[i] = False
-                break
-            if decision == UNDECIDED:
-                starts32[q, 0] = np.float32((eps * d0 + o0) - shift[0])
-                starts32[q, 1] = np.float32((eps * d1 + o1) - shift[1])
-                starts32[q, 2] = np.float32((eps * d2 + o2) - shift[2])
-                directions32[q, 0] = np.float32(d0)
-                directions32[q, 1] = np.float32(d1)
-                directions32[q, 2] = np.float32(d2)
-                lengths32[q] = np.float32(length - two_eps)
-                element[q] = i
-                q += 1
-        if not visible[i]:  # a blocked leg decides: drop its element's queries
-            while q > 0:
-                if element[q - 1] != i:
-                    break
-                q -= 1
-    return visible, starts32[:q], directions32[:q], lengths32[:q], element[:q]
+            d0, d1, d2 = s0 / norm, s1 / norm, s2 / norm
+            far = norm - eps
+            leg_element[k] = i
+            p0[k, 0], p0[k, 1], p0[k, 2] = eps * d0 + o0, eps * d1 + o1, eps * d2 + o2
+            p1[k, 0], p1[k, 1], p1[k, 2] = o0 + far * d0, o1 + far * d1, o2 + far * d2
+            unit[k, 0], unit[k, 1], unit[k, 2] = d0, d1, d2
+            length[k] = norm
+            mask[k] = screens[p, leg]
+            k += 1
+    decisions = screen_legs(p0[:k], p1[:k], mask[:k], tolerance, water_lo, water_hi, box_lo, box_hi, plane_start,
+                            plane_normal, plane_offset)
+    visible = np.ones(n, dtype=np.bool_)
+    for s in range(k):
+        if decisions[s] == BLOCKED:
+            visible[leg_element[s]] = False
+    # the undecided legs of the elements no leg blocks: Embree's queries
+    q = 0
+    for s in range(k):
+        if (decisions[s] == UNDECIDED) & visible[leg_element[s]]:
+            q += 1
+    starts32 = np.empty((q, 3), dtype=np.float32)
+    directions32 = np.empty((q, 3), dtype=np.float32)
+    lengths32 = np.empty(q, dtype=np.float32)
+    element = np.empty(q, dtype=np.int64)
+    q = 0
+    for s in range(k):
+        if (decisions[s] == UNDECIDED) & visible[leg_element[s]]:
+            for c in range(3):
+                starts32[q, c] = np.float32(p0[s, c] - shift[c])
+                directions32[q, c] = np.float32(unit[s, c])
+            lengths32[q] = np.float32(length[s] - two_eps)
+            element[q] = leg_element[s]
+            q += 1
+    return visible, starts32, directions32, lengths32, element
 
 
-__all__ = ["BLOCKED", "CLEAR", "TOLERANCE_ULPS", "UNDECIDED", "VisibilityScreen", "screen_leg",
-           "screen_tolerance", "screened_visibility_rays32"]
+__all__ = ["BLOCKED", "CLEAR", "MASK_BITS", "TOLERANCE_ULPS", "UNDECIDED", "VisibilityScreen", "WALL_BIT",
+           "screen_legs", "screen_tolerance", "screened_visibility_rays32"]
