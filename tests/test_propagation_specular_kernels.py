@@ -21,8 +21,8 @@ from acoustisim.propagation.curved import go_amplitude_general, go_factors_at
 from acoustisim.propagation.image_source import unfold
 from acoustisim.propagation.paths import MAX_INTERACTIONS
 from acoustisim.propagation.prepared import PreparedScene, prepare
-from acoustisim.propagation.specular import _planar_and_mixed, _receivers_in_front, _unblocked
-from acoustisim.propagation.specular_chains import duplicate_keys, first_distinct_rows
+from acoustisim.propagation.specular import _planar_and_mixed, _receivers_in_front, _unblocked, first_distinct_rows
+from acoustisim.propagation.specular_chains import duplicate_keys
 from acoustisim.propagation.specular_kernels import circle_newton, unfold_reversed
 
 

@@ -17,7 +17,10 @@ written here):
    visibility table allows, with the two unfolded ends;
 3. :func:`fill_mixed`: the chains of one split, from the candidates' specular points on the
    curved reflectors (solved for all splits at once by
-   :func:`.specular_kernels.primitive_specular_points`).
+   :func:`.specular_kernels.primitive_specular_points`);
+4. then, over the chains: :func:`chain_legs` and :func:`occlusion_queries32` (the legs and
+   their Embree buffers), :func:`unblocked_chains`, :func:`duplicate_keys`,
+   :func:`vertex_groups` (interactions grouped by material) and :func:`write_rows`.
 
 Rows come out in the order (and with the chain numbers) of the numpy code they replace, and the
 arithmetic is the same, term for term (lengths sqrt(dx^2 + dy^2 + dz^2) summed x + y + z,
@@ -449,52 +452,6 @@ def write_rows(chains: NDArray[np.int64], path_id_base: int, kind: int, chain: N
                 out_points[i, q, d] = vertices[c, q + 1, d]
 
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-"""Odd 64-bit multiplier (2^64 / golden ratio) of the row hashes of :func:`first_distinct_rows`."""
-
-
-@njit(cache=True, nogil=True)
-def first_distinct_rows(key: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Sorted indices of the first occurrence of each distinct row of ``key`` (n, c).
-
-    As ``np.sort(np.unique(key, axis=0, return_index=True)[1])``: each row hashed (a wrapping
-    64-bit sum of its columns times the odd multipliers (2 j + 1) x ``_GOLDEN``), rows sorted by
-    hash (stable, so by index within a hash), and within each run of equal hashes a row kept
-    unless it equals a row kept before it in the run (whole-row comparison: collisions are
-    exact).
-    """
-    n, c = key.shape
-    hashes = np.zeros(n, dtype=np.uint64)
-    for i in range(n):
-        acc = np.uint64(0)
-        for j in range(c):
-            acc += np.uint64(key[i, j]) * (np.uint64(2 * j + 1) * _GOLDEN)
-        hashes[i] = acc
-    order = np.argsort(hashes, kind="mergesort")
-    keep = np.zeros(n, dtype=np.bool_)
-    start = 0
-    while start < n:
-        stop = start + 1
-        while stop < n and hashes[order[stop]] == hashes[order[start]]:
-            stop += 1
-        for p in range(start, stop):
-            i = order[p]
-            seen = False
-            for q in range(start, p):
-                other = order[q]
-                if keep[other]:
-                    same = True
-                    for j in range(c):
-                        if key[i, j] != key[other, j]:
-                            same = False
-                            break
-                    if same:
-                        seen = True
-                        break
-            keep[i] = not seen
-        start = stop
-    return np.flatnonzero(keep)
-
 
 @njit(cache=True, nogil=True)
 def vertex_groups(chains: NDArray[np.int64], kind: NDArray[np.int64], material: NDArray[np.int64],
@@ -581,5 +538,5 @@ def occlusion_queries32(origins: NDArray[np.float64], directions: NDArray[np.flo
 
 
 __all__ = ["CURVED_KIND", "MIRROR_KIND", "chain_legs", "duplicate_keys", "fill_mixed", "fill_planar",
-           "first_distinct_rows", "mixed_candidates", "occlusion_queries32", "unblocked_chains", "vertex_groups",
+           "mixed_candidates", "occlusion_queries32", "unblocked_chains", "vertex_groups",
            "write_rows"]
