@@ -275,7 +275,10 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
     k_hi = min(spectrum.size, k_hi + 2)
     weights = 2.0 * np.conj(spectrum[:k_hi])
     weights[0] *= 0.5
-    decimation = max(d for d in range(1, segment_fft + 1) if segment_fft % d == 0 and segment_fft // d >= 2 * k_hi)
+    # A band reaching the Nyquist frequency leaves no decimation: full rate (1).
+    decimation = max(
+        (d for d in range(1, segment_fft + 1) if segment_fft % d == 0 and segment_fft // d >= 2 * k_hi), default=1
+    )
     partial = np.concatenate([[0.0], np.cumsum(taps)])
     return LocalPlan(
         matched=matched,
