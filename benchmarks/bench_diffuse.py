@@ -21,14 +21,16 @@ at its default sonar pose, with the tracer's own ray directions for the seed:
   beforehand), on an Embree scene built here from the ray caster's triangles: the baseline
   the issue names; ``raw intersect xN``: the same rays in the tracer's chunks of
   ``CHUNK_RAYS`` on N threads (embreex releases the GIL), the baseline of the threaded tracer;
-* ``raw same work``: the raw Embree calls the exact tracer made before it found first hits
-  without Embree (:mod:`acoustisim.propagation.diffuse_hits`: on the thesis tank, a box with
-  convex objects, it asks Embree about no ray; the count is printed) (that INTERSECT, plus one
-  OCCLUDED call on as many hit -> receiver legs as it sends to Embree: facing the receiver,
-  crossing the box of an object without face planes; the legs crossing only convex objects'
-  boxes are decided by the face planes, without Embree, and on the thesis tank, whose objects
-  are all convex, no leg is left), single call and threaded;
-* ``tracer``: :func:`acoustisim.propagation.diffuse.trace_diffuse` (sampling, intersect,
+* ``raw same work``: the raw Embree calls the exact tracer would make if it asked Embree for
+  every first hit (that INTERSECT, plus one OCCLUDED call on as many hit -> receiver legs as
+  it sends to Embree: facing the receiver, crossing the box of an object without face planes;
+  the legs crossing only convex objects' boxes are decided by the face planes, without
+  Embree, and on the thesis tank, whose objects are all convex, no leg is left), single call
+  and threaded. The tracer finds the first hits themselves without Embree in a box tank with
+  convex objects (:mod:`acoustisim.propagation.diffuse_hits`: on the thesis tank it asks
+  Embree about no ray; the count is printed), so both raw baselines are now the cost of the
+  queries it no longer makes, and the ratios compare its whole work with them;
+* ``tracer``: :func:`acoustisim.propagation.diffuse.trace_diffuse` (sampling, first hits,
   Lambert next-event estimation with exact occlusion to the three receivers, speckle),
   on 1 and N threads, and with ``visibility="centre"`` (approximate, off by default);
 * ``diffuse_paths``: the tracer plus packing into ``PATH_DTYPE`` rows (N threads);
@@ -41,8 +43,8 @@ threads) seconds and rays per second of each stage, and the medians of the per-r
 ratios of the tracer to the raw baselines measured the same way (goals:
 >= 5 million rays/s; within 2x of raw intersect); the legs hit -> receiver (first bounce)
 that cross an object's box (the ones the box screen alone would send to Embree), those the
-tracer decided with the convex objects' face planes, and those it still sent to Embree. The
-relative change of the diffuse energy per channel with ``visibility="centre"`` is printed too.
+tracer decided with the convex objects' face planes, and those it still sent to Embree; the
+rays whose first hit it asked Embree for. The relative change of the diffuse energy per channel with ``visibility="centre"`` is printed too.
 """
 
 from __future__ import annotations
