@@ -87,6 +87,30 @@ def _report(result: Any, recording: Any, path: str) -> dict[str, Any]:
     }
 
 
+def _beam_refined(args: argparse.Namespace, result: Any, recording: Any) -> Any:
+    """``result`` with beam-aware TOFs when ``--transducer-diameter-m`` is given (else unchanged)."""
+    if args.transducer_diameter_m is None:
+        if args.beam_target is not None or args.wedge_angle_deg is not None:
+            from binsonar.recording import RecordingError
+
+            raise RecordingError("--beam-target and --wedge-angle-deg need --transducer-diameter-m")
+        return result
+    from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers
+    from binsonar.localization.beam_refine import BeamRefinementConfig, refine_detection
+    from binsonar.recording import RecordingError
+
+    from binsonar.detection.seed import SEED_COMBINATIONS
+
+    envelope_peak = {"matched", "local-matched"}
+    envelope_peak |= {c.name for c in SEED_COMBINATIONS if c.base in envelope_peak}
+    if args.method not in envelope_peak:
+        raise RecordingError(f"--transducer-diameter-m refines TOFs timed by the template's envelope peak "
+                             f"({', '.join(sorted(envelope_peak))}); method {args.method!r} is not one")
+    model = BeamModelConfig(target=args.beam_target or "vertical-edge", wedge_interior_angle_deg=args.wedge_angle_deg)
+    return refine_detection(result, recording, PistonTransducers.uniform(args.transducer_diameter_m),
+                            BeamRefinementConfig(model=model))
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``binsonar detect``; returns the exit code."""
     from binsonar.detection import METHODS, detect, method_options
@@ -121,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
         full_scale_v=args.full_scale_v,
         **_options(args),
     )
+    result = _beam_refined(args, result, recording)
     for p, row in enumerate(result.clipped):
         for c, clipped in enumerate(row):
             if clipped:
@@ -172,6 +197,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--full-scale-v", type=float, default=None, help="ADC full scale (V) for clipping checks")
     parser.add_argument("--on-clipped", choices=CLIPPED_POLICIES, default="flag",
                         help="clipped channels: flag their echoes (default), drop them, or fail (exit 2)")
+    parser.add_argument("--transducer-diameter-m", type=float, default=None, metavar="D",
+                        help=("refine the matched filter's TOFs for the transducers' beams: baffled pistons of this "
+                              "diameter (m; the V318's 19 mm = 0.019), all on the head's boresight"))
+    parser.add_argument("--beam-target", choices=("point", "vertical-edge"), default=None,
+                        help="target model of the beam refinement (default vertical-edge)")
+    parser.add_argument("--wedge-angle-deg", type=float, default=None, metavar="DEG",
+                        help="the edge is a rigid wedge of this interior angle facing the sonar (beam refinement)")
     parser.add_argument("--option", action="append", metavar="NAME=VALUE", help="any other method option")
     parser.add_argument("--list-options", metavar="METHOD", default=None,
                         help="print a method's options and defaults as JSON, and exit")
