@@ -44,7 +44,8 @@ ratios of the tracer to the raw baselines measured the same way (goals:
 >= 5 million rays/s; within 2x of raw intersect); the legs hit -> receiver (first bounce)
 that cross an object's box (the ones the box screen alone would send to Embree), those the
 tracer decided with the convex objects' face planes, and those it still sent to Embree; the
-rays whose first hit it asked Embree for. The relative change of the diffuse energy per channel with ``visibility="centre"`` is printed too.
+rays whose first hit it asked Embree for. The relative change of the diffuse energy per
+channel with ``visibility="centre"`` is printed too.
 """
 
 from __future__ import annotations

@@ -35,9 +35,10 @@ chunk and bounce (see :class:`ObjectScreen`). The plane test is the exact answer
 Embree's, in float32, differs only for legs grazing a face within its rounding (1e-6 m).
 
 The rays are traced in fixed chunks of :data:`CHUNK_RAYS`, each with its own random stream
-(a SplitMix64 sequence keyed by the solver seed and the chunk index, :class:`_ChunkStream`), on a small thread pool (Embree, the compiled
-per-hit loops of :mod:`~acoustisim.propagation.diffuse_kernels` and numpy's large-array passes
-release the GIL): the rows are the same for any number of threads. Each chunk writes its
+(a SplitMix64 sequence keyed by the solver seed and the chunk index, :class:`_ChunkStream`),
+on a small thread pool (Embree, the compiled per-hit loops of
+:mod:`~acoustisim.propagation.diffuse_kernels` and :mod:`~acoustisim.propagation.diffuse_hits`
+and numpy's large-array passes release the GIL): the rows are the same for any number of threads. Each chunk writes its
 events and receptions straight into the solve's output arrays (sized for the most events the
 rays can make): at their final place when every earlier chunk is placed before it starts
 (always on one thread), else in a slot of its own, moved down once the chunks before it are
@@ -316,7 +317,8 @@ class _ChunkStream:
     @classmethod
     def create(cls, seed_hash: np.uint64, chunk: int) -> "_ChunkStream":
         """The stream of chunk ``chunk`` for the seed whose hash is ``seed_hash``."""
-        return cls(np.uint64(kernels.splitmix64(np.uint64(seed_hash) ^ np.uint64(kernels.splitmix64(np.uint64(chunk))))))
+        chunk_hash = np.uint64(kernels.splitmix64(np.uint64(chunk)))
+        return cls(np.uint64(kernels.splitmix64(np.uint64(seed_hash) ^ chunk_hash)))
 
     def random(self, size: int | tuple[int, ...] | None = None,
                out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
