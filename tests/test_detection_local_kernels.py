@@ -262,3 +262,57 @@ def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, 
     # The same direct values around the same largest |z|: the vertex to 1e-9 samples, as above.
     assert np.max(np.abs(refined[:, 0] - lag_ref)) < 1e-9
     assert np.max(np.abs(refined[:, 1] / peak_ref - 1.0)) < 1e-9
+
+
+@pytest.mark.parametrize(
+    "n, bounds, k, dc",
+    [
+        (N, (0, N - 201), 3, False),
+        (N, (0, N - 201), 5, True),
+        (N, (30_000, 30_100), 3, True),  # a window narrower than a stretch
+        (N, (30_000, 30_002), 2, False),  # fewer lags than the decimation
+        (N, (N - 400, N - 201), 3, False),  # at the record's end
+        (700, (0, 499), 3, True),  # a record of a few blocks
+        (260, (0, 59), 2, False),  # one block window
+    ],
+)
+@pytest.mark.parametrize("seed", [5, 6])
+def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed):
+    # ``local_echoes`` (coarse pass, direct search every ``decimation`` lags, refinement, echo
+    # values in one call) against the FFT route it replaced (``_candidate_correlations``, then
+    # ``local_peaks`` and ``echo_rows``) and against the all-numpy path.
+    from binsonar.detection import local_kernels
+
+    plan = plan_local(_template(), n, FS)
+    stride = plan.decimation
+    rows, offsets = _rows(seed, dc)
+    rows = np.ascontiguousarray(rows[:, :n])
+    dc_rows = np.zeros(3) if offsets is None else offsets
+    sigma = np.array([0.01, 0.02, 0.03])
+    constants = plan.echo_constants.copy()
+    constants[0], constants[-1] = 1e-4, 2.5
+    reach = REFINE_HALF_WIDTH + stride - 1
+    settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], k, plan.half,
+                         plan.segment_length, plan.block, plan.matched.analytic_offset, stride, reach])
+    echoes = np.empty((3, 5))
+    local_kernels.local_echoes(rows, 1.0, dc_rows, sigma, plan.tone_lanes, plan.tap_parts, settings, constants, echoes)
+
+    z, start = _candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
+    values = np.empty((3, 2 * reach + 1), dtype=complex)
+    refined = np.empty((3, 2))
+    local_kernels.local_peaks(z, start, rows, 1.0, dc_rows, plan.tap_parts,
+                              np.array([k, 2 * plan.half + 1, bounds[0], bounds[1], plan.matched.analytic_offset, stride]),
+                              values, refined)
+    expected = np.empty((3, 5))
+    local_kernels.echo_rows(refined, sigma, constants, expected)
+    # The same direct z at the same lags, whichever sampled lag each search found largest (the
+    # FFT's float32 |z| and the direct float64 |z| differ by ~1e-6 of the peak): bit-identical.
+    assert np.array_equal(echoes, expected)
+    lag_ref, peak_ref = _reference_peaks(plan, rows, k, bounds, offsets)
+    # The numpy path: lags to 1e-9 samples and powers to 1e-9 relative (sums of ~1000 terms in
+    # another order), as above; a wrong pick would be off by whole samples.
+    lag = (echoes[:, 0] - constants[0] + plan.matched.template.t0_s) * FS
+    # Back from a TOF of <= 3 ms: its float64 rounding (~4e-19 s) is ~1e-11 samples, far below 1e-9.
+    assert np.max(np.abs(lag - lag_ref)) < 1e-9
+    amplitude = np.sqrt(peak_ref) / plan.matched.peak_response * np.max(np.abs(plan.matched.template.samples))
+    assert np.max(np.abs(echoes[:, 1] / amplitude - 1.0)) < 1e-9

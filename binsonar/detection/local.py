@@ -39,28 +39,30 @@ accurate time-of-flight estimate can be determined." Here:
    TOF, to rounding, whenever they find the same echo.
 
 Cost per channel: one pass over the samples (the block correlations, ~2 flops per sample),
-then work on a few candidates only: ``candidates`` short FFTs of ~3 template lengths and
-(2 R + 1) dot products of the analytic template's length.
+then work on a few candidates only: a dot product of the analytic template's length at every
+``decimation``-th lag of each stretch (41 for the 5 us pulse), and (2 R + 1) more around the peak.
 
-How it runs (``detect_local_matched``): everything but the FFTs is compiled
-(``local_kernels``, numba, imported on first use), in three calls for all rows of a record:
-``coarse_stretches`` (steps 1 and the stretches' gathering: each searched sample read once),
-``local_peaks`` (the largest |z| of step 2, the direct z of step 3 and its vertex) and
-``echo_rows`` (``matched.echo_values`` of the vertices); between the first two, one batched
-single-precision real FFT of all rows' stretches and one inverse FFT
-(``_candidate_correlations``: they only choose the integer lag that step 3 starts from). The
-numpy functions below (``block_tone_power``, ``coarse_lags``, ``segment_correlation``) are the
-same steps written with numpy: the tests check the kernels against them
-(``tests/test_detection_local_kernels.py``). Measured with ``benchmarks/bench_detection.py
---methods local-matched`` on the team's loaded machine (each call after an FFT of the record, so
-that the record and the code arrive cold, as a new ping does): prepared ``run`` ~2.7-3.0x one
-read of the record (~0.13-0.14x the record's rfft), against ~3.0-3.5x (0.16-0.19x) before the
-padded tone table, the float32 FFTs and the compiled echo values (alternating runs), and
-~4.5-5x for the all-numpy version. What remains, cold, for 3 x 250,000 samples, in units of
-one (cold) read of the record: the block correlations ~1.15 (the coarse kernel as a whole
-~1.3), the robust DC and noise estimate (``inputs.robust_offsets``: two numpy partitions of
-4,096 samples per row, which numpy's SIMD selection does faster than a compiled quickselect)
-~0.6, the short FFTs ~0.45, the rest (Python between the kernels, the refinement) ~0.3.
+How it runs (``detect_local_matched``): everything is one compiled call for all rows of a
+record (``local_kernels.local_echoes``, numba, imported on first use): the coarse pass of step
+1 (each searched sample read once), then each pick's stretch searched at every
+``LocalPlan.decimation``-th lag by direct float64 dot products with the analytic template
+(step 2 sampled on the lattice the decimated FFT route samples: |z| there is the refinement's
+own z), the refinement of step 3 and ``matched.echo_values``. The FFT route of step 2
+(``_candidate_correlations``: one batched single-precision real FFT of the stretches, the
+band's inverse FFT decimated, then ``local_kernels.local_peaks``) gives the same echoes
+bit for bit on the tests' records and is kept as the reference the direct search is checked
+against, with the numpy functions below (``block_tone_power``, ``coarse_lags``,
+``segment_correlation``: the same steps written with numpy;
+``tests/test_detection_local_kernels.py``). The direct search does ~0.7 M multiply-adds for 9
+picks of the 5 us pulse (~0.05 ms), where the FFT route paid two scipy FFT calls and a dozen
+numpy calls between three kernels: ~0.3-0.5 ms CPU per ping once an FFT of the record has
+evicted the caches, as a new ping does (measured with ``benchmarks/bench_detection.py
+--methods local-matched``: prepared ``run`` on int16 codes ~1.4 -> ~1.0 ms, on float64 ~1.9 ->
+~1.5 ms, same runs). Before that change, in units of one (cold) read of the record: the block
+correlations ~1.15 (the coarse kernel as a whole ~1.3), the robust DC and noise estimate
+(``inputs.robust_offsets``: two numpy partitions of 4,096 samples per row, which numpy's SIMD
+selection does faster than a compiled quickselect) ~0.6, the short FFTs ~0.45, the rest
+(Python between the kernels, the refinement) ~0.3.
 
 Records of int16 ADC codes (``volts_per_code``: ``api.TAKES_CODES``) are read as they are, 2
 bytes a sample instead of 8: the block correlations of the codes are scaled to volts once per
@@ -557,27 +559,24 @@ def detect_local_matched(
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
     scale = 1.0 if volts_per_code is None else float(volts_per_code)
-    k = int(candidates)
-    width = 2 * plan.half + 1
     rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)  # contiguous blocks
     stride = plan.decimation
-    z, start = _candidate_correlations(plan, rows, k, (lag_lo, lag_hi), dc, scale, stride)
-    values = np.empty((n_rows, 2 * (REFINE_HALF_WIDTH + stride - 1) + 1), dtype=complex)
-    refined = np.empty((n_rows, 2))
-    settings = np.array([k, width, lag_lo, lag_hi, matched.analytic_offset, stride], dtype=np.int64)
-    from binsonar.detection import local_kernels
-
-    # Sub-sample refinement as the full matched filter's (direct z around the peak, then
-    # ``matched.refine``'s log-parabolic vertex, compiled: tests/test_detection_local_kernels.py).
-    local_kernels.local_peaks(z, start, rows, scale, _offsets(dc, n_rows), plan.tap_parts, settings,
-                              values, refined)
+    settings = np.array([plan.span, plan.reference, plan.exclusion, lag_lo, lag_hi, candidates, plan.half,
+                         plan.segment_length, plan.block, matched.analytic_offset, stride,
+                         REFINE_HALF_WIDTH + stride - 1], dtype=np.int64)
     # ``matched.echo_values`` of the vertex, the noise as ``white_noise_power`` (2 sigma^2 sum s^2:
-    # white noise through the filter), compiled (one call, not some twenty small numpy ones);
-    # pfa over the searched lags, as detect_matched.
+    # white noise through the filter); pfa over the searched lags, as detect_matched.
     constants = plan.echo_constants.copy()
     constants[0] = t0_s
     constants[-1] = plan.threshold_factor(pfa, lag_hi - lag_lo)
     echoes = np.empty((n_rows, 5))
-    local_kernels.echo_rows(refined, np.ascontiguousarray(sigma, dtype=float), constants, echoes)
+    from binsonar.detection import local_kernels
+
+    # Steps 1-3 and the echo values in one compiled call (``local_kernels.local_echoes``: the
+    # coarse pass, each stretch searched every ``stride`` lags by direct correlations, the
+    # refinement as the full matched filter's, ``matched.echo_values``; checked against the
+    # numpy definitions and the FFT route in tests/test_detection_local_kernels.py).
+    local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), np.ascontiguousarray(sigma, dtype=float),
+                               plan.tone_lanes, plan.tap_parts, settings, constants, echoes)
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
     return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in echoes.tolist()]

@@ -140,17 +140,16 @@ def _group_max(window: NDArray[np.float64], lo: int, hi: int) -> float:
 
 
 @njit(cache=True, nogil=True)
-def coarse_stretches(
+def coarse_starts(
     rows: NDArray,
     scale: float,
     dc: NDArray[np.float64],
     lanes: NDArray[np.float64],
     settings: NDArray[np.int64],
-    segments: NDArray[np.float32],
     starts: NDArray[np.int64],
 ) -> None:
-    """Coarse candidates of every row and their stretches (``local.coarse_lags`` and
-    ``local.segment_spectra``'s input, in one pass).
+    """Coarse candidates of every row (``local.coarse_lags``, each searched sample read once):
+    the first lag of the stretch searched around each.
 
     Parameters
     ----------
@@ -168,15 +167,12 @@ def coarse_stretches(
         range of searched lags), candidates (picks per row), half (lags searched each side of a
         pick), segment_length (samples per stretch, 2 half + m), block (B). One array rather
         than nine arguments: each argument costs the call a few microseconds of type dispatch.
-    segments : ndarray, shape (n_rows * candidates, n_fft), float32, written
-        Stretch of each pick (row r's pick k at r * candidates + k), ``rows - dc`` rounded to
-        float32 (``local._candidate_correlations``: the short FFTs only pick the peak's integer
-        lag), samples outside the record and beyond ``segment_length`` set to 0.
     starts : ndarray of int, shape (n_rows * candidates,), written
-        Lag of each stretch's sample 0 (its first searched lag).
+        Lag of each stretch's sample 0 (its first searched lag), row r's pick k at
+        r * candidates + k.
     """
     span, reference, exclusion, lag_lo, lag_hi = settings[0], settings[1], settings[2], settings[3], settings[4]
-    candidates, half, segment_length, block = settings[5], settings[6], settings[7], settings[8]
+    candidates, half, block = settings[5], settings[6], settings[8]
     n_rows, n = rows.shape
     n_blocks = n // block
     sp = min(span, n_blocks)
@@ -195,10 +191,8 @@ def coarse_stretches(
         sum_cos += lanes[0, q]
         sum_sin += lanes[1, q]
     width = 2 * half + 1
-    n_fft = segments.shape[1]
     _block_powers(rows, first, energies, block, lanes, dc * sum_cos, dc * sum_sin, scale)
     for r in range(n_rows):
-        d = dc[r]
         energy = energies[r]
         # The moving sums as ``sp`` passes over the windows (the same additions in the same
         # order as a sum per window, so the same values): an inner loop of sp (2) terms per
@@ -231,9 +225,42 @@ def coarse_stretches(
             for g in range(max(best - exclusion, 0) // _GROUP, min(best + exclusion, n_searched - 1) // _GROUP + 1):
                 group_max[g] = _group_max(window, g * _GROUP, min((g + 1) * _GROUP, n_searched))
             lag = min(max((first + best) * block + centre, lag_lo), lag_hi)
-            start = max(min(lag - half, lag_hi - (width - 1)), lag_lo)
+            starts[r * candidates + k] = max(min(lag - half, lag_hi - (width - 1)), lag_lo)
+
+
+@njit(cache=True, nogil=True)
+def coarse_stretches(
+    rows: NDArray,
+    scale: float,
+    dc: NDArray[np.float64],
+    lanes: NDArray[np.float64],
+    settings: NDArray[np.int64],
+    segments: NDArray[np.float32],
+    starts: NDArray[np.int64],
+) -> None:
+    """Coarse candidates of every row and their stretches (``local.coarse_lags`` and
+    ``local.segment_spectra``'s input, in one pass): ``coarse_starts``, then each pick's
+    stretch gathered for the short FFTs of ``local._candidate_correlations`` (the FFT route,
+    the reference the direct search of ``local_echoes`` is tested against).
+
+    Parameters
+    ----------
+    rows, scale, dc, lanes, settings, starts
+        As for ``coarse_starts``.
+    segments : ndarray, shape (n_rows * candidates, n_fft), float32, written
+        Stretch of each pick (row r's pick k at r * candidates + k), ``rows - dc`` rounded to
+        float32 (``local._candidate_correlations``: the short FFTs only pick the peak's integer
+        lag), samples outside the record and beyond ``segment_length`` set to 0.
+    """
+    candidates, segment_length = settings[5], settings[7]
+    n_rows, n = rows.shape
+    n_fft = segments.shape[1]
+    coarse_starts(rows, scale, dc, lanes, settings, starts)
+    for r in range(n_rows):
+        d = dc[r]
+        for k in range(candidates):
             i = r * candidates + k
-            starts[i] = start
+            start = starts[i]
             for s in range(segment_length):
                 index = start + s
                 segments[i, s] = rows[r, index] * scale - d if 0 <= index < n else 0.0
@@ -316,9 +343,7 @@ def local_peaks(
     candidates, width, lag_lo, lag_hi, analytic_offset = settings[0], settings[1], settings[2], settings[3], settings[4]
     stride = settings[5]
     n_rows = rows.shape[0]
-    n_lags = values.shape[1]
-    reach = n_lags // 2
-    power = np.empty(n_lags)
+    power = np.empty(values.shape[1])
     for r in range(n_rows):
         best_lag = 0
         best = -2.0
@@ -331,28 +356,48 @@ def local_peaks(
                 if p > best:
                     best = p
                     best_lag = lag
-        d = dc[r]
-        for j in range(n_lags):
-            lag = best_lag - reach + j
-            if lag < lag_lo or lag > lag_hi:
-                values[r, j] = 0.0
-            else:
-                re, im, lo, hi = _direct(rows[r], lag - analytic_offset, taps)
-                re *= scale
-                im *= scale
-                if hi > lo:
-                    re -= d * (taps[2, hi] - taps[2, lo])
-                    im -= d * (taps[3, hi] - taps[3, lo])
-                values[r, j] = complex(re, im)
-            power[j] = values[r, j].real ** 2 + values[r, j].imag ** 2
-        top = 0
-        for j in range(1, n_lags):
-            if power[j] > power[top]:
-                top = j
-        top = min(max(top, 1), n_lags - 2)
-        offset, peak = _log_parabolic(power[top - 1], power[top], power[top + 1])
-        refined[r, 0] = best_lag - reach + top + offset
-        refined[r, 1] = peak
+        _refine_row(rows[r], scale, dc[r], taps, best_lag, lag_lo, lag_hi, analytic_offset, values[r], power,
+                    refined[r])
+
+
+@njit(cache=True, nogil=True)
+def _direct_z(row: NDArray, scale: float, d: float, taps: NDArray[np.float64], first: int) -> tuple:
+    """z of ``row * scale - d`` at the lag whose tap 0 lies on sample ``first``
+    (``matched.lags_time_domain`` minus ``matched.dc_correlation``): real and imaginary parts."""
+    re, im, lo, hi = _direct(row, first, taps)
+    re *= scale
+    im *= scale
+    if hi > lo:
+        re -= d * (taps[2, hi] - taps[2, lo])
+        im -= d * (taps[3, hi] - taps[3, lo])
+    return re, im
+
+
+@njit(cache=True, nogil=True)
+def _refine_row(row: NDArray, scale: float, d: float, taps: NDArray[np.float64], best_lag: int, lag_lo: int,
+                lag_hi: int, analytic_offset: int, values: NDArray[np.complex128], power: NDArray[np.float64],
+                refined: NDArray[np.float64]) -> None:
+    """Direct z at ``best_lag - reach .. best_lag + reach`` (reach = values.size // 2; 0 outside
+    [lag_lo, lag_hi]) into ``values``, and ``matched.refine``'s vertex of the largest |z| among
+    them, the outer two excepted, into ``refined`` (fractional lag, |z|^2)."""
+    n_lags = values.size
+    reach = n_lags // 2
+    for j in range(n_lags):
+        lag = best_lag - reach + j
+        if lag < lag_lo or lag > lag_hi:
+            values[j] = 0.0
+        else:
+            re, im = _direct_z(row, scale, d, taps, lag - analytic_offset)
+            values[j] = complex(re, im)
+        power[j] = values[j].real ** 2 + values[j].imag ** 2
+    top = 0
+    for j in range(1, n_lags):
+        if power[j] > power[top]:
+            top = j
+    top = min(max(top, 1), n_lags - 2)
+    offset, peak = _log_parabolic(power[top - 1], power[top], power[top + 1])
+    refined[0] = best_lag - reach + top + offset
+    refined[1] = peak
 
 
 @njit(cache=True, nogil=True)
@@ -388,3 +433,78 @@ def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constant
         echoes[r, 2] = 10.0 * np.log10(snr)
         echoes[r, 3] = power / (factor * noise_mean)
         echoes[r, 4] = 1.0 / (2.0 * np.pi * rms_bandwidth * np.sqrt(snr))
+
+
+@njit(cache=True, nogil=True)
+def local_echoes(
+    rows: NDArray,
+    scale: float,
+    dc: NDArray[np.float64],
+    sigma: NDArray[np.float64],
+    lanes: NDArray[np.float64],
+    taps: NDArray[np.float64],
+    settings: NDArray[np.int64],
+    constants: NDArray[np.float64],
+    echoes: NDArray[np.float64],
+) -> None:
+    """The whole local matched filter of every row in one call: ``coarse_starts``, the search
+    of each pick's stretch, ``_refine_row``, ``echo_rows``.
+
+    The search: |z| at every ``stride``-th lag of each stretch (lags ``start + stride j``,
+    ``stride j <= 2 half``, those in [lag_lo, lag_hi]), each by a direct dot product with the
+    analytic template in float64 (exactly the refinement's z at that lag); the largest picks
+    the lag the refinement starts from. The FFT route (``local._candidate_correlations`` then
+    ``local_peaks``) samples the same lags with the band-limited z in float32 (errors ~1e-6 of
+    the peak, plus the Hilbert tails beyond the stretch, ~1e-5): the two pick the same lag
+    unless two sampled lags have |z| within ~1e-5 of each other, and then the same refined peak
+    whenever both lie within ``stride - 1`` lags of it (two lattice lags straddling one peak;
+    ``tests/test_detection_local_kernels.py``). The direct search costs (2 half / stride + 1)
+    dot products of the m_a analytic taps per pick (41 x 995 complex taps for the 5 us pulse:
+    ~0.7 M multiply-adds for 9 picks, ~0.05 ms). One call and no FFT: a new ping pays the
+    dispatch of one kernel, not of two kernels, two scipy FFTs and a dozen numpy calls (~0.3-0.4
+    ms CPU once an FFT of the record has evicted the caches, for ~50 us of arithmetic).
+
+    Parameters
+    ----------
+    rows, scale, dc, lanes
+        As for ``coarse_starts``.
+    sigma : ndarray, shape (n_rows,)
+        Noise standard deviation of each row (V, floored), as for ``echo_rows``.
+    taps : ndarray, shape (4, m_a + 1)
+        ``LocalPlan.tap_parts``.
+    settings : ndarray of int, shape (12,)
+        ``coarse_starts``' nine, then analytic_offset (index of template sample 0 in the taps),
+        stride (``LocalPlan.decimation``) and reach (direct lags each side of the searched peak:
+        ``local.REFINE_HALF_WIDTH + stride - 1``).
+    constants : ndarray, shape (8,)
+        As for ``echo_rows``.
+    echoes : ndarray, shape (n_rows, 5), written
+        tof_s, amplitude, snr_db, score, tof_std_s of each row's peak (``echo_rows``).
+    """
+    lag_lo, lag_hi, candidates, half = settings[3], settings[4], settings[5], settings[6]
+    analytic_offset, stride, reach = settings[9], settings[10], settings[11]
+    n_rows = rows.shape[0]
+    starts = np.empty(n_rows * candidates, dtype=np.int64)
+    coarse_starts(rows, scale, dc, lanes, settings, starts)
+    width = 2 * half + 1
+    values = np.empty(2 * reach + 1, dtype=np.complex128)
+    power = np.empty(2 * reach + 1)
+    refined = np.empty((n_rows, 2))
+    for r in range(n_rows):
+        row = rows[r]
+        d = dc[r]
+        best_lag = 0
+        best = -2.0
+        for k in range(candidates):
+            start = starts[r * candidates + k]
+            for j in range((width + stride - 1) // stride):
+                lag = start + stride * j
+                p = -1.0
+                if lag_lo <= lag <= lag_hi:
+                    re, im = _direct_z(row, scale, d, taps, lag - analytic_offset)
+                    p = re * re + im * im
+                if p > best:
+                    best = p
+                    best_lag = lag
+        _refine_row(row, scale, d, taps, best_lag, lag_lo, lag_hi, analytic_offset, values, power, refined[r])
+    echo_rows(refined, sigma, constants, echoes)
