@@ -83,7 +83,15 @@ def direct_rows(context: SolveContext) -> NDArray[Any]:
     rx = context.receivers_m
     dist = np.linalg.norm(rx - tx, axis=1)
     channels = np.flatnonzero(dist > 1e-9)
-    blocked = context.raycaster.occluded(np.tile(tx, (channels.size, 1)), rx[channels])
+    # the legs as RayCaster.occluded makes them (no exclusions), straight to Embree's buffers
+    origins = np.tile(tx, (channels.size, 1))
+    legs = rx[channels] - origins
+    length = np.linalg.norm(legs, axis=1)
+    raycaster = context.raycaster
+    starts32, directions32, lengths32, leg = occlusion_queries32(origins, legs / length[:, None], length,
+                                                                 raycaster.shift_m, DEFAULT_EPS_M)
+    blocked = np.zeros(channels.size, dtype=bool)
+    blocked[leg[raycaster.occluded_segments32(starts32, directions32, lengths32)]] = True
     channels = channels[~blocked]
     rows = empty_paths_array(channels.size)
     rows["path_id"] = context.first_path_id
