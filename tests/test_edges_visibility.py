@@ -215,3 +215,23 @@ def test_pair_pre_screen_masks():
     assert mask((3.0, 1.5, 0.45), (3.0, 1.5, 0.55), (7.0, 1.5, 0.5)) == 3
     # a corner within the margin of the floor: the walls too
     assert mask((1.0, 0.5, 0.5 * tol), (1.0, 0.6, 0.5), (2.0, 0.5, 0.5)) == 1 << WALL_BIT
+
+
+def test_objects_beyond_the_mask_bits_are_always_tested():
+    from acoustisim.propagation.edge_visibility import MASK_BITS, OTHERS_BIT, _triangle_screen
+
+    # MASK_BITS + 3 small cubes along a row at y = 0.5; the last one, beyond the mask's bits,
+    # stands on the leg
+    cubes = [plate(f"cube-{k}", (0.2 + 0.12 * k, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05, 0.05, 0.05, "steel")
+             for k in range(MASK_BITS + 3)]
+    scene = _box_scene(cubes)
+    raycaster = RayCaster.from_scene(scene)
+    screen, planes = VisibilityScreen.create(scene), raycaster.convex_planes
+    args = screen.kernel_arguments(planes)
+    last = np.asarray(cubes[-1].mesh.bounds).mean(axis=0)
+    a, b, t = last + (0.0, -0.3, -0.01), last + (0.0, -0.3, 0.01), last + (0.0, 0.3, 0.0)
+    mask = _triangle_screen(a, b, t, *args)
+    assert mask == np.int64(1) << OTHERS_BIT  # no masked object near, but not skippable
+    p0, p1 = np.array([last + (0.0, -0.3, 0.0)]), np.array([last + (0.0, 0.3, 0.0)])
+    assert screen_legs(p0, p1, np.array([mask]), *args).tolist() == [BLOCKED]
+    assert raycaster.occluded(p0, p1).tolist() == [True]

@@ -62,6 +62,10 @@ MASK_BITS = 62
 WALL_BIT = 62
 """The bit of a pre-screen mask saying the walls must be tested."""
 
+OTHERS_BIT = 63
+"""The bit of a pre-screen mask set when the scene has objects from :data:`MASK_BITS` on
+(tested on every leg), so that the mask is never zero (a zero mask skips the leg)."""
+
 
 def screen_tolerance(bounds_m: NDArray[np.float64]) -> float:
     """The screen's margin (m) for a scene within the box ``bounds_m`` (2, 3) (its triangles'
@@ -269,9 +273,9 @@ def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[
     against, as a bit mask for :func:`screen_legs`: bit j (j < :data:`MASK_BITS`) for object j
     unless the triangle keeps at least ``tolerance`` from it (the triangle's box grown by
     ``tolerance`` apart from the object's grown box, or one of the object's face planes with
-    the three corners more than twice ``tolerance`` outside), and bit :data:`WALL_BIT` unless
-    the three corners lie in the shrunk water box. Objects from :data:`MASK_BITS` on are
-    always tested."""
+    the three corners more than twice ``tolerance`` outside), bit :data:`WALL_BIT` unless
+    the three corners lie in the shrunk water box, and bit :data:`OTHERS_BIT` when there are
+    objects from :data:`MASK_BITS` on (always tested)."""
     mask = np.int64(0)
     for c in range(3):
         if not ((water_lo[c] <= a[c]) & (a[c] <= water_hi[c]) & (water_lo[c] <= b[c]) & (b[c] <= water_hi[c])
@@ -284,6 +288,8 @@ def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[
     hi1 = max(max(a[1], b[1]), t[1]) + tolerance
     hi2 = max(max(a[2], b[2]), t[2]) + tolerance
     margin = 2.0 * tolerance
+    if box_lo.shape[0] > MASK_BITS:  # objects beyond the mask's bits: always tested (never a zero mask)
+        mask |= np.int64(1) << OTHERS_BIT
     for j in range(min(box_lo.shape[0], MASK_BITS)):
         apart = ((hi0 < box_lo[j, 0]) | (lo0 > box_hi[j, 0]) | (hi1 < box_lo[j, 1]) | (lo1 > box_hi[j, 1])
                  | (hi2 < box_lo[j, 2]) | (lo2 > box_hi[j, 2]))
@@ -444,5 +450,5 @@ def screened_visibility_rays32(
     return visible, starts32, directions32, lengths32, element
 
 
-__all__ = ["BLOCKED", "CLEAR", "MASK_BITS", "TOLERANCE_ULPS", "UNDECIDED", "VisibilityScreen", "WALL_BIT",
+__all__ = ["BLOCKED", "CLEAR", "MASK_BITS", "OTHERS_BIT", "TOLERANCE_ULPS", "UNDECIDED", "VisibilityScreen", "WALL_BIT",
            "screen_legs", "screen_tolerance", "screened_visibility_rays32"]
