@@ -286,44 +286,52 @@ def test_complete_rows_are_finite_and_seeded(tank):
     assert np.all((a["phase_rad"] >= -np.pi) & (a["phase_rad"] < np.pi))
 
 
-def test_chunks_written_ahead_of_their_place_are_moved_down_exactly():
+def test_chunks_written_ahead_of_their_place_are_copied_to_it_exactly():
     # The output placement the threads rely on, driven by hand (a thread schedule cannot be
     # forced): chunk 0 starts first and writes in place; chunks 1 and 2 start before it is
-    # placed and write in their slots; they finish out of order. The arrays must equal the
-    # chunks' events and receptions concatenated in chunk order, event indices (parents, the
-    # receptions' events) shifted to the final rows. A chunk starting once every earlier one
-    # is placed writes in place again.
+    # placed and write into scratch blocks of their own; they finish out of order. The arrays
+    # must equal the chunks' events and receptions concatenated in chunk order, event indices
+    # (parents, the receptions' events) shifted to the final rows. A chunk starting once every
+    # earlier one is placed writes in place again; a placed chunk's block is reused.
     from acoustisim.propagation.diffuse import _Output
 
     n_rx, counts = 2, [(5, 7), (3, 0), (4, 6), (2, 3)]  # (events, receptions) per chunk
     out = _Output(CHUNK_RAYS * 4, 2, n_rx)
-    bases = [out.start(c) for c in range(3)]
-    assert bases == [(0, 0), (out.slot_events, out.slot_receptions), (2 * out.slot_events, 2 * out.slot_receptions)]
+    targets = [out.start(c) for c in range(3)]
+    assert targets[0] == (out, (0, 0))
+    blocks = [targets[1][0], targets[2][0]]
+    assert all(block is not out for block in blocks) and blocks[0] is not blocks[1]
+    assert targets[1][1] == targets[2][1] == (0, 0)
+    assert blocks[0].points.shape == (out.slot_events, 3) and blocks[0].gain.shape == (out.slot_receptions,)
     expected = {k: [] for k in ("points", "parent", "event", "gain")}
     first = 0
 
-    def write(c, base):
-        (e0, r0), (n_e, n_r) = base, counts[c]
+    def write(c, target):
+        arrays, (e0, r0) = target
+        (n_e, n_r) = counts[c]
         rows, recs = slice(e0, e0 + n_e), slice(r0, r0 + n_r)
         points = np.arange(3 * n_e, dtype=float).reshape(n_e, 3) + 100.0 * c
-        out.points[rows], out.departure[rows] = points, -points
-        out.surface[rows], out.bounce[rows] = c, 1
-        out.travelled[rows], out.phase[rows] = points[:, 0], points[:, 1]
+        arrays.points[rows], arrays.departure[rows] = points, -points
+        arrays.surface[rows], arrays.bounce[rows] = c, 1
+        arrays.travelled[rows], arrays.phase[rows] = points[:, 0], points[:, 1]
         parent = np.where(np.arange(n_e) % 2 == 1, e0 + np.arange(n_e) - 1, -1)  # links inside the chunk
-        out.parent[rows] = parent
+        arrays.parent[rows] = parent
         event = e0 + np.arange(n_r) % max(n_e, 1)
-        out.event[recs], out.channel[recs], out.gain[recs] = event, np.arange(n_r) % n_rx, 1.0 + c + np.arange(n_r)
+        arrays.event[recs], arrays.channel[recs] = event, np.arange(n_r) % n_rx
+        arrays.gain[recs] = 1.0 + c + np.arange(n_r)
         return points, parent - e0, event - e0, 1.0 + c + np.arange(n_r)
 
-    written = {c: write(c, bases[c]) for c in (2, 1, 0)}
-    out.finish(2, bases[2], *counts[2])
-    out.finish(1, bases[1], *counts[1])
-    assert out.start(3) == (3 * out.slot_events, 3 * out.slot_receptions)  # chunk 0 still unplaced
-    out.finish(0, bases[0], *counts[0])
-    base3 = out.start(3)
-    assert base3 == (sum(e for e, _ in counts[:3]), sum(r for _, r in counts[:3]))  # in place
-    written[3] = write(3, base3)
-    out.finish(3, base3, *counts[3])
+    written = {c: write(c, targets[c]) for c in (2, 1, 0)}
+    out.finish(2, targets[2][0], *counts[2])
+    out.finish(1, targets[1][0], *counts[1])
+    assert out.start(3)[0] is not out  # chunk 0 still unplaced: a scratch block
+    out.finish(0, out, *counts[0])
+    target3 = out.start(3)
+    assert target3 == (out, (sum(e for e, _ in counts[:3]), sum(r for _, r in counts[:3])))  # in place
+    written[3] = write(3, target3)
+    out.finish(3, out, *counts[3])
+    reused = out.start(5)[0]
+    assert any(reused is block for block in blocks)  # a placed chunk's block
     for c in range(4):
         points, parent, event, gain = written[c]
         expected["points"].append(points)

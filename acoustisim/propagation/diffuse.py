@@ -38,12 +38,12 @@ The rays are traced in fixed chunks of :data:`CHUNK_RAYS`, each with its own ran
 (a SplitMix64 sequence keyed by the solver seed and the chunk index, :class:`_ChunkStream`),
 on a small thread pool (Embree, the compiled per-hit loops of
 :mod:`~acoustisim.propagation.diffuse_kernels` and :mod:`~acoustisim.propagation.diffuse_hits`
-and numpy's large-array passes release the GIL): the rows are the same for any number of threads. Each chunk writes its
-events and receptions straight into the solve's output arrays (sized for the most events the
-rays can make): at their final place when every earlier chunk is placed before it starts
-(always on one thread), else in a slot of its own, moved down once the chunks before it are
-placed (see :class:`_Output`). An
-approximate visibility mode (``visibility="centre"``, off by default) tests only the leg to
+and numpy's large-array passes release the GIL): the rows are the same for any number of
+threads. Each chunk writes its events and receptions straight into the solve's output arrays
+(sized for the most events the rays can make) at their final place when every earlier chunk
+is placed before it starts (always on one thread), else into a scratch block reused chunk
+after chunk, copied to the output once the chunks before it are placed (see
+:class:`_Output`). An approximate visibility mode (``visibility="centre"``, off by default) tests only the leg to
 the centre receiver and shares the answer with the side receivers: on the thesis tank at its
 default pose it changes the side channels' diffuse energy by 0.003 %, but over 12 random
 poses by up to 1.2 % (the sonar among the posts), so exact visibility stays the default.
@@ -569,19 +569,48 @@ class _Tracer:
     hits: tuple[Any, ...] | None
 
 
-class _Output:
-    """The solve's output arrays, sized for the most events and receptions the rays can make,
-    and where each chunk writes into them.
+class _ChunkArrays:
+    """Event and reception arrays a chunk writes into: the solve's output (:class:`_Output`) or
+    a scratch block of one chunk's size, reused chunk after chunk.
 
-    Chunk ``c`` writes its events from row ``base`` on, bounce after bounce, and its receptions
-    likewise: at their final place when every earlier chunk was placed before it started (always
-    on one thread: no copy at all), else ahead of it, in its own slot (rows ``c`` x the most
-    events, or receptions, a chunk can make). A finished chunk is placed once every earlier one
-    is: a chunk written in its slot is then moved down to its final place by
-    :func:`~acoustisim.propagation.diffuse_kernels.move_chunk` (which never overwrites a row
-    another chunk still owns: a final place lies below the slots of the chunks not yet placed).
+    Parameters
+    ----------
+    events, receptions : int
+        Rows of the event arrays (``points``, ``departure``: (events, 3); ``surface``,
+        ``parent``, ``bounce``, ``travelled``, ``phase``: (events,)) and of the reception
+        arrays (``event``, ``channel``, ``gain``: (receptions,)).
+    n_rx : int
+        Receivers (the channel dtype: int8 below 128).
+    """
+
+    def __init__(self, events: int, receptions: int, n_rx: int) -> None:
+        self.points, self.departure = np.empty((events, 3)), np.empty((events, 3))
+        self.surface, self.parent = np.empty(events, dtype=np.int32), np.empty(events, dtype=np.int32)
+        self.bounce = np.empty(events, dtype=np.int32)
+        self.travelled, self.phase = np.empty(events), np.empty(events)
+        self.event = np.empty(receptions, dtype=np.int32)
+        self.channel = np.empty(receptions, dtype=np.int8 if n_rx < 128 else np.int32)
+        self.gain = np.empty(receptions)
+
+    def arrays(self) -> tuple[NDArray[Any], ...]:
+        """The ten arrays, in :func:`~acoustisim.propagation.diffuse_kernels.copy_chunk`'s order."""
+        return (self.points, self.departure, self.surface, self.parent, self.bounce, self.travelled, self.phase,
+                self.event, self.channel, self.gain)
+
+
+class _Output(_ChunkArrays):
+    """The solve's output arrays, sized for the most events and receptions the rays can make,
+    and where each chunk writes.
+
+    Chunk ``c`` writes its events bounce after bounce, and its receptions likewise: straight
+    into the output at their final place when every earlier chunk was placed before it started
+    (always on one thread: no copy at all), else into a scratch block of one chunk's size
+    (:class:`_ChunkArrays`, from a pool: a block is reused once its chunk is placed, so its
+    pages are warm and the output's pages are touched once). A finished chunk is placed once
+    every earlier one is: a chunk written in a scratch block is then copied to its final place
+    by :func:`~acoustisim.propagation.diffuse_kernels.copy_chunk`, its event indices shifted.
     The chunks' final places depend on their counts only, so the arrays are the same for any
-    thread count. Pages of the arrays that no chunk touches cost no memory; :meth:`result`
+    thread count. Pages of the output that no chunk reaches cost no memory; :meth:`result`
     shrinks the arrays to the rows written.
 
     Parameters
@@ -592,39 +621,39 @@ class _Output:
 
     def __init__(self, n_rays: int, bounces: int, n_rx: int) -> None:
         capacity = n_rays * bounces  # one event per ray and bounce at most
-        self.slot_events = CHUNK_RAYS * bounces
+        super().__init__(capacity, capacity * n_rx, n_rx)
+        self.slot_events = min(CHUNK_RAYS, n_rays) * bounces  # the most a chunk makes
         self.slot_receptions = self.slot_events * n_rx
-        self.points, self.departure = np.empty((capacity, 3)), np.empty((capacity, 3))
-        self.surface, self.parent = np.empty(capacity, dtype=np.int32), np.empty(capacity, dtype=np.int32)
-        self.bounce = np.empty(capacity, dtype=np.int32)
-        self.travelled, self.phase = np.empty(capacity), np.empty(capacity)
-        self.event = np.empty(capacity * n_rx, dtype=np.int32)
-        self.channel = np.empty(capacity * n_rx, dtype=np.int8 if n_rx < 128 else np.int32)
-        self.gain = np.empty(capacity * n_rx)
+        self._n_rx = n_rx
         self._lock = threading.Lock()
         self._placed = 0  # chunks placed (every one before it too)
         self._events = 0  # their events and receptions
         self._receptions = 0
-        self._finished: dict[int, tuple[int, int, int, int]] = {}  # finished, not yet placed
+        self._finished: dict[int, tuple[_ChunkArrays, int, int]] = {}  # finished, not yet placed
+        self._pool: list[_ChunkArrays] = []  # scratch blocks free for a chunk
 
-    def start(self, chunk: int) -> tuple[int, int]:
-        """The rows from which chunk ``chunk`` writes its events and receptions."""
+    def start(self, chunk: int) -> tuple[_ChunkArrays, tuple[int, int]]:
+        """Where chunk ``chunk`` writes: the arrays and the rows of its first event and
+        reception (the output at the chunk's final place, or a scratch block from row 0)."""
         with self._lock:
             if chunk == self._placed:
-                return self._events, self._receptions
-        return chunk * self.slot_events, chunk * self.slot_receptions
+                return self, (self._events, self._receptions)
+            block = self._pool.pop() if self._pool else None
+        if block is None:
+            block = _ChunkArrays(self.slot_events, self.slot_receptions, self._n_rx)
+        return block, (0, 0)
 
-    def finish(self, chunk: int, base: tuple[int, int], events: int, receptions: int) -> None:
-        """Record chunk ``chunk``'s counts, written from rows ``base``; place every finished
-        chunk whose predecessors are placed."""
+    def finish(self, chunk: int, target: _ChunkArrays, events: int, receptions: int) -> None:
+        """Record that chunk ``chunk`` wrote ``events`` and ``receptions`` into ``target`` (from
+        the rows :meth:`start` gave); place every finished chunk whose predecessors are placed."""
         with self._lock:
-            self._finished[chunk] = (base[0], events, base[1], receptions)
+            self._finished[chunk] = (target, events, receptions)
             while self._placed in self._finished:
-                first_event, n_events, first_reception, n_receptions = self._finished.pop(self._placed)
-                if first_event != self._events or first_reception != self._receptions:
-                    kernels.move_chunk(first_event, self._events, n_events, first_reception, self._receptions,
-                                       n_receptions, self.points, self.departure, self.surface, self.parent,
-                                       self.bounce, self.travelled, self.phase, self.event, self.channel, self.gain)
+                block, n_events, n_receptions = self._finished.pop(self._placed)
+                if block is not self:
+                    kernels.copy_chunk(n_events, n_receptions, self._events, self._receptions, *block.arrays(),
+                                       *self.arrays())
+                    self._pool.append(block)
                 self._events += n_events
                 self._receptions += n_receptions
                 self._placed += 1
@@ -697,8 +726,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     shift = raycaster.shift_m
     rx = tracer.receivers
     n_rx = rx.shape[0]
-    out = tracer.output
-    base = out.start(chunk)
+    out, base = tracer.output.start(chunk)  # the output at the chunk's final place, or a scratch block
     event_row, reception_row = base  # where the next bounce's events and receptions go
     buffers = getattr(tracer.buffers, "draw", None)  # this thread's, reused chunk after chunk
     if buffers is None:
@@ -772,7 +800,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
         weight = hit_weight[:n_hits] * math.pi * mu[:n_hits]
         travelled = out.travelled[rows]
         origins = points + OFFSET_M * normal  # the 2e-5 m offset (14 ps) is not added to the path
-    out.finish(chunk, base, event_row - base[0], reception_row - base[1])
+    tracer.output.finish(chunk, out, event_row - base[0], reception_row - base[1])
     return legs[0], legs[1], legs[2]
 
 

@@ -17,8 +17,8 @@ passes over temporary arrays, is compiled here:
    buffers;
 4. :func:`clear_blocked` and :func:`write_receptions`: the pairs left in view, point-major,
    with their event, receiver and gain, written straight into the tracer's output (as
-   :func:`scatter_and_pair` writes the events); :func:`move_chunk` moves a chunk written
-   ahead of its final place (on another thread) down to it;
+   :func:`scatter_and_pair` writes the events); :func:`copy_chunk` copies a chunk written
+   into a scratch block (on another thread) to its final place;
 5. :func:`reception_columns` and :func:`pack_rows`: the receptions' path lengths, phases and
    arrival directions, derived from their event and receiver, and the rows of the arrivals
    table.
@@ -542,36 +542,38 @@ def clear_blocked(state: NDArray[np.int8], leg_pair: NDArray[np.int64], blocked:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def move_chunk(src_event: int, dst_event: int, n_events: int, src_reception: int, dst_reception: int,
-               n_receptions: int, points: NDArray[np.float64], departure: NDArray[np.float64],
-               surface: NDArray[np.int32], parent: NDArray[np.int32], bounce: NDArray[np.int32],
-               travelled: NDArray[np.float64], phase: NDArray[np.float64], event: NDArray[np.int32],
-               channel: NDArray[np.int8], gain: NDArray[np.float64]) -> None:
-    """Move one chunk's events (rows ``src_event`` onwards, ``n_events`` of them) and receptions
-    down to rows ``dst_event`` and ``dst_reception`` of the same output arrays, in place
-    (``dst <= src``: a forward copy never reads a row it has overwritten), shifting the event
-    indices they hold (parents >= 0, the receptions' events) by ``dst_event - src_event``.
+def copy_chunk(n_events: int, n_receptions: int, first_event: int, first_reception: int,
+               points: NDArray[np.float64], departure: NDArray[np.float64], surface: NDArray[np.int32],
+               parent: NDArray[np.int32], bounce: NDArray[np.int32], travelled: NDArray[np.float64],
+               phase: NDArray[np.float64], event: NDArray[np.int32], channel: NDArray[np.int8],
+               gain: NDArray[np.float64], to_points: NDArray[np.float64], to_departure: NDArray[np.float64],
+               to_surface: NDArray[np.int32], to_parent: NDArray[np.int32], to_bounce: NDArray[np.int32],
+               to_travelled: NDArray[np.float64], to_phase: NDArray[np.float64], to_event: NDArray[np.int32],
+               to_channel: NDArray[np.int8], to_gain: NDArray[np.float64]) -> None:
+    """Copy one chunk's events (rows 0 to ``n_events``) and receptions (0 to ``n_receptions``),
+    written into a scratch block, to rows ``first_event`` and ``first_reception`` onwards of
+    the output (the ``to_`` arrays), shifting the event indices they hold (parents >= 0, the
+    receptions' events) by ``first_event``.
 
-    ``points``, ``departure``: shape (M, 3); the others (M,) for the events, (N,) for the
-    receptions.
+    ``points``, ``departure`` and theirs: shape (M, 3); the others (M,) for the events, (N,)
+    for the receptions.
     """
-    shift = dst_event - src_event
     for i in range(n_events):
-        a, b = src_event + i, dst_event + i
+        b = first_event + i
         for k in range(3):
-            points[b, k] = points[a, k]
-            departure[b, k] = departure[a, k]
-        surface[b] = surface[a]
-        p = parent[a]
-        parent[b] = p + shift if p >= 0 else p
-        bounce[b] = bounce[a]
-        travelled[b] = travelled[a]
-        phase[b] = phase[a]
+            to_points[b, k] = points[i, k]
+            to_departure[b, k] = departure[i, k]
+        to_surface[b] = surface[i]
+        p = parent[i]
+        to_parent[b] = p + first_event if p >= 0 else p
+        to_bounce[b] = bounce[i]
+        to_travelled[b] = travelled[i]
+        to_phase[b] = phase[i]
     for i in range(n_receptions):
-        a, b = src_reception + i, dst_reception + i
-        event[b] = event[a] + shift
-        channel[b] = channel[a]
-        gain[b] = gain[a]
+        b = first_reception + i
+        to_event[b] = event[i] + first_event
+        to_channel[b] = channel[i]
+        to_gain[b] = gain[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -707,7 +709,7 @@ __all__ = [
     "reception_columns",
     "guide_table",
     "pack_rows",
-    "move_chunk",
+    "copy_chunk",
     "cell_table", "clear_blocked", "near_points", "scatter_and_pair", "speckle_into", "splitmix64", "splitmix_uniforms",
     "transmit_directions", "write_receptions",
 ]
