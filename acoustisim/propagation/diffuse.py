@@ -646,17 +646,23 @@ class _Output(_ChunkArrays):
     def finish(self, chunk: int, target: _ChunkArrays, events: int, receptions: int) -> None:
         """Record that chunk ``chunk`` wrote ``events`` and ``receptions`` into ``target`` (from
         the rows :meth:`start` gave); place every finished chunk whose predecessors are placed."""
+        copies = []  # (block, events, receptions, first event, first reception)
         with self._lock:
             self._finished[chunk] = (target, events, receptions)
             while self._placed in self._finished:
                 block, n_events, n_receptions = self._finished.pop(self._placed)
                 if block is not self:
-                    kernels.copy_chunk(n_events, n_receptions, self._events, self._receptions, *block.arrays(),
-                                       *self.arrays())
-                    self._pool.append(block)
+                    copies.append((block, n_events, n_receptions, self._events, self._receptions))
                 self._events += n_events
                 self._receptions += n_receptions
                 self._placed += 1
+        # outside the lock (the other threads start and finish chunks meanwhile): each copy
+        # goes to rows no other chunk writes, and its block returns to the pool once copied
+        for block, n_events, n_receptions, first_event, first_reception in copies:
+            kernels.copy_chunk(n_events, n_receptions, first_event, first_reception, *block.arrays(),
+                               *self.arrays())
+            with self._lock:
+                self._pool.append(block)
 
     def result(self, receivers: NDArray[np.float64], legs: tuple[int, int, int]) -> "DiffuseEvents":
         """The events and receptions of every chunk (all placed), the arrays shrunk in place to
