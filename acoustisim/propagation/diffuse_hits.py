@@ -164,10 +164,9 @@ class BoxTankHits:
             return None
         box_lo, box_hi = np.zeros((n_objects, 3)), np.zeros((n_objects, 3))
         if n_objects:
-            corners = raycaster.vertices[raycaster.faces[objects]].reshape(-1, 9)
+            points = raycaster.vertices[raycaster.faces[objects]]  # (t, 3, 3)
             owner = surface[objects] - n_boundaries  # non-decreasing: each object's triangles are one block
             starts = np.searchsorted(owner, np.arange(n_objects))
-            points = corners.reshape(-1, 3, 3)
             box_lo = np.minimum.reduceat(points.min(axis=1), starts, axis=0) - BOX_MARGIN_M
             box_hi = np.maximum.reduceat(points.max(axis=1), starts, axis=0) + BOX_MARGIN_M
         return cls(lo, hi, face_start, np.ascontiguousarray(global_index[order]),
@@ -190,8 +189,9 @@ def _in_box(ox: float, oy: float, oz: float, ix: float, iy: float, iz: float, sx
     """Whether the ray o + t d, 0 <= t <= t_max, meets box ``boxes[b]`` ((lo, hi) x 3): the slab
     test with the inverse components ``i = 1 / d`` (+-inf for a zero component, which makes that
     slab's bounds +-inf: no constraint inside the slab, an empty interval outside; a NaN, for an
-    origin on the slab's face, is ignored by the comparisons: a grazing contact) and ``s`` = 1
-    where a component is negative (the near side is then ``hi``). No data-dependent branch."""
+    origin exactly on that slab's face, fails the comparisons and can only make the answer True:
+    conservative, the face planes decide) and ``s`` = 1 where a component is negative (the near
+    side is then ``hi``). No data-dependent branch."""
     enter = (boxes[b, sx, 0] - ox) * ix
     leave = (boxes[b, 1 - sx, 0] - ox) * ix
     t = (boxes[b, sy, 1] - oy) * iy
