@@ -30,6 +30,8 @@ at its default sonar pose, with the tracer's own ray directions for the seed:
   convex objects (:mod:`acoustisim.propagation.diffuse_hits`: on the thesis tank it asks
   Embree about no ray; the count is printed), so both raw baselines are now the cost of the
   queries it no longer makes, and the ratios compare its whole work with them;
+* ``tracer embree``: the same with ``first_hits="embree"``: every first hit from Embree
+  INTERSECT, the path of general meshes (non-box tanks, non-convex objects);
 * ``tracer``: :func:`acoustisim.propagation.diffuse.trace_diffuse` (sampling, first hits,
   Lambert next-event estimation with exact occlusion to the three receivers, speckle),
   on 1 and N threads, and with ``visibility="centre"`` (approximate, off by default);
@@ -176,6 +178,8 @@ def main() -> int:
         "tracer x1": lambda: trace_diffuse(context, config, threads=1),
         f"tracer x{t}": lambda: trace_diffuse(context, config, threads=t),
         f"tracer centre x{t}": lambda: trace_diffuse(context, config, threads=t, visibility="centre"),
+        "tracer embree x1": lambda: trace_diffuse(context, config, threads=1, first_hits="embree"),
+        f"tracer embree x{t}": lambda: trace_diffuse(context, config, threads=t, first_hits="embree"),
         f"diffuse_paths x{t}": lambda: diffuse_paths(context, config, threads=t),
         f"+ columns x{t}": lambda: complete_columns(diffuse_paths(context, config, threads=t), context),
     }
@@ -238,6 +242,9 @@ def main() -> int:
               + (f"tracer x1 / tracer x{t} = {ratio('tracer x1', f'tracer x{t}', index):.2f} (the threads' speed-up)"
                  if index == 0 else
                  f"tracer x{t} / tracer x1 = {ratio(f'tracer x{t}', 'tracer x1', index):.2f} (the threads' CPU cost)")
+              + f"; with every first hit from Embree (the general-mesh path): tracer embree x{t} "
+              f"{n / r[f'tracer embree x{t}'] / 1e6:.2f} M rays/s, tracer embree x1 / raw intersect x1 = "
+              f"{ratio('tracer embree x1', 'raw intersect x1', index):.2f}x"
               + f"; centre visibility x{t} / raw "
               f"intersect x{t} = {ratio(f'tracer centre x{t}', f'raw intersect x{t}', index):.2f}x; diffuse_paths / "
               f"tracer = {ratio(f'diffuse_paths x{t}', f'tracer x{t}', index):.2f}x")

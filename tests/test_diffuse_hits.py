@@ -237,3 +237,21 @@ def test_rays_aimed_at_every_object_are_decided_as_embree_decides(tank):
     assert other.size <= 5
     hit_points = origins[other] + embree.distance_m[other, None] * directions[other]
     assert np.all(_edge_distance(raycaster, embree.triangle[other], hit_points) < GRAZING_M)
+
+
+def test_first_hits_mode_embree_gives_the_embree_path_and_bad_modes_are_refused(tank):
+    # trace_diffuse(first_hits="embree") is the general-mesh path the benchmark compares with:
+    # every first hit from Embree (embree_rays = every ray that hits), the same events as "auto"
+    # on the thesis tank but for grazing rays (as above); an unknown mode is an InputError.
+    from acoustisim.errors import InputError
+
+    scene, raycaster = tank
+    context = SolveContext.build(scene, scene.sonar, raycaster)
+    config = SolverConfig(diffuse_rays=8_000, diffuse_bounces=1, seed=3)
+    fast = diffuse.trace_diffuse(context, config, threads=1)
+    embree = diffuse.trace_diffuse(context, config, threads=1, first_hits="embree")
+    assert fast.embree_rays == 0 and embree.embree_rays > 7_000
+    assert fast.points_m.shape == embree.points_m.shape
+    assert np.count_nonzero(np.any(np.abs(fast.points_m - embree.points_m) >= 1e-12, axis=1)) <= 3
+    with pytest.raises(InputError, match="first_hits"):
+        diffuse.trace_diffuse(context, config, first_hits="fast")

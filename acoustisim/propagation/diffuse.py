@@ -486,6 +486,11 @@ seeded by ``(config.seed, chunk index)``) and their events concatenated in chunk
 result does not depend on the number of threads that trace them."""
 
 VISIBILITY_MODES: tuple[str, ...] = ("exact", "centre")
+FIRST_HIT_MODES: tuple[str, ...] = ("auto", "embree")
+"""How the tracer finds each ray's first hit: "auto" without Embree where the scene allows it (a
+box tank with convex objects, :mod:`~acoustisim.propagation.diffuse_hits`; the same events as
+Embree's but for rays grazing an edge), else Embree INTERSECT; "embree" always Embree (the
+general triangle-mesh path, for comparisons and benchmarks)."""
 """How the legs scattering point -> receiver are tested for occlusion: ``"exact"`` tests every
 receiver's leg; ``"centre"`` tests only the leg to the receiver nearest the receivers' centroid
 (the thesis sonar's centre transducer) and shares the answer with the other receivers (an
@@ -811,7 +816,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
 
 
 def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
-           visibility: str) -> _Tracer | None:
+           visibility: str, first_hits: str = "auto") -> _Tracer | None:
     """Validate the knobs and set up the tracer (None: nothing to trace)."""
     n_rays = int(config.diffuse_rays)
     if n_rays * int(config.diffuse_bounces) > MAX_RAY_EVENTS:
@@ -822,6 +827,8 @@ def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
     resolve_threads(threads)
     if visibility not in VISIBILITY_MODES:
         raise InputError(f"diffuse visibility = {visibility!r}: must be one of {', '.join(VISIBILITY_MODES)}")
+    if first_hits not in FIRST_HIT_MODES:
+        raise InputError(f"diffuse first_hits = {first_hits!r}: must be one of {', '.join(FIRST_HIT_MODES)}")
     scene = context.scene
     raycaster = context.raycaster
     mu_of_surface = np.array(
@@ -868,12 +875,13 @@ def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
         totals=totals,
         buffers=threading.local(),
         output=_Output(n_rays, bounces, n_rx),
-        hits=None if raycaster.box_tank_hits is None else raycaster.box_tank_hits.kernel_arguments(),
+        hits=None if first_hits == "embree" or raycaster.box_tank_hits is None
+        else raycaster.box_tank_hits.kernel_arguments(),
     )
 
 
 def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int | None = None,
-                  visibility: str = "exact") -> DiffuseEvents:
+                  visibility: str = "exact", first_hits: str = "auto") -> DiffuseEvents:
     """Trace ``config.diffuse_rays`` rays through ``config.diffuse_bounces`` Lambert scatterings.
 
     The rays are traced in chunks of :data:`CHUNK_RAYS` on up to ``threads`` threads; the result
@@ -888,6 +896,8 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
         Worker threads (>= 1); None: every core available to the process.
     visibility : {"exact", "centre"}
         See :data:`VISIBILITY_MODES`.
+    first_hits : {"auto", "embree"}
+        See :data:`FIRST_HIT_MODES`.
 
     Returns
     -------
@@ -896,10 +906,10 @@ def trace_diffuse(context: SolveContext, config: SolverConfig, *, threads: int |
     Raises
     ------
     InputError
-        If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`, or ``threads`` or
-        ``visibility`` is invalid.
+        If ``diffuse_rays x diffuse_bounces`` exceeds :data:`MAX_RAY_EVENTS`, or ``threads``,
+        ``visibility`` or ``first_hits`` is invalid.
     """
-    tracer = _setup(context, config, threads, visibility)
+    tracer = _setup(context, config, threads, visibility, first_hits)
     rx = np.ascontiguousarray(context.receivers_m, dtype=float)
     if tracer is None:
         return _Output(0, 1, rx.shape[0]).result(rx, (0, 0, 0))
