@@ -98,10 +98,12 @@ def _element_legs(prepared, sonar):
     return context, origins, targets
 
 
-def test_screen_decisions_equal_embree_over_poses(tank):
+def _screen_against_embree(tank, poses):
+    """Counts of the screen's decisions over the legs of these poses, each decided leg checked
+    against Embree's answer."""
     screen, planes = VisibilityScreen.create(tank.scene), tank.raycaster.convex_planes
     counts = {CLEAR: 0, BLOCKED: 0, UNDECIDED: 0}
-    for sonar in _poses(tank, 16, seed=11):
+    for sonar in poses:
         context, origins, targets = _element_legs(tank, sonar)
         decided = _decisions(screen, planes, origins, targets)
         embree = tank.raycaster.occluded(origins, targets)
@@ -109,9 +111,20 @@ def test_screen_decisions_equal_embree_over_poses(tank):
             counts[value] += int(np.sum(decided == value))
         np.testing.assert_array_equal(embree[decided == CLEAR], False)
         np.testing.assert_array_equal(embree[decided == BLOCKED], True)
+    return counts
+
+
+def test_screen_decisions_equal_embree_over_poses(tank):
+    counts = _screen_against_embree(tank, _poses(tank, 16, seed=11))
     # the objects hide legs in these poses, and nearly every leg is decided without Embree
     assert counts[BLOCKED] > 1000 and counts[CLEAR] > 100_000  # 16 poses: 2 790 and 214 107
     assert counts[UNDECIDED] < 1e-3 * (counts[CLEAR] + counts[BLOCKED])  # 4 of them
+
+
+@pytest.mark.slow
+def test_screen_decisions_equal_embree_over_many_poses(tank):
+    counts = _screen_against_embree(tank, _poses(tank, 120, seed=2026))
+    assert counts[BLOCKED] > 10_000 and counts[UNDECIDED] < 1e-3 * (counts[CLEAR] + counts[BLOCKED])
 
 
 def test_rows_equal_the_embree_only_visibility(tank):
