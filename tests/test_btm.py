@@ -163,3 +163,10 @@ def test_no_nan_on_boundary_at_the_apex_and_with_the_source_near_the_edge():
         for rs in (1e-5, 1.0):
             _, gain, _ = element_rows(0.5, rs, 1.0, 0.25, 0.5, tr, 0.25)
             assert gain.size > 0 and np.all(np.isfinite(gain))
+
+
+def test_absurd_element_length_is_refused_with_its_true_count():
+    # 1e30 elements: counted in floating point (an integer count would overflow int64 and
+    # could wrap below the limit)
+    with pytest.raises(ValueError, match=r"at least 1e\+30 elements"):
+        btm.discretise_edges([1.0], [0.5], [0.2], [0.6], [0.4], 1e-4, 1e-30, 10**7, coarsening_levels=2)

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from acoustisim.propagation.edge_kernels import branch_elements
+from acoustisim.propagation.edge_kernels import branch_elements, branch_setup
 
 ONSET_FRACTION = 1.0 / 128.0
 """Length of the first element of each branch, as a fraction of the path-length step."""
@@ -346,49 +346,35 @@ def discretise_edges(
         raise ValueError(f"coarsening_levels must be >= 0 and grading >= 1, got {coarsening_levels!r}, {grading!r}")
     length, rs, zs, rr, zr = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (length_m, r_s, z_s, r_r, z_r))
     p = length.size
-    z_star, _ = least_time(rs, zs, rr, zr)
-    z_apex = np.clip(z_star, 0.0, length)
-
-    def path(z: NDArray[np.float64], idx: NDArray[np.int64]) -> NDArray[np.float64]:
-        return np.hypot(rs[idx], z - zs[idx]) + np.hypot(rr[idx], z - zr[idx])
-
-    pairs = np.arange(p)
-    # branch 0 runs from the apex down to z = 0, branch 1 from the apex up to z = L
-    b_pair = np.repeat(pairs, 2)
-    b_upper = np.tile(np.array([False, True]), p)
-    b_end = np.where(b_upper, length[b_pair], 0.0)
-    b_start = z_apex[b_pair]
-    d_start = path(b_start, b_pair)
-    d_end = path(b_end, b_pair)
-    span = np.maximum(d_end - d_start, 0.0)
-    has = np.abs(b_end - b_start) > 0.0
+    # per branch (branch 2 k runs from pair k's apex, its least-time point clipped to the edge,
+    # down to z = 0, branch 2 k + 1 up to z = L): its ends and their path lengths, span,
+    # whether it has a length and starts at a joint of its chain, and the element count's
+    # lower bound, in one compiled loop (:func:`~acoustisim.propagation.edge_kernels.branch_setup`).
+    # A branch starting at a joint: branch 0 starts at z = L when the apex lies beyond L,
+    # branch 1 at z = 0 when the apex lies before 0. (Not refining towards a joint at a
+    # branch's end as well would save another 5 % of the thesis tank's rows, but it costs 7 dB
+    # of band-limited accuracy on its polygonal pipe rim, where neighbouring segments'
+    # integrands differ at the joint.)
+    joints = coarsening_levels > 0 and (open_start is not None or open_end is not None)
+    o_start = np.ascontiguousarray(np.broadcast_to(np.asarray(False if open_start is None else open_start, dtype=bool),
+                                                   (p,)))
+    o_end = np.ascontiguousarray(np.broadcast_to(np.asarray(False if open_end is None else open_end, dtype=bool), (p,)))
+    b_start, b_end, d_start, d_end, span, has, span_steps, joint_start, start_steps, estimate = branch_setup(
+        length, rs, zs, rr, zr, o_start, o_end, bool(joints), float(path_step_m), int(coarsening_levels),
+        float(max_element_m),
+    )
     # onset nodes: ONSET_FRACTION step, then (graded) doubling up to half a step
     onsets = ONSET_FRACTION * path_step_m * 2.0 ** np.arange(onset_nodes)
     onsets = onsets[onsets < path_step_m]
-    if max_elements is not None:
-        # a lower bound on the element count before allocating: the graded nodes (at least
-        # span / (2^J step)), and the length cap
-        n_graded = np.where(has, np.ceil(span / (path_step_m * 2.0**coarsening_levels)), 0.0)
-        cap_count = np.ceil(np.abs(b_end - b_start) / max_element_m)
-        estimate = float(np.sum(np.maximum(n_graded, cap_count)))
-        if estimate > max_elements:
-            raise ValueError(f"the edges need at least {estimate:.3g} elements (limit {max_elements})")
+    # a lower bound on the element count before allocating: the graded nodes (at least
+    # span / (2^J step)), and the length cap
+    if max_elements is not None and estimate > max_elements:
+        raise ValueError(f"the edges need at least {estimate:.3g} elements (limit {max_elements})")
     # nodes of each branch: its start (offset 0), the onset node, the graded grid nodes below
     # the span, and its end
     # (a branch with a zero span, up to round-off, still gets its start node)
-    span_steps = np.where(has, np.maximum(span / path_step_m, 0.5), 0.0)
-    start_steps = None
-    joint_start = np.zeros(2 * p, dtype=bool)
-    if coarsening_levels > 0 and (open_start is not None or open_end is not None):
-        o_start = np.broadcast_to(np.asarray(False if open_start is None else open_start, dtype=bool), (p,))
-        o_end = np.broadcast_to(np.asarray(False if open_end is None else open_end, dtype=bool), (p,))
-        # branch 0 starts at z = L when the apex lies beyond L, branch 1 at z = 0 when the apex
-        # lies before 0. (Not refining towards a joint at a branch's end as well would save
-        # another 5 % of the thesis tank's rows, but it costs 7 dB of band-limited accuracy on
-        # its polygonal pipe rim, where neighbouring segments' integrands differ at the joint.)
-        joint_start = np.where(b_upper, ((z_star < 0.0) & o_start)[b_pair], ((z_star > length) & o_end)[b_pair])
-        _, d_line = least_time(rs, zs, rr, zr)
-        start_steps = np.where(joint_start, (d_start - d_line[b_pair]) / path_step_m, 0.0)
+    if not joints:
+        start_steps = None
     first, count, spacing = _graded_intervals(span_steps, has, coarsening_levels, grading, start_steps)
     # per branch, the onset nodes below its span, after its start (m = 0)
     # (only the first where the branch starts at a joint: no singularity there)
