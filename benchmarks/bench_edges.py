@@ -10,10 +10,10 @@ With ``--before REV``, the same figures for the edge modules of git revision REV
 (``acoustisim/propagation/edges.py``, ``edge_*.py`` and ``btm.py`` of REV, over a copy of the
 current package, so that only the edge code differs), measured in child processes that
 alternate with the current code's for ``--rounds`` rounds (the same load for both), and the
-ratios before / now.
+ratios before / now (the median of each round's ratio).
 
 Run: ``python benchmarks/bench_edges.py [--repeats 21] [--before REV] [--rounds 3]``
-(``--repeats 21 --before b6e1281 --rounds 3``: about 1.5 min on the shared 2-core machine).
+(``--repeats 9 --before b6e1281 --rounds 12``: about 2 min on the shared 2-core machine).
 """
 
 from __future__ import annotations
@@ -164,8 +164,11 @@ def main() -> None:
         before = float(np.median([r[name] for r in results["before"]]))
         now = float(np.median([r[name] for r in results["now"]]))
         rounds = ", ".join(f"{b[name]:.2f}/{n[name]:.2f}" for b, n in zip(results["before"], results["now"]))
-        print(f"    {name}: before ({args.before}) {before:.2f} ms, now {now:.2f} ms, before / now = "
-              f"{before / now:.2f} (rounds before/now: {rounds})")
+        # the ratio within each round (neighbouring child processes: the nearest in load) is
+        # steadier on a shared machine than the ratio of the medians
+        ratio = float(np.median([b[name] / n[name] for b, n in zip(results["before"], results["now"])]))
+        print(f"    {name}: before ({args.before}) {before:.2f} ms, now {now:.2f} ms; median of the rounds' "
+              f"before / now = {ratio:.2f} (rounds before/now: {rounds})")
     rows = {int(r["rows"]) for r in results["before"] + results["now"]}
     print(f"    rows: {sorted(rows)}")
 
