@@ -171,3 +171,35 @@ def test_bad_code_input_is_refused():
     # Int32 codes within the int16 range are taken (as int16).
     result = detect(codes.astype(np.int32), "threshold", sample_rate_hz=FS, volts_per_code=Q)
     _assert_same_echoes(detect(codes, "threshold", sample_rate_hz=FS, volts_per_code=Q), result, 0.0)
+
+
+@pytest.mark.parametrize("where", [0, 12_345, N - 1])
+@pytest.mark.parametrize("window", [None, (250e-6, 450e-6)])
+def test_local_matched_judges_clipping_on_the_extremes_its_coarse_pass_reads(where, window):
+    # local-matched on codes leaves the rails test to its own pass over the codes (one read of
+    # the record, not two): the first and last samples (outside its groups of blocks) and,
+    # with a search window, samples it does not search must still be judged, as the separate
+    # pass judges them (``as_signals`` without deferral).
+    from binsonar.detection import Detector, prepare
+
+    codes = _codes()
+    codes[0, 1, where] = -2047  # the negative rail on channel 1
+    codes[0, 2, where] = 1000  # below the rails, at a lower full scale given by the caller
+    recording = Recording(None, FS, template=pulse_template(), codes=codes, volts_per_code=Q, adc_bits=BITS)
+    options = {} if window is None else {"search_window_s": window}
+    separate = as_signals(recording, full_scale_v=1000 * Q, remove_dc=False).clipped
+    assert separate.tolist() == [[False, True, True]]
+    prepared = prepare("local-matched", sample_rate_hz=FS, n_samples=N, template=pulse_template(), **options)
+    for full_scale, expected in ((None, ((False, True, False),)), (1000 * Q, ((False, True, True),))):
+        results = [detect(recording, "local-matched", full_scale_v=full_scale, **options),
+                   prepared.run(recording, full_scale_v=full_scale),
+                   Detector().detect(recording, "local-matched", full_scale_v=full_scale, **options)]
+        for result in results:
+            assert result.clipped == expected
+            assert all(e.clipped == expected[0][c] for c in range(3) for e in result.echoes[0][c])
+    dropped = detect(recording, "local-matched", on_clipped="drop", **options)
+    assert dropped.echoes[0][1] == () and dropped.echoes[0][0]
+    with pytest.raises(RecordingError, match="channel 1 clipped"):
+        prepared.run(recording, on_clipped="error")
+    # Averaged (seed-9's variant through volts): the separate pass, same flags.
+    assert detect(recording, "local-matched", average=True, **options).clipped == ((False, True, False),)

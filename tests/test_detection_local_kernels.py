@@ -295,7 +295,10 @@ def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed
     settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], k, plan.half,
                          plan.segment_length, plan.block, plan.matched.analytic_offset, stride, reach])
     echoes = np.empty((3, 5))
-    local_kernels.local_echoes(rows, 1.0, dc_rows, sigma, plan.tone_lanes, plan.tap_parts, settings, constants, echoes)
+    extremes = np.empty((3, 2))
+    local_kernels.local_echoes(rows, 1.0, dc_rows, sigma, plan.tone_lanes, plan.tap_parts, plan.tap_parts32, settings,
+                               constants, echoes, extremes)
+    assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1))
 
     z, start = _candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
     values = np.empty((3, 2 * reach + 1), dtype=complex)
@@ -316,3 +319,29 @@ def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed
     assert np.max(np.abs(lag - lag_ref)) < 1e-9
     amplitude = np.sqrt(peak_ref) / plan.matched.peak_response * np.max(np.abs(plan.matched.template.samples))
     assert np.max(np.abs(echoes[:, 1] / amplitude - 1.0)) < 1e-9
+
+
+@pytest.mark.parametrize("n, bounds", [(N, (0, N - 201)), (N, (30_000, 30_100)), (N, (N - 400, N - 201)),
+                                       (700, (0, 499)), (260, (0, 59))])
+@pytest.mark.parametrize("codes", [False, True])
+def test_coarse_pass_measures_every_samples_extremes(n, bounds, codes):
+    # The clipping test read with the coarse pass (chunk by chunk, then the samples outside the
+    # searched blocks): every sample's largest and smallest value, exactly, and the same picks
+    # as the coarse pass alone.
+    from binsonar.detection import local_kernels
+
+    plan = plan_local(_template(), n, FS)
+    rows, _ = _rows(8, False)
+    rows = rows[:, :n] * 1000.0
+    if codes:
+        rows = np.rint(rows).astype(np.int16)
+    rows = np.ascontiguousarray(rows)
+    rows[0, 0], rows[1, -1], rows[2, n // 2] = 3000, -3000, 2500  # first, last and a middle sample
+    settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], 3, plan.half,
+                         plan.segment_length, plan.block])
+    starts, alone = np.empty(9, dtype=np.int64), np.empty(9, dtype=np.int64)
+    extremes = np.empty((3, 2))
+    local_kernels.coarse_starts(rows, 1.0, np.zeros(3), plan.tone_lanes, settings, starts, extremes)
+    local_kernels.coarse_starts(rows, 1.0, np.zeros(3), plan.tone_lanes, settings, alone, np.empty((0, 2)))
+    assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1).astype(float))
+    assert np.array_equal(starts, alone)

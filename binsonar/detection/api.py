@@ -36,7 +36,7 @@ RawEchoes = list[list[tuple[float, float, float, float, float]]]
 
 # Parameters of the method functions that ``detect`` supplies itself (not user options).
 _SUPPLIED = frozenset({"rows", "plan", "template", "sample_rate_hz", "t0_s", "where", "kind", "noise_floor_v", "dc_v",
-                       "robust_sigma_v", "volts_per_code"})
+                       "robust_sigma_v", "volts_per_code", "extremes_out"})
 # Base methods that take the robust noise estimate measured with the offsets
 # (``Signals.noise_sigma_v``, as ``robust_sigma_v``) instead of measuring it again.
 TAKES_ROBUST_SIGMA = frozenset({"threshold", "local-matched"})
@@ -49,6 +49,10 @@ FOLDS_DC = frozenset({"threshold", "local-matched", "matched"})
 # they give on the volts to rounding (``tests/test_detection_codes.py``). They take the codes
 # when they run without averaging or band-pass; the others, and those, get volts.
 TAKES_CODES = frozenset({"threshold", "local-matched", "matched"})
+# Base methods that read every sample of the codes they take and report each row's extremes
+# (``extremes_out``), so that the clipping test of a record of ADC codes is done on those
+# extremes instead of by a pass of its own (``inputs.as_signals(..., defer_clipping=True)``).
+MEASURES_EXTREMES = frozenset({"local-matched"})
 
 
 def _method_function(base: str) -> Callable[..., RawEchoes]:
@@ -206,7 +210,8 @@ class PreparedDetector:
         """
         start = time.perf_counter()
         signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v,
-                             adc_step_v, remove_dc=False, volts_per_code=volts_per_code, adc_bits=adc_bits)
+                             adc_step_v, remove_dc=False, volts_per_code=volts_per_code, adc_bits=adc_bits,
+                             defer_clipping=self.base in MEASURES_EXTREMES and on_clipped != "error")
         if not math.isclose(signals.sample_rate_hz, self.sample_rate_hz, rel_tol=1e-12) or signals.n_samples != self.n_samples:
             raise RecordingError(
                 f"{signals.source}: {signals.n_samples} samples at {signals.sample_rate_hz:g} Hz, but the detector was "
@@ -217,6 +222,12 @@ class PreparedDetector:
     def _detect(self, signals: Signals, on_clipped: str, start: float) -> DetectionResult:
         if on_clipped not in CLIPPED_POLICIES:
             raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
+        # A clipping test left pending (codes, ``MEASURES_EXTREMES``) is finished on the extremes
+        # the method measures when it reads the codes as they are; otherwise here, by a pass.
+        deferred = bool(signals.pending_full_scales_v) and self.base in MEASURES_EXTREMES and on_clipped != "error" \
+            and not self.average and self.bandpass_hz is None and signals.volts_per_code is not None
+        if not deferred:
+            signals = signals.with_clipping_checked()
         if on_clipped == "error" and signals.clipped.any():
             ping, channel = (int(v) for v in np.argwhere(signals.clipped)[0])
             raise RecordingError(
@@ -235,7 +246,10 @@ class PreparedDetector:
             signals = _preprocess(signals, self.average, self.bandpass_hz, self.bandpass_order)
         n_pings, n_channels, n = signals.waveforms.shape
         rows = signals.waveforms.reshape(n_pings * n_channels, n)
-        raw = _run(self, rows, signals)
+        extremes = np.empty((rows.shape[0], 2)) if deferred else None
+        raw = _run(self, rows, signals, extremes)
+        if extremes is not None:
+            signals = signals.with_extremes(extremes[:, 0], extremes[:, 1])
         clipped = signals.clipped
         echoes = tuple(
             tuple(
@@ -491,7 +505,8 @@ def detect_with_plans(
     if on_clipped not in CLIPPED_POLICIES:
         raise RecordingError(f"on_clipped must be one of {CLIPPED_POLICIES}, got {on_clipped!r}")
     signals = as_signals(data, sample_rate_hz, t0_s, full_scale_v, adc_step_v, remove_dc=False,
-                         volts_per_code=volts_per_code, adc_bits=adc_bits)
+                         volts_per_code=volts_per_code, adc_bits=adc_bits,
+                         defer_clipping=base in MEASURES_EXTREMES and on_clipped != "error")
     band_from_template = isinstance(bandpass_hz, str) or (bandpass_hz is None and seed_bandpass)
 
     def build() -> PreparedDetector:
@@ -516,9 +531,12 @@ def detect_with_plans(
     return prepared._detect(signals, on_clipped, start)
 
 
-def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals) -> RawEchoes:
+def _run(
+    prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals, extremes: NDArray[np.float64] | None = None
+) -> RawEchoes:
     """Call the base method with what it needs, on chunks of rows (bounded memory: every
-    method treats rows independently)."""
+    method treats rows independently); with ``extremes`` (shape (n_rows, 2), a method in
+    ``MEASURES_EXTREMES``), the method writes each row's largest and smallest value there."""
     base, function = prepared.base, _method_function(prepared.base)
     options = dict(prepared.options)
     options["noise_floor_v"] = signals.noise_floor_v
@@ -542,6 +560,8 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, dc_v=dc_v, **options)  # noqa: E731
     elif base == "local-matched":
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, where=where, dc_v=dc_v, **options)  # noqa: E731
+        if extremes is not None:
+            options["extremes_out"] = None  # per chunk below
     else:
         kind = "ca" if base == "ca-cfar" else "os"
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
@@ -551,5 +571,7 @@ def _run(prepared: PreparedDetector, rows: NDArray[np.float64], signals: Signals
     for start in range(0, rows.shape[0], ROW_CHUNK):  # chunks of rows, vectorised inside
         if robust is not None:
             options["robust_sigma_v"] = robust[start:start + ROW_CHUNK]
+        if extremes is not None:
+            options["extremes_out"] = extremes[start:start + ROW_CHUNK]
         out.extend(call(rows[start:start + ROW_CHUNK], None if dc is None else dc[start:start + ROW_CHUNK]))
     return out

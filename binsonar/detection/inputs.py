@@ -68,6 +68,44 @@ class Signals:
     ``dc_v``, ``noise_sigma_v`` and ``noise_floor_v`` are in volts all the same). The detectors
     in ``api.TAKES_CODES`` read the codes (a quarter of the bytes of the volts); the others get
     ``in_volts()``."""
+    pending_full_scales_v: tuple[float, ...] = ()
+    """Full scales (V) the codes have not been tested against yet (``as_signals(...,
+    defer_clipping=True)``): ``clipped`` then lacks that test until ``with_clipping_checked``
+    (one pass over the codes) or ``with_extremes`` (each row's extremes, measured by a detector
+    that reads every sample anyway: ``local.detect_local_matched``'s ``extremes_out``) is applied."""
+
+    def with_extremes(self, largest: NDArray, smallest: NDArray) -> "Signals":
+        """These signals with the pending clipping test applied to each row's extremes.
+
+        Parameters
+        ----------
+        largest, smallest : ndarray, shape (n_pings * n_channels,)
+            Each ping-channel's largest and smallest value, in the units of ``waveforms``
+            (codes).
+        """
+        if not self.pending_full_scales_v:
+            return self
+        step = 1.0 if self.volts_per_code is None else self.volts_per_code
+        high = np.asarray(largest, dtype=float) * step
+        low = np.asarray(smallest, dtype=float) * step
+        clipped = np.zeros(high.shape, dtype=bool)
+        for full_scale in self.pending_full_scales_v:  # a full scale or two
+            limit = full_scale * (1.0 - 1e-9)  # as ``_clipped_by_full_scale``
+            clipped |= (high >= limit) | (low <= -limit)
+        return replace(self, clipped=self.clipped | clipped.reshape(self.clipped.shape), pending_full_scales_v=())
+
+    def with_clipping_checked(self) -> "Signals":
+        """These signals with the pending clipping test done (one pass over the codes); self
+        when none is pending."""
+        if not self.pending_full_scales_v:
+            return self
+        from binsonar.detection.code_kernels import row_extremes
+
+        rows = np.ascontiguousarray(self.waveforms).reshape(self.n_pings * self.n_channels, self.n_samples)
+        largest = np.empty(rows.shape[0], dtype=np.int64)
+        smallest = np.empty(rows.shape[0], dtype=np.int64)
+        row_extremes(rows, largest, smallest)
+        return self.with_extremes(largest, smallest)
 
     @property
     def n_pings(self) -> int:
@@ -85,10 +123,11 @@ class Signals:
         return int(self.waveforms.shape[2])
 
     def in_volts(self) -> "Signals":
-        """These signals with the waveforms in volts (self when they are already)."""
+        """These signals with the waveforms in volts (self when they are already), a pending
+        clipping test done first (on the codes)."""
         if self.volts_per_code is None:
             return self
-        return replace(self, waveforms=self.waveforms * self.volts_per_code, volts_per_code=None)
+        return replace(self.with_clipping_checked(), waveforms=self.waveforms * self.volts_per_code, volts_per_code=None)
 
     def without_dc(self) -> "Signals":
         """These signals in volts with the DC offsets ``dc_v`` subtracted (self when they are
@@ -100,7 +139,15 @@ class Signals:
 
     def with_waveforms(self, waveforms: NDArray[np.float64], clipped: NDArray[np.bool_] | None = None) -> "Signals":
         """A copy with other waveforms (same sample rate and time origin), offsets removed
-        (``dc_v`` None): the caller gives waveforms with no DC left in them."""
+        (``dc_v`` None): the caller gives waveforms with no DC left in them.
+
+        Raises
+        ------
+        RecordingError
+            A clipping test still pending (it must be judged on the codes as recorded).
+        """
+        if self.pending_full_scales_v:
+            raise RecordingError(f"{self.source}: internal: new waveforms before the pending clipping test")
         return Signals(
             waveforms=waveforms,
             sample_rate_hz=self.sample_rate_hz,
@@ -217,16 +264,20 @@ def _code_signals(
     template: Template | None,
     where: str,
     remove_dc: bool,
+    defer_clipping: bool = False,
 ) -> Signals:
     """``Signals`` of ADC codes: clipping judged on the codes (the ADC's rails
-    +/-(2^(bits - 1) - 1) codes, and ``full_scale_v``), offsets and noise from a histogram."""
+    +/-(2^(bits - 1) - 1) codes, and ``full_scale_v``; left pending with ``defer_clipping``),
+    offsets and noise from a histogram."""
     full_scales: tuple[float, ...] = () if full_scale_v is None else (float(full_scale_v),)
     if adc_bits is not None:
         full_scales += ((2 ** (int(adc_bits) - 1) - 1) * volts_per_code,)
     step = adc_step_v if adc_step_v is not None else volts_per_code
-    dc, sigma, clipped_now = code_offsets(codes, volts_per_code, full_scales)
+    defer = defer_clipping and not remove_dc
+    dc, sigma, clipped_now = code_offsets(codes, volts_per_code, () if defer else full_scales)
     signals = Signals(codes, float(sample_rate_hz), float(t0_s), clipped | clipped_now, template, where,
-                      quantisation_noise_std_v(step), dc, sigma, float(volts_per_code))
+                      quantisation_noise_std_v(step), dc, sigma, float(volts_per_code),
+                      full_scales if defer else ())
     return signals.without_dc() if remove_dc else signals
 
 
@@ -255,6 +306,7 @@ def as_signals(
     remove_dc: bool = True,
     volts_per_code: float | None = None,
     adc_bits: int | None = None,
+    defer_clipping: bool = False,
 ) -> Signals:
     """Validate a recording or an array and return it as ``Signals``, each ping-channel's DC
     offset removed (or, with ``remove_dc=False``, measured and carried in ``Signals.dc_v``).
@@ -289,6 +341,11 @@ def as_signals(
         codes (no conversion to volts here).
     adc_bits : int, optional
         Arrays of codes only: the ADC's resolution; a code at +/-(2^(bits - 1) - 1) is clipped.
+    defer_clipping : bool
+        ADC codes kept as codes (``remove_dc=False``) only: leave the full-scale test of the
+        codes pending (``Signals.pending_full_scales_v``) for the caller to finish
+        (``Signals.with_clipping_checked`` or ``with_extremes``), saving a pass over the codes
+        when the detector reads every sample anyway. Ignored otherwise.
 
     Raises
     ------
@@ -310,7 +367,7 @@ def as_signals(
         if data.codes is not None:
             return _code_signals(data.codes, float(data.volts_per_code), data.adc_bits,  # type: ignore[arg-type]
                                  np.array(data.clipped, dtype=bool), full_scale_v, adc_step_v, data.sample_rate_hz,
-                                 data.t0_s, data.template, where, remove_dc)
+                                 data.t0_s, data.template, where, remove_dc, defer_clipping)
         waveforms = np.asarray(data.waveforms, dtype=float)
         clipped = np.array(data.clipped, dtype=bool)
         if data.volts_per_code is not None and data.adc_bits is not None:
@@ -363,7 +420,7 @@ def as_signals(
         _check_rate(where, sample_rate_hz, t0_s)
         return _code_signals(waveforms, float(volts_per_code), adc_bits, np.zeros(waveforms.shape[:2], dtype=bool),
                              full_scale_v, adc_step_v, float(sample_rate_hz), float(t0_s), None,  # type: ignore[arg-type]
-                             where, remove_dc)
+                             where, remove_dc, defer_clipping)
     # The sum is finite unless a sample is NaN/inf (or it overflows): one cheap pass first.
     finite = np.isfinite(waveforms) if not np.isfinite(waveforms.sum()) else None
     if finite is not None and not finite.all():

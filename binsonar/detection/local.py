@@ -176,6 +176,9 @@ class LocalPlan:
     """``local_kernels.echo_rows``'s constants but the first (t0_s) and last (threshold factor),
     shape (8,): sample rate, template t0_s, ``white_noise_power`` of 1 V, peak response, the
     template's largest |sample|, RMS bandwidth."""
+    tap_parts32: NDArray[np.float32] = field(repr=False)
+    """The first two rows of ``tap_parts`` in single precision, shape (2, m_a + 1): the taps of
+    the stretches' search (``local_kernels.local_echoes``)."""
     decimation: int = 1
     """D: the candidates' z is computed at every D-th lag only, by an inverse FFT of
     ``segment_fft // D`` points of the band (exact: z is band-limited to the band's bins, all
@@ -301,6 +304,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         echo_constants=np.array([0.0, fs, matched.template.t0_s, float(white_noise_power(matched, 1.0)),
                                  matched.peak_response, float(np.max(np.abs(matched.template.samples))),
                                  matched.rms_bandwidth_hz, 0.0]),
+        tap_parts32=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0)]).astype(np.float32),
         decimation=int(decimation),
     )
 
@@ -508,6 +512,7 @@ def detect_local_matched(
     dc_v: NDArray[np.float64] | None = None,
     robust_sigma_v: NDArray[np.float64] | None = None,
     volts_per_code: float | None = None,
+    extremes_out: NDArray[np.float64] | None = None,
 ) -> list[list[tuple[float, float, float, float, float]]]:
     """Local matched filter around the strongest coarse windows of each row (module notes).
 
@@ -541,6 +546,10 @@ def detect_local_matched(
         ``rows`` are ADC codes of this step (V), read as they are (2 bytes a sample): the
         block correlations are scaled to volts, the stretches and the direct correlations
         made of volts code * volts_per_code, so the result is that of the volts to rounding.
+    extremes_out : ndarray, shape (n_rows, 2), optional
+        Written with each row's largest and smallest value (units of ``rows``), read with the
+        coarse pass (no pass of its own): the clipping test ``api`` defers to here for records
+        of ADC codes (``inputs.Signals.pending_full_scales_v``).
 
     Returns
     -------
@@ -577,6 +586,7 @@ def detect_local_matched(
     # refinement as the full matched filter's, ``matched.echo_values``; checked against the
     # numpy definitions and the FFT route in tests/test_detection_local_kernels.py).
     local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), np.ascontiguousarray(sigma, dtype=float),
-                               plan.tone_lanes, plan.tap_parts, settings, constants, echoes)
+                               plan.tone_lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,
+                               np.empty((0, 2)) if extremes_out is None else extremes_out)
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
     return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in echoes.tolist()]
