@@ -213,11 +213,15 @@ class _LobeTable:
         The cell of each equiprobable bin.
     lobe_pdf : ndarray, shape (_COS_CELLS,)
         The lobe pdf (per steradian) of a direction in each cell.
+    azimuth : ndarray, shape (2**AZIMUTH_BITS, 2)
+        :func:`~acoustisim.propagation.diffuse_kernels.azimuth_table` (the azimuths' cosines
+        and sines are rotated from it, without trigonometric calls).
     """
 
     edges: NDArray[np.float64]
     guide: NDArray[np.int32]
     lobe_pdf: NDArray[np.float64]
+    azimuth: NDArray[np.float64]
 
     @classmethod
     def create(cls, context: SolveContext) -> "_LobeTable":
@@ -239,7 +243,7 @@ class _LobeTable:
         kernels.guide_table(mass, guide, counts)
         share = counts / _GUIDE_BINS
         lobe_pdf = share / (2.0 * np.pi * (2.0 / _COS_CELLS))  # per steradian, per cell
-        return cls(edges, guide, lobe_pdf)
+        return cls(edges, guide, lobe_pdf, kernels.azimuth_table())
 
     @staticmethod
     def uniform_count(n: int) -> int:
@@ -257,10 +261,8 @@ class _LobeTable:
 
     def draw(self, n: int, totals: tuple[int, int], frame: tuple[NDArray[np.float64], ...],
              rng: "np.random.Generator | _ChunkStream", workspace: "_DrawBuffers | None" = None,
-             cells: NDArray[np.float64] | None = None) -> tuple[
-                 NDArray[np.float64], NDArray[np.float32], NDArray[np.float64]]:
-        """Directions of ``n`` rays as components (3, n) and as float32 rows (n, 3) (Embree's
-        buffer), and their solid angles (n,) (sr).
+             cells: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Directions of ``n`` rays as components (3, n), and their solid angles (n,) (sr).
 
         ``workspace``: buffers for at least ``n`` rays, overwritten and returned (views); None:
         new arrays. ``cells``: :meth:`cells` of ``totals`` (None: made here).
@@ -269,28 +271,28 @@ class _LobeTable:
 
         The first :meth:`uniform_count` rays are uniform over the sphere, the others follow the
         lobe; ``totals`` = (N_u, N_l) over every chunk of the solve set the solid angles.
-        Two random numbers per ray: the cell and the position in it come from one (its
-        integer and fractional parts in units of a guide bin), the azimuth from the other.
+        Two random numbers per ray, the next 2n of ``rng`` as an array (2, n): the cell and the
+        position in it come from row 0 (its integer and fractional parts in units of a guide
+        bin), the azimuth from row 1. From a :class:`_ChunkStream` they are drawn inside the
+        compiled loop (:func:`~acoustisim.propagation.diffuse_kernels.draw_transmit_directions`,
+        the same numbers, no array of them).
         """
         n_uniform = self.uniform_count(n)
-        w = _DrawBuffers.create(n) if workspace is None else workspace
-        u = w.uniform[: 2 * n].reshape(2, n)
-        rng.random(out=u)
-        # the azimuth's cosine and sine in float32, rescaled to unit length in the kernel (as
-        # _unit_circle does)
-        phi32, cos32 = w.angle32[:n], w.cos32[:n]
-        np.copyto(phi32, u[1], casting="same_kind")
-        phi32 *= np.float32(2.0 * np.pi)
-        np.cos(phi32, out=cos32)
-        sin32 = np.sin(phi32, out=phi32)
-        directions = w.directions[: 3 * n].reshape(3, n)
-        directions32, solid_angle = w.directions32[:n], w.solid_angle[:n]
+        if workspace is None:
+            directions, solid_angle = np.empty((3, n)), np.empty(n)
+        else:
+            directions, solid_angle = workspace.directions[: 3 * n].reshape(3, n), workspace.solid_angle[:n]
         e1, e2, axis = frame
-        kernels.transmit_directions(u[0], cos32, sin32, n_uniform, self.guide,
-                                    self.cells(totals) if cells is None else cells,
-                                    (self.edges[0] - self.edges[-1]) / self.lobe_pdf.size, e1, e2, axis, directions,
-                                    directions32, solid_angle)
-        return directions, directions32, solid_angle
+        cells = self.cells(totals) if cells is None else cells
+        width = (self.edges[0] - self.edges[-1]) / self.lobe_pdf.size
+        if isinstance(rng, _ChunkStream):
+            kernels.draw_transmit_directions(rng.key, rng.drawn, n, n_uniform, self.guide, cells, width, self.azimuth,
+                                             e1, e2, axis, directions, solid_angle)
+            rng.drawn += 2 * n
+        else:
+            kernels.transmit_directions(rng.random((2, n)), n_uniform, self.guide, cells, width, self.azimuth,
+                                        e1, e2, axis, directions, solid_angle)
+        return directions, solid_angle
 
 
 class _ChunkStream:
@@ -345,11 +347,7 @@ class _DrawBuffers:
     (capacity x receivers,) its (hit, receiver) pairs
     (:func:`~acoustisim.propagation.diffuse_kernels.scatter_and_pair`)."""
 
-    uniform: NDArray[np.float64]
-    angle32: NDArray[np.float32]
-    cos32: NDArray[np.float32]
     directions: NDArray[np.float64]
-    directions32: NDArray[np.float32]
     solid_angle: NDArray[np.float64]
     triangle: NDArray[np.int32] | None = None
     pending: NDArray[np.int64] | None = None
@@ -360,8 +358,7 @@ class _DrawBuffers:
     def create(cls, capacity: int, receivers: int = 0) -> "_DrawBuffers":
         """Uninitialised buffers for ``capacity`` rays (the bounce buffers with ``receivers`` > 0)."""
         bounce = receivers > 0
-        return cls(np.empty(2 * capacity), np.empty(capacity, dtype=np.float32), np.empty(capacity, dtype=np.float32),
-                   np.empty(3 * capacity), np.empty((capacity, 3), dtype=np.float32), np.empty(capacity),
+        return cls(np.empty(3 * capacity), np.empty(capacity),
                    np.empty(capacity, dtype=np.int32) if bounce else None,
                    np.empty(capacity, dtype=np.int64) if bounce else None,
                    np.empty(capacity * receivers, dtype=np.int8) if bounce else None,
@@ -392,8 +389,8 @@ def sample_directions(
     """
     n_uniform = _LobeTable.uniform_count(n)
     axis = np.asarray(boresight, dtype=float)
-    directions, _, solid_angle = _LobeTable.create(context).draw(n, (n_uniform, n - n_uniform), (*_basis(axis), axis),
-                                                                 rng)
+    directions, solid_angle = _LobeTable.create(context).draw(n, (n_uniform, n - n_uniform), (*_basis(axis), axis),
+                                                              rng)
     return np.ascontiguousarray(directions.T), solid_angle
 
 
@@ -698,32 +695,28 @@ def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | 
 
 
 def _hit_triangles(tracer: _Tracer, origins: NDArray[np.float64], directions: NDArray[np.float64],
-                   directions32: NDArray[np.float32] | None, buffers: _DrawBuffers) -> tuple[NDArray[np.int32], int]:
+                   first: bool, buffers: _DrawBuffers) -> tuple[NDArray[np.int32], int]:
     """The first-hit triangle (m,) of each ray from ``origins`` (3, m) (or (3, 1), shared)
     along ``directions`` (3, m), and the number of rays Embree was asked about.
 
     Found by :func:`~acoustisim.propagation.diffuse_hits.first_hits` where the scene allows,
-    else (and for the rays it leaves pending) by Embree, on float32 rows equal to those the
-    tracer always gave it (``directions32``: the first bounce's, (m, 3), whose origin is the
-    transmitter; None: a later bounce's, made here). The triangles are written into
-    ``buffers.triangle`` (a view of it is returned) unless Embree finds them all.
+    else (and for the rays it leaves pending) by Embree, on float32 rows of the directions
+    made here (``first``: the first bounce, whose origin is the transmitter). The triangles
+    are written into ``buffers.triangle`` (a view of it is returned) unless Embree finds them
+    all.
     """
     raycaster = tracer.raycaster
     shift = raycaster.shift_m
     m = directions.shape[1]
-    first = directions32 is not None  # (a later bounce may have one ray, and origins (3, 1) too)
     if tracer.hits is None:
         origins32 = tracer.origins32[:m] if first else _float32_rows(origins, shift, m)
-        rows32 = directions32 if directions32 is not None else _float32_rows(directions, None, m)
-        return raycaster.first_hit_triangles32(origins32, rows32), m
+        return raycaster.first_hit_triangles32(origins32, _float32_rows(directions, None, m)), m
     triangle, pending = buffers.triangle[:m], buffers.pending[:m]
     k = first_hits(origins, directions, *tracer.hits, triangle, pending)
     if k:
         rays = pending[:k]
         origins32 = tracer.origins32[:k] if first else _float32_rows(origins[:, rays], shift, k)
-        rows32 = (np.ascontiguousarray(directions32[rays]) if directions32 is not None
-                  else _float32_rows(directions[:, rays], None, k))
-        triangle[rays] = raycaster.first_hit_triangles32(origins32, rows32)
+        triangle[rays] = raycaster.first_hit_triangles32(origins32, _float32_rows(directions[:, rays], None, k))
     return triangle, k
 
 
@@ -742,7 +735,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     buffers = getattr(tracer.buffers, "draw", None)  # this thread's, reused chunk after chunk
     if buffers is None:
         buffers = tracer.buffers.draw = _DrawBuffers.create(min(tracer.n_rays, CHUNK_RAYS), n_rx)
-    directions, directions32, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng, buffers, tracer.cells)
+    directions, weight = tracer.lobe.draw(n, tracer.totals, tracer.frame, rng, buffers, tracer.cells)
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
@@ -750,8 +743,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     legs = [0, 0, 0]  # sent to Embree, decided by the convex objects' planes; rays sent to Embree
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
-        triangle, embree_rays = _hit_triangles(tracer, origins, directions, directions32 if bounce == 0 else None,
-                                               buffers)
+        triangle, embree_rays = _hit_triangles(tracer, origins, directions, bounce == 0, buffers)
         legs[2] += embree_rays
         keep = bounce + 1 < tracer.bounces  # the rays continue
         # the events go straight to the output, from row event_row on
