@@ -81,11 +81,14 @@ def splitmix_uniforms(key: np.uint64, start: int, out: NDArray[np.float64]) -> N
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _speckle(x: float, y: float, z: float, cell: float, seed_hash: np.uint64) -> tuple[float, float]:
-    """|X| and arg X of the speckle factor of the point (x, y, z) (m)."""
-    kx = np.uint64(np.int64(math.floor(x / cell)))
-    ky = np.uint64(np.int64(math.floor(y / cell)))
-    kz = np.uint64(np.int64(math.floor(z / cell)))
+def _speckle(x: float, y: float, z: float, per_cell: float, seed_hash: np.uint64) -> tuple[float, float]:
+    """|X| and arg X of the speckle factor of the point (x, y, z) (m); ``per_cell`` = 1 / cell
+    (1/m): the cube's integer coordinates are floor(x per_cell) (three products instead of
+    three divisions; the cubes' faces move by an ulp, the factor stays a function of the
+    position)."""
+    kx = np.uint64(np.int64(math.floor(x * per_cell)))
+    ky = np.uint64(np.int64(math.floor(y * per_cell)))
+    kz = np.uint64(np.int64(math.floor(z * per_cell)))
     h = splitmix64(((kx * PRIME_X) ^ (ky * PRIME_Y) ^ (kz * PRIME_Z)) ^ seed_hash)
     # two independent 32-bit uniforms from the high and low halves of the 64-bit hash
     u1 = np.float64(h >> _S32) * 2.0**-32
@@ -104,8 +107,9 @@ def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.f
 
     ``seed_hash`` is ``splitmix64(seed)``; ``cell`` the side of the cubes sharing a factor (m).
     """
+    per_cell = 1.0 / cell
     for i in range(x.size):
-        m, a = _speckle(x[i], y[i], z[i], cell, seed_hash)
+        m, a = _speckle(x[i], y[i], z[i], per_cell, seed_hash)
         magnitude[i] = m
         phase[i] = a
 
@@ -371,6 +375,7 @@ def scatter_and_pair(
     one_origin = origins.shape[1] == 1
     n_rx = receivers.shape[0]
     n_boxes = lo.shape[0]
+    per_cell = 1.0 / cell
     n_legs = 0
     n_exact = 0
     in_view = 0
@@ -397,7 +402,7 @@ def scatter_and_pair(
         out_departure[row, 0], out_departure[row, 1], out_departure[row, 2] = (
             departure[0, ray], departure[1, ray], departure[2, ray])
         w = weight[ray]
-        magnitude, angle = _speckle(px, py, pz, cell, seed_hash)
+        magnitude, angle = _speckle(px, py, pz, per_cell, seed_hash)
         phase[row] = angle
         point_amplitude = magnitude * math.sqrt(w * m)  # |X| sqrt(mu dOmega)
         out_travelled[row] = (travelled[0] if travelled.size == 1 else travelled[ray]) + distance
