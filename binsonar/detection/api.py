@@ -248,28 +248,31 @@ class PreparedDetector:
         rows = signals.waveforms.reshape(n_pings * n_channels, n)
         extremes = np.empty((rows.shape[0], 2)) if deferred else None
         raw = _run(self, rows, signals, extremes)
-        if extremes is not None:
-            signals = signals.with_extremes(extremes[:, 0], extremes[:, 1])
-        clipped = signals.clipped
+        clipped = signals.clipped if extremes is None else signals.clipped_by_extremes(extremes[:, 0], extremes[:, 1])
+        flags = clipped.tolist()  # Python bools, one conversion
+        drop = on_clipped == "drop"
         echoes = tuple(
             tuple(
-                tuple(
-                    Echo(channel=c, tof_s=e[0], amplitude=e[1], snr_db=e[2], score=e[3], ping=p, tof_std_s=e[4],
-                         clipped=bool(clipped[p, c]))
-                    for e in raw[p * n_channels + c]
-                ) if not (on_clipped == "drop" and clipped[p, c]) else ()
+                () if drop and flags[p][c] else tuple(
+                    Echo(c, e[0], e[1], e[2], e[3], p, e[4], flags[p][c]) for e in raw[p * n_channels + c]
+                )
                 for c in range(n_channels)
             )
             for p in range(n_pings)
         )
-        used = {"average": self.average, "bandpass_hz": self.bandpass_hz, **dict(self.options)}
         return DetectionResult(
             method=self.method,
             echoes=echoes,
             elapsed_s=time.perf_counter() - start,
-            clipped=tuple(tuple(bool(v) for v in row) for row in clipped),
-            options=tuple(sorted((k, v) for k, v in used.items() if v is not None)),
+            clipped=tuple(tuple(row) for row in flags),
+            options=self._used_options,
         )
+
+    @property
+    def _used_options(self) -> tuple[tuple[str, Any], ...]:
+        """``DetectionResult.options``: average, band and the method options, sorted, None left out."""
+        used = {"average": self.average, "bandpass_hz": self.bandpass_hz, **dict(self.options)}
+        return tuple(sorted((k, v) for k, v in used.items() if v is not None))
 
 
 def _prepare(

@@ -74,25 +74,38 @@ class Signals:
     (one pass over the codes) or ``with_extremes`` (each row's extremes, measured by a detector
     that reads every sample anyway: ``local.detect_local_matched``'s ``extremes_out``) is applied."""
 
-    def with_extremes(self, largest: NDArray, smallest: NDArray) -> "Signals":
-        """These signals with the pending clipping test applied to each row's extremes.
+    def clipped_by_extremes(self, largest: NDArray, smallest: NDArray) -> NDArray[np.bool_]:
+        """``clipped`` with the pending clipping test applied to each row's extremes.
+
+        A row reaches one of the full scales exactly when it reaches the smallest of them, so
+        one comparison per extreme (within a part in 1e9, as ``_clipped_by_full_scale``).
 
         Parameters
         ----------
         largest, smallest : ndarray, shape (n_pings * n_channels,)
             Each ping-channel's largest and smallest value, in the units of ``waveforms``
             (codes).
+
+        Returns
+        -------
+        ndarray of bool, shape (n_pings, n_channels)
         """
         if not self.pending_full_scales_v:
-            return self
+            return self.clipped
         step = 1.0 if self.volts_per_code is None else self.volts_per_code
-        high = np.asarray(largest, dtype=float) * step
-        low = np.asarray(smallest, dtype=float) * step
-        clipped = np.zeros(high.shape, dtype=bool)
-        for full_scale in self.pending_full_scales_v:  # a full scale or two
-            limit = full_scale * (1.0 - 1e-9)  # as ``_clipped_by_full_scale``
-            clipped |= (high >= limit) | (low <= -limit)
-        return replace(self, clipped=self.clipped | clipped.reshape(self.clipped.shape), pending_full_scales_v=())
+        limit = min(self.pending_full_scales_v) * (1.0 - 1e-9)
+        # A few rows: Python floats (one conversion each way), not a dozen small numpy calls.
+        reached = [high * step >= limit or low * step <= -limit
+                   for high, low in zip(np.asarray(largest, dtype=float).tolist(),
+                                        np.asarray(smallest, dtype=float).tolist())]
+        return self.clipped | np.array(reached, dtype=bool).reshape(self.clipped.shape)
+
+    def with_extremes(self, largest: NDArray, smallest: NDArray) -> "Signals":
+        """These signals with the pending clipping test applied to each row's extremes
+        (``clipped_by_extremes``); self when none is pending."""
+        if not self.pending_full_scales_v:
+            return self
+        return replace(self, clipped=self.clipped_by_extremes(largest, smallest), pending_full_scales_v=())
 
     def with_clipping_checked(self) -> "Signals":
         """These signals with the pending clipping test done (one pass over the codes); self

@@ -66,15 +66,15 @@ selection does faster than a compiled quickselect) ~0.6, the short FFTs ~0.45, t
 
 Records of int16 ADC codes (``volts_per_code``: ``api.TAKES_CODES``) are read as they are, 2
 bytes a sample instead of 8: the block correlations of the codes are scaled to volts once per
-block, the stretches and the direct correlations are made of code * volts_per_code, and the
-robust DC and noise come from a histogram of the codes (``code_kernels``) instead of two
-partitions. The candidates' inverse FFT runs on the band only, decimated
-(``LocalPlan.decimation``: 125 points instead of 625 for the 5 us pulse; ~22 against ~67 us
-for the 9 stretches, warm). Measured on the loaded team machine (CPU clock, interleaved with the
-record's rfft), prepared ``run`` on the codes ~1.1-1.4 ms against ~1.6-2.0 ms on the float64
-volts in the same runs; what remains is mostly fixed cost per call once a new ping has evicted
-the caches (a record of 3 x 8,192 codes still takes ~0.9 ms cold, ~0.55 ms warm): the Python
-and numpy calls between the kernels, scipy's FFT dispatch, and the kernels' dispatch.
+block, the searched stretches are converted once each (float32), the direct correlations are
+made of code * volts_per_code, and the robust DC and noise come from a histogram of the codes
+(``code_kernels``) instead of two partitions. The clipping test of the codes (the ADC's rails,
+a ``full_scale_v``) is read with the coarse pass (``extremes_out``: each chunk of blocks
+scanned again while in cache, then the samples outside the searched blocks), not by a pass
+of its own (``api.MEASURES_EXTREMES``). What remains per ping (3 x 250,000 codes, CPU, once an
+FFT of the record has evicted the caches, on the loaded team machine): the compiled call
+~0.55-0.8 ms (mostly the block correlations), the Python and numpy calls around it (input
+checks, the code statistics, the result objects) ~0.4-0.6 ms.
 
 A row's DC offset (``dc_v``, still in the samples) is folded in rather than removed from a
 copy of the record: the block correlations of x - dc are those of x minus dc times the sum of
