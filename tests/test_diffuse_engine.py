@@ -54,6 +54,26 @@ def test_rows_do_not_depend_on_the_thread_count(tank):
     assert np.all(np.diff(ids) >= 0)
 
 
+def test_every_event_links_to_the_event_before_it_on_its_ray(tank):
+    # three bounces over two chunks and a short one, on two threads (chunks placed from scratch
+    # blocks): a first hit has no parent (-1, the transmitter); a later event's parent is an
+    # earlier row of the previous bounce, and its path length exceeds the parent's by the leg
+    # between their hit points, to 3e-5 m: the continuing ray starts OFFSET_M = 2e-5 m off the
+    # surface and that offset is not counted in the path (float64 rounding adds ~1e-14 m); a
+    # wrong parent index (another ray's hit, metres away) fails by far more
+    config = SolverConfig(diffuse_rays=CHUNK_RAYS * 5 // 2, diffuse_bounces=3, seed=4)
+    e = trace_diffuse(tank, config, threads=2)
+    first = e.bounce == 1
+    assert np.all(e.parent[first] == -1)
+    later = np.flatnonzero(~first)
+    assert later.size > 1000 and np.all(np.isin(e.bounce, (1, 2, 3)))
+    parent = e.parent[later]
+    assert np.all((parent >= 0) & (parent < later))
+    assert np.all(e.bounce[parent] == e.bounce[later] - 1)
+    leg = np.linalg.norm(e.points_m[later] - e.points_m[parent], axis=1)
+    np.testing.assert_allclose(e.travelled_m[later] - e.travelled_m[parent], leg, atol=3e-5)
+
+
 def test_centre_visibility_changes_the_diffuse_energy_by_far_less_than_one_percent(tank):
     # The approximation tests occlusion on the leg to the centre receiver only and shares it
     # with the side receivers 65 mm away: a point hidden from one receiver but not the other

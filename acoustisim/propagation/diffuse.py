@@ -545,6 +545,8 @@ class _Tracer:
         :meth:`~acoustisim.propagation.diffuse_hits.BoxTankHits.kernel_arguments` of the scene
         (first hits found without Embree), or None (a tank that is not a box: Embree finds
         every first hit).
+    no_parent : ndarray of int32, shape (1,)
+        -1: the parent of every first hit (read only).
     """
 
     raycaster: RayCaster
@@ -569,6 +571,7 @@ class _Tracer:
     buffers: threading.local
     output: "_Output"
     hits: tuple[Any, ...] | None
+    no_parent: NDArray[np.int32]
 
 
 class _ChunkArrays:
@@ -739,7 +742,7 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
     departure = directions
     origins = tracer.transmitter[:, None]  # (3, 1) for the first bounce, then (3, h)
     travelled = np.zeros(1)
-    parent = np.full(n, -1, dtype=np.int32)
+    parent = tracer.no_parent  # (1,): shared by the first bounce's rays
     legs = [0, 0, 0]  # sent to Embree, decided by the convex objects' planes; rays sent to Embree
     for bounce in range(tracer.bounces):  # a handful of bounces
         m = directions.shape[1]
@@ -762,13 +765,13 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
             tracer.plane_offset, tracer.surface, SPECKLE_CELL_M, tracer.seed_hash,
             rx, tracer.tested[min(bounce, 1)], mode, lo, hi, own_box, wedges, point_wedges, plane_start, plane_normal,
             plane_offset, shift, DEFAULT_EPS_M, tracer.shared, keep, event_row,
-            out.points, normal, out.departure, hit_weight, out.travelled, out.parent, out.surface, mu, out.phase,
+            out.points, normal, out.departure, hit_weight, out.travelled, out.parent, out.surface, out.bounce,
+            bounce + 1, mu, out.phase,
             state, pair_gain, leg_start, leg_unit, leg_length, leg_pair,
             -1 if tracer.queues else reception_row, out.event, out.channel, out.gain,
         )
         if n_hits == 0:
             break
-        out.bounce[event_row:event_row + n_hits] = bounce + 1
         legs[0] += n_legs
         legs[1] += n_exact
         if not tracer.queues:  # the kernel wrote the receptions
@@ -780,10 +783,10 @@ def _trace_chunk(tracer: _Tracer, chunk: int) -> tuple[int, int, int]:
             reception_row = kernels.write_receptions(n_hits, n_rx, state, pair_gain, event_row, reception_row,
                                                      out.event, out.channel, out.gain)
         rows = slice(event_row, event_row + n_hits)
-        parent = np.arange(event_row, event_row + n_hits, dtype=np.int32)
         event_row += n_hits
         if bounce + 1 >= tracer.bounces:
             break
+        parent = np.arange(rows.start, rows.stop, dtype=np.int32)
         # continue in a cosine-weighted direction about the normal: weight x (pi mu)
         points, normal = out.points[rows].T, normal[:, :n_hits]
         # the next bounce's input: contiguous, as the first's (one compiled specialisation)
@@ -869,6 +872,7 @@ def _setup(context: SolveContext, config: SolverConfig, threads: int | None,
         output=_Output(n_rays, bounces, n_rx),
         hits=None if first_hits == "embree" or raycaster.box_tank_hits is None
         else raycaster.box_tank_hits.kernel_arguments(),
+        no_parent=np.full(1, -1, dtype=np.int32),
     )
 
 

@@ -273,7 +273,7 @@ def scatter_and_pair(
     points: NDArray[np.float64], normal: NDArray[np.float64],
     out_departure: NDArray[np.float64], out_weight: NDArray[np.float64],
     out_travelled: NDArray[np.float64], out_parent: NDArray[np.int32], surface: NDArray[np.int32],
-    mu: NDArray[np.float64], phase: NDArray[np.float64],
+    out_bounce: NDArray[np.int32], bounce_number: int, mu: NDArray[np.float64], phase: NDArray[np.float64],
     state: NDArray[np.int8], pair_gain: NDArray[np.float64], leg_start: NDArray[np.float32],
     leg_unit: NDArray[np.float32], leg_length: NDArray[np.float32], leg_pair: NDArray[np.int64],
     reception_row: int, event: NDArray[np.int32], channel: NDArray[np.int8], gain: NDArray[np.float64],
@@ -291,7 +291,8 @@ def scatter_and_pair(
         Ray origins (m); one column is shared by every ray.
     weight, travelled : ndarray, shape (m,)
         Solid angle (x albedo products) and path length so far (m) of each ray.
-    parent : ndarray of int32, shape (m,)
+    parent : ndarray of int32, shape (m,) or (1,)
+        The event each ray comes from (-1: the transmitter); one entry is shared by every ray.
     tri_mu, tri_offset : ndarray, shape (n_triangles,)
         Lambert mu of each triangle's surface and its plane offset n . v0 (m).
     tri_normal : ndarray, shape (3, n_triangles)
@@ -334,9 +335,9 @@ def scatter_and_pair(
     normal : output, shape (3, >= m)
     out_weight, mu : outputs, shape (>= m,)
         The kept rays' normals, weights and mu, from index 0 (with ``keep`` only).
-    out_travelled, out_parent, surface, phase : outputs, shape (>= first_row + m,)
-        The kept rays' path lengths to the hit, parents, surfaces and speckle phases, from
-        row ``first_row`` on.
+    out_travelled, out_parent, surface, out_bounce, phase : outputs, shape (>= first_row + m,)
+        The kept rays' path lengths to the hit, parents, surfaces, scattering order
+        (``bounce_number``) and speckle phases, from row ``first_row`` on.
     state : output, shape (>= m n_rx,), point-major
         Per pair: 0 (receiver behind the face, or leg blocked by a convex object), 1 (clear),
         2 (leg queued for Embree).
@@ -406,7 +407,8 @@ def scatter_and_pair(
         phase[row] = angle
         point_amplitude = magnitude * math.sqrt(w * m)  # |X| sqrt(mu dOmega)
         out_travelled[row] = (travelled[0] if travelled.size == 1 else travelled[ray]) + distance
-        out_parent[row] = parent[ray]
+        out_parent[row] = parent[0] if parent.size == 1 else parent[ray]
+        out_bounce[row] = bounce_number
         s = tri_surface[t]
         surface[row] = s
         if keep:
