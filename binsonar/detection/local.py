@@ -560,7 +560,7 @@ def detect_local_matched(
         raise TypeError("detect_local_matched needs a LocalPlan (plan_local)")
     matched = plan.matched
     fs = matched.sample_rate_hz
-    n_rows, n = rows.shape
+    n_rows = rows.shape[0]
     if not (isinstance(candidates, (int, np.integer)) and 1 <= candidates <= 16):
         raise RecordingError(f"{where}: candidates must be an integer in [1, 16], got {candidates!r}")
     lag_lo, lag_hi = lag_range(matched, t0_s, search_window_s, where)

@@ -1,19 +1,21 @@
 """Compiled loops of the local matched filter (numba, cached on disk, GIL released).
 
 Imported by :mod:`binsonar.detection.local` when a local matched filter runs (never by
-``import binsonar``). Three kernels, each one call for all rows of a record, replace what numpy
-could only do in many small calls per ping:
+``import binsonar``). The detection path is one call for all rows of a record,
+:func:`local_echoes`: :func:`coarse_starts` (the coarse stage, each sample of the searched
+blocks read once: the block correlations with the tone, the windows' moving sums, the
+``candidates`` strongest windows a template length apart; optionally every sample's extremes,
+the clipping test of records of codes), the search of each candidate's stretch every
+``LocalPlan.decimation`` lags by direct dot products with the analytic template
+(``_four_lags32``), z at the ``2 R + 1`` integer lags around the largest (``_refine_row``: the
+same evaluation as ``matched.lags_time_domain`` minus ``matched.dc_correlation``) and the
+log-parabolic vertex of ``matched.refine``, then :func:`echo_rows` (the TOF, amplitude, SNR,
+score and TOF std of each row's vertex, ``matched.echo_values``' operations in its order).
 
-1. :func:`coarse_stretches`: the coarse stage (each sample of the searched blocks read once:
-   the block correlations with the tone, the windows' moving sums, the ``candidates``
-   strongest windows a template length apart) and the gathering of the stretch around each
-   candidate, DC removed and zero padded, into the buffer the batched short FFT takes;
-2. :func:`local_peaks`: the largest |z| over all candidates' lags, then z at the
-   ``2 R + 1`` integer lags around it by direct dot products with the analytic template (the
-   same evaluation as ``matched.lags_time_domain``, and ``matched.dc_correlation`` for the
-   folded DC), ready for the log-parabolic vertex of ``matched.refine``;
-3. :func:`echo_rows`: the TOF, amplitude, SNR, score and TOF std of each row's vertex
-   (``matched.echo_values``' operations in its order).
+The FFT route the direct search replaced is kept as its reference: :func:`coarse_stretches`
+(the coarse stage, then each candidate's stretch, DC removed and zero padded, into the buffer
+of ``local._candidate_correlations``' batched short FFTs) and :func:`local_peaks` (the largest
+|z| over all candidates' lags from those FFTs, then ``_refine_row``).
 
 All follow :mod:`binsonar.detection.local`'s numpy definitions step for step (same ties:
 first maximum; same bounds); only the order of the floating-point sums differs, i.e. results
@@ -323,30 +325,6 @@ def coarse_stretches(
                 segments[i, s] = 0.0
 
 
-# fastmath (vectorised reduction) only here: finite sums; the candidate search, which relies on
-# -inf for blanked windows, is compiled without it.
-@njit(cache=True, nogil=True, fastmath=True)
-def _direct(row: NDArray, first: int, taps: NDArray[np.float64]) -> tuple:
-    """sum_t row[first + t] taps[:, t] over the taps that overlap the row (others count as 0).
-
-    Returns the real and imaginary sums and the overlapping taps' range [lo, hi).
-    """
-    n = row.size
-    m_a = taps.shape[1] - 1
-    lo = min(max(-first, 0), m_a)
-    hi = min(max(n - first, 0), m_a)
-    re = 0.0
-    im = 0.0
-    if hi > lo:
-        x = row[first + lo: first + hi]
-        t_re = taps[0, lo:hi]
-        t_im = taps[1, lo:hi]
-        for t in range(hi - lo):
-            re += x[t] * t_re[t]
-            im += x[t] * t_im[t]
-    return re, im, lo, hi
-
-
 @njit(cache=True, nogil=True)
 def _log_parabolic(left: float, centre: float, right: float) -> tuple:
     """``peaks.log_parabolic_offset`` for one peak: (offset, peak power)."""
@@ -416,10 +394,14 @@ def local_peaks(
 
 
 @njit(cache=True, nogil=True)
-def _direct_z(row: NDArray, scale: float, d: float, taps: NDArray[np.float64], first: int) -> tuple:
-    """z of ``row * scale - d`` at the lag whose tap 0 lies on sample ``first``
-    (``matched.lags_time_domain`` minus ``matched.dc_correlation``): real and imaginary parts."""
-    re, im, lo, hi = _direct(row, first, taps)
+def _folded(re: float, im: float, first: int, n: int, scale: float, d: float, taps: NDArray[np.float64]) -> tuple:
+    """z of ``row * scale - d`` at the lag whose tap 0 lies on sample ``first`` of a row of n
+    samples, from the raw sums of row times the taps (samples outside the row counting 0): the
+    sums scaled, then d times the sum of the taps that overlap the row subtracted
+    (``matched.lags_time_domain`` minus ``matched.dc_correlation``). Real and imaginary parts."""
+    m_a = taps.shape[1] - 1
+    lo = min(max(-first, 0), m_a)
+    hi = min(max(n - first, 0), m_a)
     re *= scale
     im *= scale
     if hi > lo:
@@ -440,8 +422,8 @@ def _refine_row(row: NDArray, scale: float, d: float, taps: NDArray[np.float64],
     n_lags = values.size
     reach = n_lags // 2
     groups = (n_lags + 3) // 4
-    # The record under the lags, float64, 0 outside it (what ``_direct`` reads), four lags at a
-    # time (``_four_lags``); then ``_direct_z``'s scaling and DC folding.
+    # The record under the lags, float64, 0 outside it, four lags at a time (``_four_lags``);
+    # then scaled and the DC folded (``_folded``).
     origin = best_lag - reach - analytic_offset
     stretch = np.empty(4 * groups - 1 + m_a)
     for i in range(stretch.size):
@@ -455,14 +437,7 @@ def _refine_row(row: NDArray, scale: float, d: float, taps: NDArray[np.float64],
             if lag < lag_lo or lag > lag_hi:
                 values[j] = 0.0
             else:
-                first = lag - analytic_offset
-                lo = min(max(-first, 0), m_a)
-                hi = min(max(n - first, 0), m_a)
-                re = sums[2 * q] * scale
-                im = sums[2 * q + 1] * scale
-                if hi > lo:
-                    re -= d * (taps[2, hi] - taps[2, lo])
-                    im -= d * (taps[3, hi] - taps[3, lo])
+                re, im = _folded(sums[2 * q], sums[2 * q + 1], lag - analytic_offset, n, scale, d, taps)
                 values[j] = complex(re, im)
             power[j] = values[j].real ** 2 + values[j].imag ** 2
     top = 0
@@ -636,8 +611,8 @@ def local_echoes(
     count = (width + stride - 1) // stride  # searched lags per stretch: start + stride j
     groups = (count + 3) // 4
     # The record under all searched lags of a stretch (four per group, the last group's extra
-    # lags computed and ignored), as float32, 0 outside the record: what ``_direct`` reads,
-    # converted once (~1,200 conversions per pick instead of ~40,000).
+    # lags computed and ignored), as float32, 0 outside the record, converted once (~1,200
+    # conversions per pick instead of ~40,000).
     stretch = np.empty((4 * groups - 1) * stride + m_a, dtype=np.float32)
     z = np.empty(8)
     values = np.empty(2 * reach + 1, dtype=np.complex128)
@@ -660,15 +635,7 @@ def local_echoes(
                     lag = start + stride * (4 * g + q)
                     p = -1.0
                     if lag_lo <= lag <= lag_hi:
-                        # ``_direct_z``'s scaling and DC folding over the taps inside the record.
-                        first = lag - analytic_offset
-                        lo = min(max(-first, 0), m_a)
-                        hi = min(max(n - first, 0), m_a)
-                        re = z[2 * q] * scale
-                        im = z[2 * q + 1] * scale
-                        if hi > lo:
-                            re -= d * (taps[2, hi] - taps[2, lo])
-                            im -= d * (taps[3, hi] - taps[3, lo])
+                        re, im = _folded(z[2 * q], z[2 * q + 1], lag - analytic_offset, n, scale, d, taps)
                         p = re * re + im * im
                     if p > best:
                         best = p
