@@ -90,7 +90,7 @@ MAX_RAY_EVENTS = 10_000_000
 """Most rays x bounces one solve may trace (up to three rows each, about 250 bytes a row):
 beyond it the configuration is refused rather than exhausting memory."""
 
-_COS_CELLS = 1 << 13
+_COS_CELLS = 1 << 13  # < 2**15: the guide table holds cell indices as int16
 """Cells of the tabulated lobe density: 2.4e-4 wide in cos(theta), 1.3 degrees at the axis
 (the main lobe's -3 dB half width is 4.6 degrees)."""
 
@@ -209,7 +209,7 @@ class _LobeTable:
     ----------
     edges : ndarray, shape (_COS_CELLS + 1,)
         Cell edges in cos(theta), from the axis (1) backwards (-1).
-    guide : ndarray of int32, shape (_GUIDE_BINS,)
+    guide : ndarray of int16, shape (_GUIDE_BINS,)
         The cell of each equiprobable bin.
     lobe_pdf : ndarray, shape (_COS_CELLS,)
         The lobe pdf (per steradian) of a direction in each cell.
@@ -219,7 +219,7 @@ class _LobeTable:
     """
 
     edges: NDArray[np.float64]
-    guide: NDArray[np.int32]
+    guide: NDArray[np.int16]
     lobe_pdf: NDArray[np.float64]
     azimuth: NDArray[np.float64]
 
@@ -238,7 +238,7 @@ class _LobeTable:
         mass = np.cumsum(power)
         # bin i goes to the first cell whose cumulative mass exceeds (i + 1/2) / _GUIDE_BINS of
         # the total (searchsorted(mass, quantiles, side="right"), as one linear merge)
-        guide = np.empty(_GUIDE_BINS, dtype=np.int32)  # 256 KiB: gathered once per lobe ray
+        guide = np.empty(_GUIDE_BINS, dtype=np.int16)  # 128 KiB: gathered at random once per lobe ray
         counts = np.empty(_COS_CELLS, dtype=np.int64)
         kernels.guide_table(mass, guide, counts)
         share = counts / _GUIDE_BINS
@@ -251,12 +251,12 @@ class _LobeTable:
         return max(1, int(round(UNIFORM_FRACTION * n))) if n else 0
 
     def cells(self, totals: tuple[int, int]) -> NDArray[np.float64]:
-        """Per cell (n_cells, 2): its upper edge in cos(theta) and the solid angle of a ray drawn
-        in it, for ``totals`` = (N_u, N_l) rays drawn uniformly and from the lobe over the solve
-        (see :func:`~acoustisim.propagation.diffuse_kernels.cell_table`)."""
+        """Per cell (n_cells,): the solid angle of a ray drawn in it, for ``totals`` = (N_u, N_l)
+        rays drawn uniformly and from the lobe over the solve (see
+        :func:`~acoustisim.propagation.diffuse_kernels.cell_table`)."""
         n_u, n_l = totals
-        out = np.empty((self.lobe_pdf.size, 2))
-        kernels.cell_table(self.edges, self.lobe_pdf, n_u / (4.0 * np.pi), float(n_l), out)
+        out = np.empty(self.lobe_pdf.size)
+        kernels.cell_table(self.lobe_pdf, n_u / (4.0 * np.pi), float(n_l), out)
         return out
 
     def draw(self, n: int, totals: tuple[int, int], frame: tuple[NDArray[np.float64], ...],
@@ -504,8 +504,8 @@ class _Tracer:
     ----------
     raycaster : RayCaster
     lobe : _LobeTable
-    cells : ndarray, shape (n_cells, 2)
-        ``lobe.cells(totals)``: each cell's edge and its rays' solid angle.
+    cells : ndarray, shape (n_cells,)
+        ``lobe.cells(totals)``: the solid angle of each cell's rays.
     mu : ndarray, shape (n_triangles,)
         Lambert mu of each triangle's surface.
     plane_offset : ndarray, shape (n_triangles,)

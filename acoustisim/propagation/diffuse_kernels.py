@@ -115,7 +115,7 @@ def speckle_into(x: NDArray[np.float64], y: NDArray[np.float64], z: NDArray[np.f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int32], counts: NDArray[np.int64]) -> None:
+def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int16], counts: NDArray[np.int64]) -> None:
     """The equiprobable bins of a tabulated density: bin i (of ``guide.size``) gets the first
     cell whose cumulative ``mass`` (non-decreasing) exceeds (i + 1/2) mass[-1] / guide.size
     (at most the last cell), as ``numpy.searchsorted(mass, quantiles, side="right")`` would,
@@ -135,19 +135,17 @@ def guide_table(mass: NDArray[np.float64], guide: NDArray[np.int32], counts: NDA
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def cell_table(edges: NDArray[np.float64], lobe_pdf: NDArray[np.float64], uniform_density: float, lobe_count: float,
+def cell_table(lobe_pdf: NDArray[np.float64], uniform_density: float, lobe_count: float,
                out: NDArray[np.float64]) -> None:
-    """Per cell of the lobe table, its upper edge in cos(theta) and the solid angle
-    1 / (N_u / 4 pi + N_l p_lobe) of a ray drawn in it, into ``out`` (n_cells, 2) (one cache
-    line serves both for a ray of :func:`transmit_directions`).
+    """Per cell of the lobe table, the solid angle 1 / (N_u / 4 pi + N_l p_lobe) of a ray drawn
+    in it, into ``out`` (n_cells,) (64 KiB for 8192 cells: the table a uniform ray gathers
+    from at random, kept small for the cache).
 
-    ``edges`` (n_cells + 1,), ``lobe_pdf`` (n_cells,): as in
-    :class:`~acoustisim.propagation.diffuse._LobeTable`; ``uniform_density`` = N_u / (4 pi),
-    ``lobe_count`` = N_l.
+    ``lobe_pdf`` (n_cells,): as in :class:`~acoustisim.propagation.diffuse._LobeTable`;
+    ``uniform_density`` = N_u / (4 pi), ``lobe_count`` = N_l.
     """
     for cell in range(lobe_pdf.size):
-        out[cell, 0] = edges[cell]
-        out[cell, 1] = 1.0 / (uniform_density + lobe_count * lobe_pdf[cell])
+        out[cell] = 1.0 / (uniform_density + lobe_count * lobe_pdf[cell])
 
 
 AZIMUTH_BITS = 10
@@ -183,7 +181,7 @@ def unit_azimuth(u: float, table: NDArray[np.float64]) -> tuple[float, float]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _transmit_direction(i: int, u_theta: float, u_phi: float, n_uniform: int, guide: NDArray[np.int32],
+def _transmit_direction(i: int, u_theta: float, u_phi: float, n_uniform: int, guide: NDArray[np.int16],
                         cells: NDArray[np.float64], width: float, azimuth: NDArray[np.float64],
                         e1: NDArray[np.float64], e2: NDArray[np.float64], axis: NDArray[np.float64],
                         directions: NDArray[np.float64], solid_angle: NDArray[np.float64]) -> None:
@@ -196,20 +194,21 @@ def _transmit_direction(i: int, u_theta: float, u_phi: float, n_uniform: int, gu
     else:
         x = u_theta * guide.size  # exact for a power of two
         b = int(x)
-        cell = guide[b]
-        cos_t = cells[cell, 0] - (x - b) * width
+        cell = np.int64(guide[b])
+        # the cell's upper edge 1 - cell width (exact: width = 2 / n_cells, a power of two)
+        cos_t = (1.0 - cell * width) - (x - b) * width
     sin_t = math.sqrt(max(1.0 - cos_t * cos_t, 0.0))
     cp, sp = unit_azimuth(u_phi, azimuth)
     a = sin_t * cp
     c = sin_t * sp
     for k in range(3):
         directions[k, i] = a * e1[k] + c * e2[k] + cos_t * axis[k]
-    solid_angle[i] = cells[cell, 1]
+    solid_angle[i] = cells[cell]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def transmit_directions(
-    u: NDArray[np.float64], n_uniform: int, guide: NDArray[np.int32], cells: NDArray[np.float64], width: float,
+    u: NDArray[np.float64], n_uniform: int, guide: NDArray[np.int16], cells: NDArray[np.float64], width: float,
     azimuth: NDArray[np.float64], e1: NDArray[np.float64], e2: NDArray[np.float64], axis: NDArray[np.float64],
     directions: NDArray[np.float64], solid_angle: NDArray[np.float64],
 ) -> None:
@@ -222,13 +221,13 @@ def transmit_directions(
         ``n_uniform`` rays; for the others the integer part of u len(guide) picks a guide bin,
         hence a cell (cos(theta) descending from 1), and the fractional part the place in the
         cell. Row 1 is the azimuth in turns (:func:`unit_azimuth`).
-    guide : ndarray of int32
+    guide : ndarray of int16
         As in :class:`~acoustisim.propagation.diffuse._LobeTable`.
-    cells : ndarray, shape (n_cells, 2)
-        Each cell's upper edge in cos(theta) and the solid angle of its rays
-        (:func:`cell_table`).
+    cells : ndarray, shape (n_cells,)
+        The solid angle of each cell's rays (:func:`cell_table`); cell k spans cos(theta)
+        from 1 - k width downwards.
     width : float
-        The cells' width in cos(theta) (2 / n_cells).
+        The cells' width in cos(theta) (2 / n_cells, a power of two).
     azimuth : ndarray, shape (2**AZIMUTH_BITS, 2)
         :func:`azimuth_table`.
     e1, e2, axis : ndarray, shape (3,)
@@ -244,7 +243,7 @@ def transmit_directions(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def draw_transmit_directions(
-    key: np.uint64, start: int, n: int, n_uniform: int, guide: NDArray[np.int32], cells: NDArray[np.float64],
+    key: np.uint64, start: int, n: int, n_uniform: int, guide: NDArray[np.int16], cells: NDArray[np.float64],
     width: float, azimuth: NDArray[np.float64], e1: NDArray[np.float64], e2: NDArray[np.float64],
     axis: NDArray[np.float64], directions: NDArray[np.float64], solid_angle: NDArray[np.float64],
 ) -> None:
