@@ -10,6 +10,7 @@ from acoustisim.propagation import SolverConfig, assemble, prepare
 from acoustisim.propagation.assemble import (
     assemble_rows,
     compact_records,
+    is_sorted,
     merge_destinations,
     permute_records,
     scatter_records,
@@ -184,3 +185,40 @@ def test_parts_that_cannot_be_taken_over_are_copied(sorted_parts):
     view = base[:pieces[2].size]
     got = assemble_rows([pieces[0].copy(), pieces[1].copy(), view], context, None)
     assert got.tobytes() == expected.tobytes() and view.size == pieces[2].size and base.size == 2 * view.size
+
+
+def _is_sorted_numpy(channel: np.ndarray, delay: np.ndarray) -> bool:
+    """The former numpy test: every step raises the channel, or keeps it and does not lower the delay."""
+    step = np.diff(channel.astype(np.int64))
+    return bool(np.all((step > 0) | ((step == 0) & (delay[1:] >= delay[:-1]))))
+
+
+def test_is_sorted_is_the_numpy_rule():
+    rng = np.random.default_rng(7)
+    seen = set()
+    for trial in range(400):
+        n = int(rng.integers(0, 12))
+        channel = np.sort(rng.integers(0, 3, n)).astype(np.int8)
+        delay = np.sort(rng.choice([0.0, 1e-3, 2e-3, 3e-3], n))
+        delay = np.concatenate([np.sort(delay[channel == k]) for k in range(3)]) if n else delay
+        # perturb some trials: a swapped delay, a swapped channel, a NaN, equal delays (ties)
+        kind = trial % 5
+        if n >= 2 and kind == 1:
+            i = int(rng.integers(0, n - 1))
+            delay[[i, i + 1]] = delay[[i + 1, i]]
+        elif n >= 2 and kind == 2:
+            i = int(rng.integers(0, n - 1))
+            channel[[i, i + 1]] = channel[[i + 1, i]]
+        elif n >= 1 and kind == 3:
+            delay[int(rng.integers(0, n))] = np.nan
+        expected = _is_sorted_numpy(channel, delay)
+        seen.add(expected)
+        assert is_sorted(channel, delay) == expected, (channel, delay)
+    assert seen == {True, False}  # both answers exercised
+    # strided field views (as assemble_rows may pass) read in place
+    rows = np.zeros(5, dtype=PATH_DTYPE)
+    rows["channel"] = [0, 0, 1, 1, 2]
+    rows["delay_s"] = [1.0, 2.0, 0.5, 0.5, 0.1]
+    assert is_sorted(rows["channel"], rows["delay_s"])
+    rows["delay_s"][0] = 2.5  # within channel 0, later than the next row
+    assert not is_sorted(rows["channel"], rows["delay_s"])

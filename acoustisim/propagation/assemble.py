@@ -193,10 +193,23 @@ def spread_records(records: NDArray[np.uint8], destination: NDArray[np.int64]) -
                 records[d, b] = records[i, b]
 
 
-def _is_sorted(channel: NDArray[np.int8], delay: NDArray[np.float64]) -> bool:
-    """Whether rows with these keys are sorted by channel, then delay."""
-    step = np.diff(channel.astype(np.int64))
-    return bool(np.all((step > 0) | ((step == 0) & (delay[1:] >= delay[:-1]))))
+@njit(cache=True, nogil=True)
+def is_sorted(channel: NDArray[np.int8], delay: NDArray[np.float64]) -> bool:
+    """Whether rows with these keys are sorted by channel, then delay (non-decreasing; a NaN
+    delay after an equal channel is out of order, as a comparison with it is false).
+
+    Parameters
+    ----------
+    channel : ndarray of int8, shape (n,)
+    delay : ndarray of float64, shape (n,)
+        Strided views (the fields of the rows) are read in place.
+    """
+    for i in range(1, channel.size):
+        if channel[i] > channel[i - 1]:
+            continue
+        if channel[i] < channel[i - 1] or not delay[i] >= delay[i - 1]:
+            return False
+    return True
 
 
 def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64], channel: NDArray[np.int8]
@@ -287,7 +300,7 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
         host = max(range(len(parts)), key=lambda i: parts[i].size)
         start = sum(part.size for part in parts[:host])
         stop = start + parts[host].size
-        if _is_sorted(channel[start:stop], delay[start:stop]):
+        if is_sorted(channel[start:stop], delay[start:stop]):
             rows = _merged_in_place(parts, host, delay, channel)
     if rows is None:
         order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
@@ -312,5 +325,5 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     return rows
 
 
-__all__ = ["IN_PLACE_MAX_BYTES", "assemble_rows", "compact_records", "merge_destinations", "permute_records",
-           "scatter_records", "spread_records"]
+__all__ = ["IN_PLACE_MAX_BYTES", "assemble_rows", "compact_records", "is_sorted", "merge_destinations",
+           "permute_records", "scatter_records", "spread_records"]
