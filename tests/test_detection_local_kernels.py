@@ -345,3 +345,36 @@ def test_coarse_pass_measures_every_samples_extremes(n, bounds, codes):
     local_kernels.coarse_starts(rows, 1.0, np.zeros(3), plan.tone_lanes, settings, alone, np.empty((0, 2)))
     assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1).astype(float))
     assert np.array_equal(starts, alone)
+
+
+@pytest.mark.parametrize("n, bounds", [(N, (0, N - 201)), (N, (30_000, 30_100)), (700, (0, 499))])
+@pytest.mark.parametrize("dc", [False, True])
+def test_codes_coarse_pass_in_single_precision(n, bounds, dc):
+    # int16 codes: block sums in float32 (``LocalPlan.tone_lanes32``). The block powers agree
+    # with the float64 definition to ~1e-7 of the largest (48-term float32 sums; a wrong tap or
+    # block would be off by O(1)), and the whole one-call path gives the float64 table's echoes.
+    from binsonar.detection import local_kernels
+    from binsonar.detection.local import block_tone_power
+
+    plan = plan_local(_template(), n, FS)
+    volts, offsets = _rows(9, dc)
+    step = 2.5 / 2048
+    codes = np.ascontiguousarray(np.rint(volts[:, :n] / step).astype(np.int16))
+    dc_v = np.zeros(3) if offsets is None else np.rint(offsets / step) * step
+    energy = np.empty((3, n // plan.block))
+    tone_sum = plan.tone_lanes32.astype(float).sum(axis=1)
+    local_kernels._block_powers(codes, 0, energy, plan.block, plan.tone_lanes32, dc_v * tone_sum[0],
+                                dc_v * tone_sum[1], step)
+    expected = block_tone_power(plan, codes.astype(float) * step, dc_v)
+    assert np.max(np.abs(energy - expected)) < 1e-6 * np.max(expected)
+    stride = plan.decimation
+    settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], 3, plan.half,
+                         plan.segment_length, plan.block, plan.matched.analytic_offset, stride,
+                         REFINE_HALF_WIDTH + stride - 1])
+    constants = plan.echo_constants.copy()
+    constants[-1] = 2.5
+    single, double = np.empty((3, 5)), np.empty((3, 5))
+    for lanes, echoes in ((plan.tone_lanes32, single), (plan.tone_lanes, double)):
+        local_kernels.local_echoes(codes, step, dc_v, np.full(3, 0.01), lanes, plan.tap_parts, plan.tap_parts32,
+                                   settings, constants, echoes, np.empty((0, 2)))
+    assert np.array_equal(single, double)

@@ -176,6 +176,9 @@ class LocalPlan:
     """``local_kernels.echo_rows``'s constants but the first (t0_s) and last (threshold factor),
     shape (8,): sample rate, template t0_s, ``white_noise_power`` of 1 V, peak response, the
     template's largest |sample|, RMS bandwidth."""
+    tone_lanes32: NDArray[np.float32] = field(repr=False)
+    """``tone_lanes`` in single precision: the coarse pass of int16 codes sums in float32
+    (``local_kernels._block_powers``)."""
     tap_parts32: NDArray[np.float32] = field(repr=False)
     """The first two rows of ``tap_parts`` in single precision, shape (2, m_a + 1): the taps of
     the stretches' search (``local_kernels.local_echoes``)."""
@@ -304,6 +307,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         echo_constants=np.array([0.0, fs, matched.template.t0_s, float(white_noise_power(matched, 1.0)),
                                  matched.peak_response, float(np.max(np.abs(matched.template.samples))),
                                  matched.rms_bandwidth_hz, 0.0]),
+        tone_lanes32=lanes.astype(np.float32),
         tap_parts32=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0)]).astype(np.float32),
         decimation=int(decimation),
     )
@@ -585,8 +589,9 @@ def detect_local_matched(
     # coarse pass, each stretch searched every ``stride`` lags by direct correlations, the
     # refinement as the full matched filter's, ``matched.echo_values``; checked against the
     # numpy definitions and the FFT route in tests/test_detection_local_kernels.py).
+    lanes = plan.tone_lanes if volts_per_code is None else plan.tone_lanes32  # codes: float32 block sums
     local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), np.ascontiguousarray(sigma, dtype=float),
-                               plan.tone_lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,
+                               lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,
                                np.empty((0, 2)) if extremes_out is None else extremes_out)
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
     return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in echoes.tolist()]
