@@ -16,7 +16,7 @@ from acoustisim.propagation.assemble import (
     scatter_records,
     spread_records,
 )
-from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.columns import complete_columns, complete_columns_spread
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import diffuse_paths
 from acoustisim.propagation.edges import edge_paths
@@ -222,3 +222,30 @@ def test_is_sorted_is_the_numpy_rule():
     assert is_sorted(rows["channel"], rows["delay_s"])
     rows["delay_s"][0] = 2.5  # within channel 0, later than the next row
     assert not is_sorted(rows["channel"], rows["delay_s"])
+
+
+def test_columns_filled_while_spread_are_complete_columns_then_spread(sorted_parts):
+    """The fused move-and-fill of the sorted host is complete_columns followed by spread_records,
+    byte for byte (the records not moved onto beyond the host's rows left alone)."""
+    context, (_, _, edge) = sorted_parts
+    rng = np.random.default_rng(11)
+    n = edge.size + 700
+    # increasing destinations >= i, with gaps (other rows' places) anywhere, the first rows kept
+    destination = np.sort(rng.choice(np.arange(50, n), edge.size - 50, replace=False))
+    destination = np.concatenate([np.arange(50), destination]).astype(np.int64)
+    assert np.all(destination >= np.arange(edge.size)) and np.any(destination > np.arange(edge.size))
+    filler = np.frombuffer(rng.bytes(n * PATH_DTYPE.itemsize), dtype=PATH_DTYPE)
+    expected = filler.copy()
+    expected[:edge.size] = edge
+    complete_columns(expected[:edge.size], context)
+    spread_records(expected.view(np.uint8).reshape(n, -1), destination)
+    got = filler.copy()
+    got[:edge.size] = edge
+    complete_columns_spread(got, context, destination)
+    # the destinations, and the records beyond the host's rows that nothing moved onto, byte
+    # for byte; the places vacated below are the other rows' (scattered there next)
+    vacated = np.setdiff1d(np.arange(edge.size), destination)
+    compared = np.setdiff1d(np.arange(n), vacated)
+    assert vacated.size and got[compared].tobytes() == expected[compared].tobytes()
+    # and the derived columns were filled (not left from the edge rows' placeholders)
+    assert np.array_equal(got["delay_s"][destination], edge["path_length_m"] / context.sound_speed_m_s)

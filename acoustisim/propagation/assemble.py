@@ -8,14 +8,17 @@ fault per 4 kB page (the allocator returns such buffers to the system when they 
 so the steps work in place where they can:
 
 1. :func:`~acoustisim.propagation.columns.complete_columns` fills the derived columns of each
-   part in place (it is row by row: the same values as on the joined array);
+   part in place (it is row by row: the same values as on the joined array); the sorted host
+   of step 2 gets them as its rows move (one pass over them, not two);
 2. the rows are ordered by channel, then delay, then their place in the mechanisms' order (the
    order a stable sort of the joined parts gives). Up to :data:`IN_PLACE_MAX_BYTES` of rows
    (a deterministic pose), the largest part's buffer is grown (realloc) and the rows put in
    order there, without a new buffer: when that part is sorted already (the edge rows, which
    :func:`~acoustisim.propagation.edges.edge_paths` writes in this order for the solver), the
    other rows are sorted and merged in (:func:`merge_destinations`), its own rows moved once,
-   backwards, to make room (:func:`spread_records`); otherwise the rows are permuted
+   backwards, to make room, their derived columns filled as they move
+   (:func:`~acoustisim.propagation.columns.complete_columns_spread`; the host's sort keys are
+   its ``path_length_m / c``, the very bits of its ``delay_s``); otherwise the rows are permuted
    (:func:`permute_records`). Beyond, each part's records are copied straight to their sorted
    places in one new buffer (:func:`scatter_records`);
 3. the amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`) judges the sorted
@@ -32,7 +35,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.columns import complete_columns, complete_columns_spread
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
@@ -212,14 +215,21 @@ def is_sorted(channel: NDArray[np.int8], delay: NDArray[np.float64]) -> bool:
     return True
 
 
-def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64], channel: NDArray[np.int8]
-                     ) -> NDArray[Any] | None:
-    """The rows sorted in the buffer of part ``host``, already sorted itself: the other rows are
-    sorted and merged in, the host's rows spread out to make room for them (each moved once,
-    backwards). None when that buffer cannot be taken over."""
+def _can_take_over(rows: NDArray[Any]) -> bool:
+    """Whether a part's buffer can become the result (owned, not a view, writeable, contiguous)."""
+    return bool(rows.flags.owndata and rows.base is None and rows.flags.writeable and rows.flags.c_contiguous)
+
+
+def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64], channel: NDArray[np.int8],
+                     context: SolveContext) -> NDArray[Any]:
+    """The rows sorted in the buffer of part ``host``, already sorted itself (and its buffer
+    one :func:`_can_take_over`): the other rows (their derived columns filled) are sorted and
+    merged in; the host's rows, whose derived columns are not filled yet, are spread out to
+    make room for them, each moved once, backwards, and its columns filled as it moves
+    (:func:`~acoustisim.propagation.columns.complete_columns_spread`). ``delay`` and
+    ``channel``: every part's keys, in the parts' order (the host's delays ``path_length_m /
+    c``, its ``delay_s`` to be)."""
     rows = parts[host]
-    if not (rows.flags.owndata and rows.base is None and rows.flags.writeable and rows.flags.c_contiguous):
-        return None
     offsets = np.cumsum([0] + [part.size for part in parts])
     lo, hi = int(offsets[host]), int(offsets[host + 1])
     canonical = np.r_[np.arange(lo), np.arange(hi, int(offsets[-1]))].astype(np.int64)
@@ -229,8 +239,8 @@ def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.flo
     host_destination, destination = merge_destinations(channel[lo:hi], delay[lo:hi], lo, other_channel, other_delay,
                                                        canonical, order)
     rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
+    complete_columns_spread(rows, context, host_destination)
     records = _bytes(rows)
-    spread_records(records, host_destination)
     at = 0
     for i, part in enumerate(parts):
         if i != host:
@@ -245,7 +255,7 @@ def _sorted_in_place(parts: list[NDArray[Any]], destination: NDArray[np.int64]) 
     be taken over (not owned, a view, read-only)."""
     host = max(range(len(parts)), key=lambda i: parts[i].size)
     rows = parts[host]
-    if not (rows.flags.owndata and rows.base is None and rows.flags.writeable and rows.flags.c_contiguous):
+    if not _can_take_over(rows):
         return None
     offsets = np.cumsum([0] + [part.size for part in parts])
     n_host = rows.size
@@ -290,19 +300,27 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     parts = [part if part.flags.writeable else part.copy() for part in parts if part.size]
     if not parts:
         return empty_paths_array(0)
-    for part in parts:
-        complete_columns(part, context)
-    delay = np.concatenate([part["delay_s"] for part in parts])
-    channel = np.concatenate([part["channel"] for part in parts])
-    total = delay.size
+    total = sum(part.size for part in parts)
     rows = None
-    if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES:
-        host = max(range(len(parts)), key=lambda i: parts[i].size)
-        start = sum(part.size for part in parts[:host])
-        stop = start + parts[host].size
-        if is_sorted(channel[start:stop], delay[start:stop]):
-            rows = _merged_in_place(parts, host, delay, channel)
+    host = max(range(len(parts)), key=lambda i: parts[i].size)
+    if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES and _can_take_over(parts[host]):
+        # the host's delays as complete_columns forms them (one division each, the same bits)
+        host_delay = parts[host]["path_length_m"] / float(context.sound_speed_m_s)
+        host_channel = np.ascontiguousarray(parts[host]["channel"])
+        if is_sorted(host_channel, host_delay) and len(parts) == 1:
+            rows = complete_columns(parts[host], context)  # sorted already: nothing moves
+        elif is_sorted(host_channel, host_delay):
+            for i, part in enumerate(parts):
+                if i != host:
+                    complete_columns(part, context)
+            delay = np.concatenate([host_delay if i == host else part["delay_s"] for i, part in enumerate(parts)])
+            channel = np.concatenate([host_channel if i == host else part["channel"] for i, part in enumerate(parts)])
+            rows = _merged_in_place(parts, host, delay, channel, context)
     if rows is None:
+        for part in parts:
+            complete_columns(part, context)
+        delay = np.concatenate([part["delay_s"] for part in parts])
+        channel = np.concatenate([part["channel"] for part in parts])
         order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
         destination = np.empty(total, dtype=np.int64)
         destination[order] = np.arange(total)

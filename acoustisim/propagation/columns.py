@@ -126,30 +126,78 @@ def _directivity(x: float, j1x: float) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], c: float, alpha_db_per_m: float, run: NDArray[np.intp], head_angle: NDArray[np.float64], head_x: NDArray[np.float64],
+def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], c: float, alpha_db_per_m: float,
+              run: NDArray[np.intp], head_angle: NDArray[np.float64], head_x: NDArray[np.float64],
               head_j1: NDArray[np.float64], rx_angle: NDArray[np.float64], rx_x: NDArray[np.float64],
               rx_j1: NDArray[np.float64], delay: NDArray[np.float64], angle_tx: NDArray[np.float64],
               angle_rx: NDArray[np.float64], directivity_tx: NDArray[np.float64],
               directivity_rx: NDArray[np.float64], absorption: NDArray[np.float64],
-              amplitude: NDArray[np.float64]) -> None:
+              amplitude: NDArray[np.float64], records: NDArray[np.uint8], destination: NDArray[np.int64]) -> None:
     """Every derived field of every row, written in one pass over the rows; 10^(-L / 20) is
-    exp(L * _NEPER_PER_DB) (within 2 ulp of numpy's power, several times cheaper)."""
+    exp(L * _NEPER_PER_DB) (within 2 ulp of numpy's power, several times cheaper).
+
+    With a ``destination`` (increasing, ``destination[i] >= i``; empty: rows stay), record i of
+    ``records`` (the same rows as raw bytes) is first moved to ``destination[i]``, from the last
+    one back (no record is overwritten before it is moved), and its derived fields are written
+    there: the move and the fill touch each row once (:func:`complete_columns_spread`).
+    """
+    n = run.size
+    moving = destination.size > 0
+    width = records.shape[1]
     last = -1
     d_tx = 0.0
-    for i in range(run.size):
+    for k in range(n):
+        i = n - 1 - k if moving else k
         r = run[i]
         if r != last:
             last = r
             d_tx = _directivity(head_x[r], head_j1[r])
         d_rx = _directivity(rx_x[i], rx_j1[i])
-        loss = length[i] * alpha_db_per_m
-        delay[i] = length[i] / c
-        angle_tx[i] = head_angle[r]
-        angle_rx[i] = rx_angle[i]
-        directivity_tx[i] = d_tx
-        directivity_rx[i] = d_rx
-        absorption[i] = loss
-        amplitude[i] = abs(gain[i] * d_tx * d_rx) * math.exp(loss * _NEPER_PER_DB)
+        path = length[i]
+        g = gain[i]
+        j = i
+        if moving:
+            j = destination[i]
+            if j != i:
+                for b in range(width):
+                    records[j, b] = records[i, b]
+        loss = path * alpha_db_per_m
+        delay[j] = path / c
+        angle_tx[j] = head_angle[r]
+        angle_rx[j] = rx_angle[i]
+        directivity_tx[j] = d_tx
+        directivity_rx[j] = d_rx
+        absorption[j] = loss
+        amplitude[j] = abs(g * d_tx * d_rx) * math.exp(loss * _NEPER_PER_DB)
+
+
+def _fill(rows: NDArray[Any], count: int, context: SolveContext, destination: NDArray[np.int64]) -> None:
+    """The derived columns of ``rows[:count]`` (moved to ``destination`` first, if not empty)."""
+    from scipy.special import j1
+
+    c = float(context.sound_speed_m_s)
+    a = float(context.piston_radius_m)
+    # k a as piston_directivity forms it: (2 pi f0 / c) a
+    ka = float(2.0 * np.pi * np.asarray(context.centre_frequency_hz, dtype=float) / c) * a
+    ax, ay, az = (float(v) for v in np.asarray(context.boresight, dtype=float))
+    run = np.empty(count, dtype=np.intp)
+    head_x, head_cos, rx_x, rx_cos = np.empty((4, count))
+    source = rows[:count]
+    runs = _parts_pass(source["departure_dir"], source["arrival_dir"], ax, ay, az, run, head_x, head_cos, rx_x,
+                       rx_cos)
+    head_x, head_cos = head_x[:runs], head_cos[:runs]
+    # numpy's (vectorised) arctan2, as the previous formulation
+    head_angle = np.arctan2(head_x, head_cos)
+    rx_angle = np.arctan2(rx_x, rx_cos)
+    _arguments_into(head_angle, head_x, head_cos, ka)
+    _arguments_into(rx_angle, rx_x, rx_cos, ka)
+    # the raw records only where rows move (a C-contiguous buffer then; any view otherwise)
+    records = (rows.view(np.uint8).reshape(rows.size, rows.dtype.itemsize) if destination.size
+               else np.empty((0, 1), dtype=np.uint8))
+    _row_pass(rows["path_length_m"], rows["geometric_gain"], c, float(context.absorption_db_per_m), run,
+              head_angle, head_x, j1(head_x), rx_angle, rx_x, j1(rx_x), rows["delay_s"], rows["angle_tx_rad"],
+              rows["angle_rx_rad"], rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"],
+              rows["amplitude"], records, destination)
 
 
 def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
@@ -168,7 +216,8 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     direction (the receivers of one scattering event) and once per row for the receiver;
     numpy's arctan2 gives the angles (bit for bit those of :func:`off_axis_angle`);
     :func:`_arguments_into` the piston arguments, on which scipy's J1 is evaluated (skipped
-    behind the pistons); :func:`_row_pass` writes every derived field of each row at once.
+    behind the pistons); :func:`_row_pass` writes every derived field of each row at once
+    (for :func:`complete_columns_spread`, while it moves the row).
     The operations are those of :func:`piston_directivity` in the same order, except that
     sin(angle) is |d x a| / hypot(|d x a|, d . a) and 10^(-L/20) an exponential: directivities
     agree with it within a few ulp of the argument (< 2e-14 absolute) and amplitudes within
@@ -176,30 +225,29 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     are identical
     (tested in ``tests/test_propagation_columns.py``).
     """
-    n = rows.size
-    if n == 0:
-        return rows
-    from scipy.special import j1
-
-    c = float(context.sound_speed_m_s)
-    a = float(context.piston_radius_m)
-    # k a as piston_directivity forms it: (2 pi f0 / c) a
-    ka = float(2.0 * np.pi * np.asarray(context.centre_frequency_hz, dtype=float) / c) * a
-    ax, ay, az = (float(v) for v in np.asarray(context.boresight, dtype=float))
-    run = np.empty(n, dtype=np.intp)
-    head_x, head_cos, rx_x, rx_cos = np.empty((4, n))
-    runs = _parts_pass(rows["departure_dir"], rows["arrival_dir"], ax, ay, az, run, head_x, head_cos, rx_x, rx_cos)
-    head_x, head_cos = head_x[:runs], head_cos[:runs]
-    # numpy's (vectorised) arctan2, as the previous formulation
-    head_angle = np.arctan2(head_x, head_cos)
-    rx_angle = np.arctan2(rx_x, rx_cos)
-    _arguments_into(head_angle, head_x, head_cos, ka)
-    _arguments_into(rx_angle, rx_x, rx_cos, ka)
-    _row_pass(rows["path_length_m"], rows["geometric_gain"], c, float(context.absorption_db_per_m), run,
-              head_angle, head_x, j1(head_x), rx_angle, rx_x, j1(rx_x), rows["delay_s"], rows["angle_tx_rad"],
-              rows["angle_rx_rad"], rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"],
-              rows["amplitude"])
+    if rows.size:
+        _fill(rows, rows.size, context, np.empty(0, dtype=np.int64))
     return rows
 
 
-__all__ = ["complete_columns", "off_axis_angle"]
+def complete_columns_spread(rows: NDArray[Any], context: SolveContext, destination: NDArray[np.int64]) -> None:
+    """Move the records ``rows[:h]`` to ``destination`` (h = ``destination.size``) and fill their
+    derived columns there, in one pass (what :func:`complete_columns` then a move of the
+    records would give, byte for byte).
+
+    Parameters
+    ----------
+    rows : structured ndarray of PATH_DTYPE, shape (n,), C-contiguous
+        n >= ``destination[-1] + 1``. Records at no destination are left as they are, except
+        that the places vacated among the first h hold stale records (the moved rows without
+        their derived columns): the caller fills them (the other parts' rows).
+    context : SolveContext
+    destination : ndarray of int64, shape (h,)
+        Increasing, ``destination[i] >= i`` (each record is moved, from the last one back,
+        before it could be overwritten).
+    """
+    if destination.size:
+        _fill(rows, destination.size, context, np.ascontiguousarray(destination, dtype=np.int64))
+
+
+__all__ = ["complete_columns", "complete_columns_spread", "off_axis_angle"]
