@@ -248,8 +248,8 @@ class PreparedDetector:
         rows = signals.waveforms.reshape(n_pings * n_channels, n)
         extremes = np.empty((rows.shape[0], 2)) if deferred else None
         raw = _run(self, rows, signals, extremes)
-        clipped = signals.clipped if extremes is None else signals.clipped_by_extremes(extremes[:, 0], extremes[:, 1])
-        flags = clipped.tolist()  # Python bools, one conversion
+        # Python bools, one conversion (and the pending clipping test on the extremes, in Python).
+        flags = signals.clipped.tolist() if extremes is None else signals.clipped_flags(extremes)
         drop = on_clipped == "drop"
         echoes = tuple(
             tuple(
@@ -570,6 +570,12 @@ def _run(
         call = lambda chunk, dc_v: function(chunk, plan, t0_s=t0, kind=kind, **options)  # noqa: E731
     if dc is not None and base not in FOLDS_DC:
         raise RecordingError(f"{where}: internal: method {base!r} was given waveforms with their DC offset in them")
+    if rows.shape[0] <= ROW_CHUNK:  # one chunk (a ping or a few): the arrays as they are, no views
+        if robust is not None:
+            options["robust_sigma_v"] = robust
+        if extremes is not None:
+            options["extremes_out"] = extremes
+        return call(rows, dc)
     out: RawEchoes = []
     for start in range(0, rows.shape[0], ROW_CHUNK):  # chunks of rows, vectorised inside
         if robust is not None:

@@ -71,41 +71,43 @@ class Signals:
     pending_full_scales_v: tuple[float, ...] = ()
     """Full scales (V) the codes have not been tested against yet (``as_signals(...,
     defer_clipping=True)``): ``clipped`` then lacks that test until ``with_clipping_checked``
-    (one pass over the codes) or ``with_extremes`` (each row's extremes, measured by a detector
-    that reads every sample anyway: ``local.detect_local_matched``'s ``extremes_out``) is applied."""
+    (one pass over the codes) or ``with_extremes`` / ``clipped_flags`` (each row's extremes,
+    measured by a detector that reads every sample anyway: ``local.detect_local_matched``'s
+    ``extremes_out``) is applied."""
 
-    def clipped_by_extremes(self, largest: NDArray, smallest: NDArray) -> NDArray[np.bool_]:
-        """``clipped`` with the pending clipping test applied to each row's extremes.
+    def clipped_flags(self, extremes: NDArray) -> list[list[bool]]:
+        """``clipped`` with the pending clipping test applied to each row's extremes, as nested
+        Python lists (n_pings lists of n_channels bools).
 
         A row reaches one of the full scales exactly when it reaches the smallest of them, so
-        one comparison per extreme (within a part in 1e9, as ``_clipped_by_full_scale``).
+        one comparison per extreme (within a part in 1e9, as ``_clipped_by_full_scale``), on
+        Python floats: a few rows, and no numpy calls beyond one ``tolist`` of each array (each
+        costs microseconds once a new ping has evicted the caches).
 
         Parameters
         ----------
-        largest, smallest : ndarray, shape (n_pings * n_channels,)
+        extremes : ndarray, shape (n_pings * n_channels, 2)
             Each ping-channel's largest and smallest value, in the units of ``waveforms``
             (codes).
-
-        Returns
-        -------
-        ndarray of bool, shape (n_pings, n_channels)
         """
+        flags = self.clipped.tolist()
         if not self.pending_full_scales_v:
-            return self.clipped
+            return flags
         step = 1.0 if self.volts_per_code is None else self.volts_per_code
         limit = min(self.pending_full_scales_v) * (1.0 - 1e-9)
-        # A few rows: Python floats (one conversion each way), not a dozen small numpy calls.
-        reached = [high * step >= limit or low * step <= -limit
-                   for high, low in zip(np.asarray(largest, dtype=float).tolist(),
-                                        np.asarray(smallest, dtype=float).tolist())]
-        return self.clipped | np.array(reached, dtype=bool).reshape(self.clipped.shape)
+        n_channels = self.n_channels
+        for row, (high, low) in enumerate(np.asarray(extremes, dtype=float).tolist()):
+            if high * step >= limit or low * step <= -limit:
+                flags[row // n_channels][row % n_channels] = True
+        return flags
 
-    def with_extremes(self, largest: NDArray, smallest: NDArray) -> "Signals":
+    def with_extremes(self, extremes: NDArray) -> "Signals":
         """These signals with the pending clipping test applied to each row's extremes
-        (``clipped_by_extremes``); self when none is pending."""
+        (``clipped_flags``; ``extremes`` of shape (n_pings * n_channels, 2)); self when none is
+        pending."""
         if not self.pending_full_scales_v:
             return self
-        return replace(self, clipped=self.clipped_by_extremes(largest, smallest), pending_full_scales_v=())
+        return replace(self, clipped=np.array(self.clipped_flags(extremes), dtype=bool), pending_full_scales_v=())
 
     def with_clipping_checked(self) -> "Signals":
         """These signals with the pending clipping test done (one pass over the codes); self
@@ -118,7 +120,7 @@ class Signals:
         largest = np.empty(rows.shape[0], dtype=np.int64)
         smallest = np.empty(rows.shape[0], dtype=np.int64)
         row_extremes(rows, largest, smallest)
-        return self.with_extremes(largest, smallest)
+        return self.with_extremes(np.stack([largest, smallest], axis=1))
 
     @property
     def n_pings(self) -> int:

@@ -590,7 +590,7 @@ def detect_local_matched(
     # refinement as the full matched filter's, ``matched.echo_values``; checked against the
     # numpy definitions and the FFT route in tests/test_detection_local_kernels.py).
     lanes = plan.tone_lanes if volts_per_code is None else plan.tone_lanes32  # codes: float32 block sums
-    local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), np.ascontiguousarray(sigma, dtype=float),
+    local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), sigma,  # sigma: a new float64 array (noise_sigma)
                                lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,
                                np.empty((0, 2)) if extremes_out is None else extremes_out)
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
