@@ -16,7 +16,7 @@ from acoustisim.propagation.assemble import (
     scatter_records,
     spread_records,
 )
-from acoustisim.propagation.columns import complete_columns, complete_columns_spread
+from acoustisim.propagation.columns import column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import diffuse_paths
 from acoustisim.propagation.edges import edge_paths
@@ -241,7 +241,11 @@ def test_columns_filled_while_spread_are_complete_columns_then_spread(sorted_par
     spread_records(expected.view(np.uint8).reshape(n, -1), destination)
     got = filler.copy()
     got[:edge.size] = edge
-    complete_columns_spread(got, context, destination)
+    inputs = column_inputs(got[:edge.size], context)
+    # the sort keys read with the directions: the delays' very bits, the channels
+    assert inputs.delay_s.tobytes() == expected["delay_s"][destination].tobytes()
+    assert np.array_equal(inputs.channel, edge["channel"])
+    fill_columns(got, inputs, destination)
     # the destinations, and the records beyond the host's rows that nothing moved onto, byte
     # for byte; the places vacated below are the other rows' (scattered there next)
     vacated = np.setdiff1d(np.arange(edge.size), destination)

@@ -17,8 +17,9 @@ so the steps work in place where they can:
    :func:`~acoustisim.propagation.edges.edge_paths` writes in this order for the solver), the
    other rows are sorted and merged in (:func:`merge_destinations`), its own rows moved once,
    backwards, to make room, their derived columns filled as they move
-   (:func:`~acoustisim.propagation.columns.complete_columns_spread`; the host's sort keys are
-   its ``path_length_m / c``, the very bits of its ``delay_s``); otherwise the rows are permuted
+   (:func:`~acoustisim.propagation.columns.fill_columns`; the host's sort keys are read with
+   its directions, :func:`~acoustisim.propagation.columns.column_inputs`: its
+   ``path_length_m / c``, the very bits of its ``delay_s``); otherwise the rows are permuted
    (:func:`permute_records`). Beyond, each part's records are copied straight to their sorted
    places in one new buffer (:func:`scatter_records`);
 3. the amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`) judges the sorted
@@ -35,7 +36,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from acoustisim.propagation.columns import complete_columns, complete_columns_spread
+from acoustisim.propagation.columns import ColumnInputs, column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
@@ -221,14 +222,15 @@ def _can_take_over(rows: NDArray[Any]) -> bool:
 
 
 def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64], channel: NDArray[np.int8],
-                     context: SolveContext) -> NDArray[Any]:
+                     inputs: ColumnInputs) -> NDArray[Any]:
     """The rows sorted in the buffer of part ``host``, already sorted itself (and its buffer
     one :func:`_can_take_over`): the other rows (their derived columns filled) are sorted and
     merged in; the host's rows, whose derived columns are not filled yet, are spread out to
     make room for them, each moved once, backwards, and its columns filled as it moves
-    (:func:`~acoustisim.propagation.columns.complete_columns_spread`). ``delay`` and
-    ``channel``: every part's keys, in the parts' order (the host's delays ``path_length_m /
-    c``, its ``delay_s`` to be)."""
+    (:func:`~acoustisim.propagation.columns.fill_columns` with ``inputs``, the host's
+    :func:`~acoustisim.propagation.columns.column_inputs`). ``delay`` and ``channel``: every
+    part's keys, in the parts' order (the host's from ``inputs``: the bits of its ``delay_s``
+    to be)."""
     rows = parts[host]
     offsets = np.cumsum([0] + [part.size for part in parts])
     lo, hi = int(offsets[host]), int(offsets[host + 1])
@@ -239,7 +241,7 @@ def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.flo
     host_destination, destination = merge_destinations(channel[lo:hi], delay[lo:hi], lo, other_channel, other_delay,
                                                        canonical, order)
     rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
-    complete_columns_spread(rows, context, host_destination)
+    fill_columns(rows, inputs, host_destination)
     records = _bytes(rows)
     at = 0
     for i, part in enumerate(parts):
@@ -303,22 +305,29 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     total = sum(part.size for part in parts)
     rows = None
     host = max(range(len(parts)), key=lambda i: parts[i].size)
+    inputs = None
     if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES and _can_take_over(parts[host]):
-        # the host's delays as complete_columns forms them (one division each, the same bits)
-        host_delay = parts[host]["path_length_m"] / float(context.sound_speed_m_s)
-        host_channel = np.ascontiguousarray(parts[host]["channel"])
-        if is_sorted(host_channel, host_delay) and len(parts) == 1:
-            rows = complete_columns(parts[host], context)  # sorted already: nothing moves
-        elif is_sorted(host_channel, host_delay):
-            for i, part in enumerate(parts):
-                if i != host:
-                    complete_columns(part, context)
-            delay = np.concatenate([host_delay if i == host else part["delay_s"] for i, part in enumerate(parts)])
-            channel = np.concatenate([host_channel if i == host else part["channel"] for i, part in enumerate(parts)])
-            rows = _merged_in_place(parts, host, delay, channel, context)
+        # the host's sort keys read with what its columns derive from (one pass over its rows)
+        inputs = column_inputs(parts[host], context)
+        if is_sorted(inputs.channel, inputs.delay_s):
+            if len(parts) == 1:  # sorted already: nothing moves
+                fill_columns(parts[host], inputs)
+                rows = parts[host]
+            else:
+                for i, part in enumerate(parts):
+                    if i != host:
+                        complete_columns(part, context)
+                delay = np.concatenate([inputs.delay_s if i == host else part["delay_s"]
+                                        for i, part in enumerate(parts)])
+                channel = np.concatenate([inputs.channel if i == host else part["channel"]
+                                          for i, part in enumerate(parts)])
+                rows = _merged_in_place(parts, host, delay, channel, inputs)
     if rows is None:
-        for part in parts:
-            complete_columns(part, context)
+        for i, part in enumerate(parts):
+            if i == host and inputs is not None:
+                fill_columns(part, inputs)
+            else:
+                complete_columns(part, context)
         delay = np.concatenate([part["delay_s"] for part in parts])
         channel = np.concatenate([part["channel"] for part in parts])
         order = np.lexsort((delay, channel))  # stable: ties keep the parts' order

@@ -10,6 +10,7 @@ mechanism's rows) computes the rest, so all mechanisms agree on them.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -71,10 +72,13 @@ def _parts(x: float, y: float, z: float, ax: float, ay: float, az: float) -> tup
 @njit(cache=True, nogil=True, error_model="numpy")
 def _parts_pass(departure: NDArray[np.float64], arrival: NDArray[np.float64], ax: float, ay: float, az: float,
                 run: NDArray[np.intp], head_sin: NDArray[np.float64], head_cos: NDArray[np.float64],
-                rx_sin: NDArray[np.float64], rx_cos: NDArray[np.float64]) -> int:
+                rx_sin: NDArray[np.float64], rx_cos: NDArray[np.float64], length: NDArray[np.float64], c: float,
+                channel: NDArray[np.int8], delay_out: NDArray[np.float64], channel_out: NDArray[np.int8]) -> int:
     """|d x a| and d . a of the departure directions once per run of equal ones (``run[i]`` is
     row i's run, ``head_*[run]`` its values) and of -arrival_dir per row (the same |d x a|,
-    exactly the negated cosine). Returns the number of runs."""
+    exactly the negated cosine); and, in the same pass, each row's sort keys: its delay
+    ``length / c`` (the very division :func:`_row_pass` makes) and channel, contiguous. Returns
+    the number of runs."""
     runs = -1
     px = py = pz = 0.0
     for i in range(run.size):
@@ -89,6 +93,8 @@ def _parts_pass(departure: NDArray[np.float64], arrival: NDArray[np.float64], ax
         sin_part, cos_part = _parts(arrival[i, 0], arrival[i, 1], arrival[i, 2], ax, ay, az)
         rx_sin[i] = sin_part
         rx_cos[i] = -cos_part
+        delay_out[i] = length[i] / c
+        channel_out[i] = channel[i]
     return runs + 1
 
 
@@ -139,7 +145,7 @@ def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], c: float, 
     With a ``destination`` (increasing, ``destination[i] >= i``; empty: rows stay), record i of
     ``records`` (the same rows as raw bytes) is first moved to ``destination[i]``, from the last
     one back (no record is overwritten before it is moved), and its derived fields are written
-    there: the move and the fill touch each row once (:func:`complete_columns_spread`).
+    there: the move and the fill touch each row once (:func:`fill_columns`).
     """
     n = run.size
     moving = destination.size > 0
@@ -171,33 +177,94 @@ def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], c: float, 
         amplitude[j] = abs(g * d_tx * d_rx) * math.exp(loss * _NEPER_PER_DB)
 
 
-def _fill(rows: NDArray[Any], count: int, context: SolveContext, destination: NDArray[np.int64]) -> None:
-    """The derived columns of ``rows[:count]`` (moved to ``destination`` first, if not empty)."""
+@dataclass(frozen=True)
+class ColumnInputs:
+    """What the derived columns of some rows are computed from, read from them in one pass
+    (:func:`column_inputs`), and their sort keys; :func:`fill_columns` writes the columns.
+
+    Attributes
+    ----------
+    delay_s : ndarray of float64, shape (n,)
+        ``path_length_m / c`` (s): the bits ``delay_s`` will hold.
+    channel : ndarray of int8, shape (n,)
+        The rows' channels.
+    run : ndarray of intp, shape (n,)
+        Each row's run of equal departure directions.
+    head_angle, head_argument, head_j1 : ndarray of float64, shape (runs,)
+        Per run: the angle off the boresight (rad), the piston argument x (0 on axis, NaN
+        behind the piston; :func:`_arguments_into`) and J1(x).
+    rx_angle, rx_argument, rx_j1 : ndarray of float64, shape (n,)
+        The same of each row's -arrival_dir.
+    sound_speed_m_s, absorption_db_per_m : float
+    """
+
+    delay_s: NDArray[np.float64]
+    channel: NDArray[np.int8]
+    run: NDArray[np.intp]
+    head_angle: NDArray[np.float64]
+    head_argument: NDArray[np.float64]
+    head_j1: NDArray[np.float64]
+    rx_angle: NDArray[np.float64]
+    rx_argument: NDArray[np.float64]
+    rx_j1: NDArray[np.float64]
+    sound_speed_m_s: float
+    absorption_db_per_m: float
+
+
+def column_inputs(rows: NDArray[Any], context: SolveContext) -> ColumnInputs:
+    """Read the directions, path lengths and channels of ``rows`` (PATH_DTYPE, shape (n,), any
+    view) once, and evaluate the angles (numpy's arctan2) and J1 (scipy) on contiguous arrays."""
     from scipy.special import j1
 
+    n = rows.size
     c = float(context.sound_speed_m_s)
     a = float(context.piston_radius_m)
     # k a as piston_directivity forms it: (2 pi f0 / c) a
     ka = float(2.0 * np.pi * np.asarray(context.centre_frequency_hz, dtype=float) / c) * a
     ax, ay, az = (float(v) for v in np.asarray(context.boresight, dtype=float))
-    run = np.empty(count, dtype=np.intp)
-    head_x, head_cos, rx_x, rx_cos = np.empty((4, count))
-    source = rows[:count]
-    runs = _parts_pass(source["departure_dir"], source["arrival_dir"], ax, ay, az, run, head_x, head_cos, rx_x,
-                       rx_cos)
+    run = np.empty(n, dtype=np.intp)
+    head_x, head_cos, rx_x, rx_cos, delay = np.empty((5, n))
+    channel = np.empty(n, dtype=np.int8)
+    runs = _parts_pass(rows["departure_dir"], rows["arrival_dir"], ax, ay, az, run, head_x, head_cos, rx_x, rx_cos,
+                       rows["path_length_m"], c, rows["channel"], delay, channel)
     head_x, head_cos = head_x[:runs], head_cos[:runs]
     # numpy's (vectorised) arctan2, as the previous formulation
     head_angle = np.arctan2(head_x, head_cos)
     rx_angle = np.arctan2(rx_x, rx_cos)
     _arguments_into(head_angle, head_x, head_cos, ka)
     _arguments_into(rx_angle, rx_x, rx_cos, ka)
-    # the raw records only where rows move (a C-contiguous buffer then; any view otherwise)
-    records = (rows.view(np.uint8).reshape(rows.size, rows.dtype.itemsize) if destination.size
-               else np.empty((0, 1), dtype=np.uint8))
-    _row_pass(rows["path_length_m"], rows["geometric_gain"], c, float(context.absorption_db_per_m), run,
-              head_angle, head_x, j1(head_x), rx_angle, rx_x, j1(rx_x), rows["delay_s"], rows["angle_tx_rad"],
-              rows["angle_rx_rad"], rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"],
-              rows["amplitude"], records, destination)
+    return ColumnInputs(delay, channel, run, head_angle, head_x, j1(head_x), rx_angle, rx_x, j1(rx_x), c,
+                        float(context.absorption_db_per_m))
+
+
+def fill_columns(rows: NDArray[Any], inputs: ColumnInputs, destination: NDArray[np.int64] | None = None) -> None:
+    """Write the derived columns of the rows ``inputs`` was read from, in one pass.
+
+    Parameters
+    ----------
+    rows : structured ndarray of PATH_DTYPE, shape (n,)
+        Without ``destination``: the rows themselves (any view). With it: a C-contiguous
+        buffer whose first h = ``destination.size`` records are those rows.
+    inputs : ColumnInputs
+        :func:`column_inputs` of ``rows`` (of ``rows[:h]`` with a destination).
+    destination : ndarray of int64, shape (h,), optional
+        Increasing, ``destination[i] >= i``: record i is moved there first (from the last one
+        back, so none is overwritten before it moves), and its columns written there; byte
+        for byte what :func:`complete_columns` then the move would give at the destinations.
+        The places vacated among the first h keep stale records (the moved rows without their
+        derived columns): the caller fills them; other records are left as they are.
+    """
+    if destination is None or destination.size == 0:
+        destination = np.empty(0, dtype=np.int64)
+        records = np.empty((0, 1), dtype=np.uint8)  # nothing moves: any view of the rows will do
+    else:
+        destination = np.ascontiguousarray(destination, dtype=np.int64)
+        records = rows.view(np.uint8).reshape(rows.size, rows.dtype.itemsize)
+    _row_pass(rows["path_length_m"], rows["geometric_gain"], inputs.sound_speed_m_s, inputs.absorption_db_per_m,
+              inputs.run, inputs.head_angle, inputs.head_argument, inputs.head_j1, inputs.rx_angle,
+              inputs.rx_argument, inputs.rx_j1, rows["delay_s"], rows["angle_tx_rad"], rows["angle_rx_rad"],
+              rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"], rows["amplitude"], records,
+              destination)
 
 
 def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
@@ -217,7 +284,8 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     numpy's arctan2 gives the angles (bit for bit those of :func:`off_axis_angle`);
     :func:`_arguments_into` the piston arguments, on which scipy's J1 is evaluated (skipped
     behind the pistons); :func:`_row_pass` writes every derived field of each row at once
-    (for :func:`complete_columns_spread`, while it moves the row).
+    (:func:`column_inputs` and :func:`fill_columns`, which can also move the rows as it
+    fills them).
     The operations are those of :func:`piston_directivity` in the same order, except that
     sin(angle) is |d x a| / hypot(|d x a|, d . a) and 10^(-L/20) an exponential: directivities
     agree with it within a few ulp of the argument (< 2e-14 absolute) and amplitudes within
@@ -226,28 +294,8 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     (tested in ``tests/test_propagation_columns.py``).
     """
     if rows.size:
-        _fill(rows, rows.size, context, np.empty(0, dtype=np.int64))
+        fill_columns(rows, column_inputs(rows, context))
     return rows
 
 
-def complete_columns_spread(rows: NDArray[Any], context: SolveContext, destination: NDArray[np.int64]) -> None:
-    """Move the records ``rows[:h]`` to ``destination`` (h = ``destination.size``) and fill their
-    derived columns there, in one pass (what :func:`complete_columns` then a move of the
-    records would give, byte for byte).
-
-    Parameters
-    ----------
-    rows : structured ndarray of PATH_DTYPE, shape (n,), C-contiguous
-        n >= ``destination[-1] + 1``. Records at no destination are left as they are, except
-        that the places vacated among the first h hold stale records (the moved rows without
-        their derived columns): the caller fills them (the other parts' rows).
-    context : SolveContext
-    destination : ndarray of int64, shape (h,)
-        Increasing, ``destination[i] >= i`` (each record is moved, from the last one back,
-        before it could be overwritten).
-    """
-    if destination.size:
-        _fill(rows, destination.size, context, np.ascontiguousarray(destination, dtype=np.int64))
-
-
-__all__ = ["complete_columns", "complete_columns_spread", "off_axis_angle"]
+__all__ = ["ColumnInputs", "column_inputs", "complete_columns", "fill_columns", "off_axis_angle"]
