@@ -221,17 +221,16 @@ def _can_take_over(rows: NDArray[Any]) -> bool:
     return bool(rows.flags.owndata and rows.base is None and rows.flags.writeable and rows.flags.c_contiguous)
 
 
-def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64], channel: NDArray[np.int8],
-                     inputs: ColumnInputs) -> NDArray[Any]:
-    """The rows sorted in the buffer of part ``host``, already sorted itself (and its buffer
-    one :func:`_can_take_over`): the other rows (their derived columns filled) are sorted and
+def _merged_in_place(rows: NDArray[Any], parts: list[NDArray[Any]], host: int, delay: NDArray[np.float64],
+                     channel: NDArray[np.int8], inputs: ColumnInputs) -> NDArray[Any]:
+    """The rows sorted in ``rows``, the buffer of part ``host`` grown to hold them all (its own
+    rows first), that part sorted itself: the other rows (their derived columns filled) are sorted and
     merged in; the host's rows, whose derived columns are not filled yet, are spread out to
     make room for them, each moved once, backwards, and its columns filled as it moves
     (:func:`~acoustisim.propagation.columns.fill_columns` with ``inputs``, the host's
     :func:`~acoustisim.propagation.columns.column_inputs`). ``delay`` and ``channel``: every
     part's keys, in the parts' order (the host's from ``inputs``: the bits of its ``delay_s``
     to be)."""
-    rows = parts[host]
     offsets = np.cumsum([0] + [part.size for part in parts])
     lo, hi = int(offsets[host]), int(offsets[host + 1])
     canonical = np.r_[np.arange(lo), np.arange(hi, int(offsets[-1]))].astype(np.int64)
@@ -240,7 +239,6 @@ def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.flo
     order = np.lexsort((other_delay, other_channel)).astype(np.int64)
     host_destination, destination = merge_destinations(channel[lo:hi], delay[lo:hi], lo, other_channel, other_delay,
                                                        canonical, order)
-    rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
     fill_columns(rows, inputs, host_destination)
     records = _bytes(rows)
     at = 0
@@ -251,17 +249,22 @@ def _merged_in_place(parts: list[NDArray[Any]], host: int, delay: NDArray[np.flo
     return rows
 
 
-def _sorted_in_place(parts: list[NDArray[Any]], destination: NDArray[np.int64]) -> NDArray[Any] | None:
+def _sorted_in_place(parts: list[NDArray[Any]], destination: NDArray[np.int64],
+                     grown: NDArray[Any] | None = None) -> NDArray[Any] | None:
     """The rows sorted in the largest part's own buffer, grown in place (``ndarray.resize``:
-    realloc, which keeps the pages of a large buffer), or None when that part's buffer cannot
-    be taken over (not owned, a view, read-only)."""
+    realloc, which keeps the pages of a large buffer; ``grown``: that buffer grown already, the
+    part its first rows), or None when that part's buffer cannot be taken over (not owned, a
+    view, read-only)."""
     host = max(range(len(parts)), key=lambda i: parts[i].size)
-    rows = parts[host]
-    if not _can_take_over(rows):
-        return None
+    n_host = parts[host].size
     offsets = np.cumsum([0] + [part.size for part in parts])
-    n_host = rows.size
-    rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
+    if grown is None:
+        rows = parts[host]
+        if not _can_take_over(rows):
+            return None
+        rows.resize(int(offsets[-1]), refcheck=False)  # no view of the host is alive here
+    else:
+        rows = grown
     records = _bytes(rows)
     # buffer layout: the host's rows, then the other parts' in order; where each belongs
     where = [destination[offsets[host]:offsets[host + 1]]]
@@ -305,35 +308,42 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     total = sum(part.size for part in parts)
     rows = None
     host = max(range(len(parts)), key=lambda i: parts[i].size)
-    inputs = None
+    grown = None
     if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES and _can_take_over(parts[host]):
+        # the host's buffer grown to the result's size first, before anything else is
+        # allocated: realloc then extends it where it is (with a new allocation behind it, it
+        # would copy the rows to a fresh buffer, page faults included); its rows are its start
+        grown = parts[host]
+        n_host = grown.size
+        grown.resize(total, refcheck=False)  # no view of the host is alive here
+        parts[host] = grown[:n_host]
         # the host's sort keys read with what its columns derive from (one pass over its rows)
         inputs = column_inputs(parts[host], context)
-        if is_sorted(inputs.channel, inputs.delay_s):
-            if len(parts) == 1:  # sorted already: nothing moves
-                fill_columns(parts[host], inputs)
-                rows = parts[host]
-            else:
-                for i, part in enumerate(parts):
-                    if i != host:
-                        complete_columns(part, context)
-                delay = np.concatenate([inputs.delay_s if i == host else part["delay_s"]
-                                        for i, part in enumerate(parts)])
-                channel = np.concatenate([inputs.channel if i == host else part["channel"]
-                                          for i, part in enumerate(parts)])
-                rows = _merged_in_place(parts, host, delay, channel, inputs)
-    if rows is None:
         for i, part in enumerate(parts):
-            if i == host and inputs is not None:
-                fill_columns(part, inputs)
-            else:
+            if i != host:
                 complete_columns(part, context)
+        if not is_sorted(inputs.channel, inputs.delay_s):
+            fill_columns(parts[host], inputs)
+        elif len(parts) == 1:  # sorted already: nothing moves
+            fill_columns(grown, inputs)
+            rows = grown
+        else:
+            delay = np.concatenate([inputs.delay_s if i == host else part["delay_s"] for i, part in enumerate(parts)])
+            channel = np.concatenate([inputs.channel if i == host else part["channel"]
+                                      for i, part in enumerate(parts)])
+            rows = _merged_in_place(grown, parts, host, delay, channel, inputs)
+    else:
+        for part in parts:
+            complete_columns(part, context)
+    if rows is None:
         delay = np.concatenate([part["delay_s"] for part in parts])
         channel = np.concatenate([part["channel"] for part in parts])
         order = np.lexsort((delay, channel))  # stable: ties keep the parts' order
         destination = np.empty(total, dtype=np.int64)
         destination[order] = np.arange(total)
-        if total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES:
+        if grown is not None:
+            rows = _sorted_in_place(parts, destination, grown)
+        elif total * PATH_DTYPE.itemsize <= IN_PLACE_MAX_BYTES:
             rows = _sorted_in_place(parts, destination)
     if rows is None:
         rows = np.empty(total, dtype=PATH_DTYPE)
@@ -343,6 +353,7 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
             scatter_records(_bytes(part), destination[start:start + part.size], out)
             start += part.size
         del out
+    parts.clear()  # the host's view of its rows in ``grown`` among them: none may outlive a resize
     keep = floor_mask(rows, floor_db, context, band_hz)
     if not keep.all():
         kept = np.flatnonzero(keep).astype(np.int64)
