@@ -89,6 +89,24 @@ def _surface_points(raycaster, surface, n, rng):
     return np.einsum("ij,ijk->ik", w, v[pick]), raycaster.face_normals[rows[pick]]
 
 
+
+def _receptions(events) -> set[tuple[int, int]]:
+    """The tracer's (event, channel) receptions."""
+    return set(zip(events.event.tolist(), events.channel.tolist()))
+
+
+def _brute_force_receptions(raycaster, context, events) -> set[tuple[int, int]]:
+    """(event, channel) of every first-bounce hit that faces a receiver and whose leg to it
+    Embree finds clear: the brute-force answer the tracer's receptions must equal."""
+    points = events.points_m
+    hits = raycaster.intersect(np.broadcast_to(context.transmitter_m, points.shape), events.departure_dir)
+    expected = set()
+    for j, receiver in enumerate(context.receivers_m):  # three receivers, each one batched query
+        facing = np.einsum("ij,ij->i", receiver - points, hits.normal) > 0
+        clear = ~raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
+        expected |= {(int(e), j) for e in np.flatnonzero(facing & clear)}
+    return expected
+
 def test_thesis_objects_are_convex_with_their_face_planes(tank):
     scene, raycaster = tank
     planes = raycaster.convex_planes
@@ -178,14 +196,7 @@ def test_a_non_convex_object_falls_back_to_embree():
     context = SolveContext.build(scene, scene.sonar, raycaster)
     events = trace_diffuse(context, SolverConfig(diffuse_rays=20_000, seed=3), threads=2)
     assert events.embree_legs > 100 and events.convex_legs > 100
-    points = events.points_m
-    hits = raycaster.intersect(np.broadcast_to(context.transmitter_m, points.shape), events.departure_dir)
-    expected = set()
-    for j, receiver in enumerate(context.receivers_m):
-        facing = np.einsum("ij,ij->i", receiver - points, hits.normal) > 0
-        clear = ~raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
-        expected |= {(int(e), j) for e in np.flatnonzero(facing & clear)}
-    assert set(zip(events.event.tolist(), events.channel.tolist())) == expected
+    assert _receptions(events) == _brute_force_receptions(raycaster, context, events)
     # the ring hides some legs and its hole lets some through
     on_ring = events.surface[events.event] == len(scene.boundaries) + 4
     assert on_ring.any()
@@ -211,14 +222,7 @@ def test_receptions_equal_brute_force_embree_over_random_poses():
                  for obj in scene.objects]):
             continue  # a transducer inside or touching an object
         events = trace_diffuse(context, SolverConfig(diffuse_rays=20_000, seed=pose), threads=2)
-        points = events.points_m
-        hits = raycaster.intersect(np.broadcast_to(context.transmitter_m, points.shape), events.departure_dir)
-        expected = set()
-        for j, receiver in enumerate(context.receivers_m):
-            facing = np.einsum("ij,ij->i", receiver - points, hits.normal) > 0
-            clear = ~raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
-            expected |= {(int(e), j) for e in np.flatnonzero(facing & clear)}
-        assert set(zip(events.event.tolist(), events.channel.tolist())) == expected, pose
+        assert _receptions(events) == _brute_force_receptions(raycaster, context, events), pose
         assert events.convex_legs > 0 and events.embree_legs == 0
         tested += 1
     assert tested >= 10
