@@ -252,3 +252,93 @@ def test_recording_truth_scene_loads_back_with_the_machined_prism(tmp_path) -> N
     ratio = np.abs(rough["geometric_gain"][on_prism] / rows["geometric_gain"][on_prism])
     np.testing.assert_allclose(ratio, np.sqrt(get_material("steel").diffuse_mu / prism_material().diffuse_mu),
                                rtol=1e-9)
+
+
+def test_default_angle_sweep_range_has_no_specular_path_in_the_gate() -> None:
+    """The angle sweep's default range was chosen so that no wall, floor or surface echo of order
+    <= 4 shares the edge's gate at any bearing: if the tank, the head's depth, the gate or the
+    default range change, this fails."""
+    from acoustisim.experiments.angle_sweep import DEFAULT_RANGE_M
+    from acoustisim.experiments.point_target import SWEEP_MAX_ORDER, position_setup
+    from acoustisim.propagation import solve
+    from acoustisim.propagation.paths import PathKind
+
+    for bearing in (-12.0, -6.0, 0.0, 6.0, 12.0):
+        scene, sonar, _, _, gate = position_setup(DEFAULT_RANGE_M, bearing)
+        rows = solve(scene, sonar, solver_config({"reverberation": False})).rows
+        specular = rows[(rows["kind"] == PathKind.SPECULAR) & (rows["delay_s"] >= gate[0])
+                        & (rows["delay_s"] <= gate[1])]
+        assert specular.size == 0, (bearing, specular["delay_s"])
+    # ...while at 2.0 m (the old default) the order-4 floor-surface multiple is in it at 0 deg.
+    scene, sonar, _, _, gate = position_setup(2.0, 0.0)
+    rows = solve(scene, sonar, solver_config({"reverberation": False})).rows
+    inside = rows[(rows["kind"] == PathKind.SPECULAR) & (rows["delay_s"] >= gate[0]) & (rows["delay_s"] <= gate[1])]
+    assert SWEEP_MAX_ORDER in set(int(v) for v in inside["order"])
+
+
+def _reverb_bound_inputs(seed: int = 3) -> tuple:
+    """An edge-like echo (the template at sample 700) in white noise, over a 1600-sample gate."""
+    from acoustisim.pulse import GaussianPulse
+
+    fs = 10e6
+    template = np.asarray(GaussianPulse().sampled(fs).samples, dtype=float)
+    rng = np.random.default_rng(seed)
+    echo = np.zeros((3, 1600))
+    for ch in range(3):
+        echo[ch, 700:700 + template.size] = 5e-3 * template / np.max(np.abs(template))
+    noise = 1e-4 * rng.standard_normal((3, 1600))
+    return echo, noise, template, fs, rng
+
+
+def test_reverb_bound_counts_the_reverberation_only_at_the_echo_s_delay() -> None:
+    from acoustisim.experiments.point_target import noise_bound, reverb_bound
+
+    echo, noise, template, fs, rng = _reverb_bound_inputs()
+    args = (template, fs, 1.0, 2.0, 1482.0, 0.065)
+    plain = noise_bound(echo, noise, *args)
+    # No reverberation: the noise-only bound (the same 2E/N0 as ``matched_snr``, to rounding).
+    zero = reverb_bound(echo, noise, [np.zeros_like(noise)], *args)
+    assert zero["range_m"] == pytest.approx(plain["range_m"], rel=1e-9)
+    # Reverberation only well before the echo (outside one template length of its peak): unchanged.
+    early = np.zeros_like(noise)
+    early[:, :200] = 1e-2 * rng.standard_normal((3, 200))
+    assert reverb_bound(echo, noise, [early], *args)["range_m"] == pytest.approx(plain["range_m"], rel=1e-9)
+    # White reverberation as strong as the white noise, around the echo, raises the bound: with its
+    # level at the matched filter's output equal to the noise's, 2E/N0 halves and the bound grows by
+    # sqrt(2). The level is estimated over one template length (about 100 correlated samples) per
+    # realisation; averaged over 16 realisations it is within about +/-1 dB (3 sigma).
+    scale = float(np.std(noise))
+    reverbs = []
+    for _ in range(16):
+        r = np.zeros_like(noise)
+        r[:, 550:1100] = scale * rng.standard_normal((3, 550))
+        reverbs.append(r)
+    out = reverb_bound(echo, noise, reverbs, *args)
+    assert all(-1.0 < v < 1.0 for v in out["reverb_to_noise_db"])
+    assert out["range_m"] / plain["range_m"] == pytest.approx(math.sqrt(2.0), rel=0.1)
+    # Averaging over realisations averages their levels: with as many zero ones, half the level.
+    half = reverb_bound(echo, noise, reverbs + [np.zeros_like(noise)] * 16, *args)
+    assert all(-4.0 < v < -2.0 for v in half["reverb_to_noise_db"])
+    assert plain["range_m"] < half["range_m"] < out["range_m"]
+
+
+def test_fresh_reverberation_draws_a_new_diffuse_field_per_measurement() -> None:
+    params = (("range_m", 1.25), ("bearing_deg", 2.0), ("n_pings", 2), ("repeats", 3), ("detectors", ("matched",)))
+    fresh = measure_position(Trial(0, 11, (*params, ("fresh_reverberation", True))))
+    frozen = measure_position(Trial(0, 11, params))
+    assert fresh["fresh_reverberation"] and not frozen["fresh_reverberation"]
+    assert len(set(fresh["diffuse_seeds"])) == 3 and frozen["diffuse_seeds"] == [0]
+    assert fresh["reverb_realisations"] == 3 and frozen["reverb_realisations"] == 1
+    biases = [b["matched"]["range_error_m"] for b in fresh["noise_free_all_by_repeat"]]
+    assert len(biases) == 3 and len(set(biases)) == 3  # each realisation biases the TOF differently
+    # The first repeat of the fresh run is its own realisation (not seed 0's), while the edge alone
+    # is the same in both runs: only the diffuse part changes.
+    assert fresh["noise_free"]["edge"]["matched"] == frozen["noise_free"]["edge"]["matched"]
+    assert fresh["noise_free"]["all"]["matched"] != frozen["noise_free"]["all"]["matched"]
+    assert fresh["reverb_bound_range_m"] >= fresh["noise_bound_range_m"]
+    from acoustisim.experiments.point_target import summarise
+
+    row = summarise([fresh], ("matched",))["positions"][0]["matched"]
+    assert row["bias_range_m"] == pytest.approx(float(np.sqrt(np.mean(np.square(biases)))))
+    errors = np.asarray(fresh["detectors"]["matched"]["range_error_m"])
+    assert row["scatter_range_rms_m"] == pytest.approx(float(np.sqrt(np.mean((errors - biases) ** 2))))

@@ -11,12 +11,15 @@ NAME = "angle-sweep"
 SUMMARY = "edge target, bearing -12..12 deg at a fixed range, threshold vs matched filter (seed fig. 4-14)"
 DEFAULT_REPEATS = 8
 DEFAULT_PINGS = 50
-DEFAULT_RANGE_M = 2.0
-"""Fixed range (m). The head on the tank's centre line is 1.5 m from both side walls, whose
-normal-incidence echoes fall inside the +/-0.2 m gate at 1.3-1.7 m (the seed does not give its
-range; it reports the target detected to +/-12 deg, so its walls were outside its window). At
-2 m the side receivers see the edge within 1.9 deg of the transmitter's angle (3.7 deg at 1 m,
-where the far receiver reaches its 500 kHz null, 11.1 deg, by a bearing of 7.4 deg)."""
+DEFAULT_RANGE_M = 1.25
+"""Fixed range (m): the middle of the 1.15-1.35 m window in which no specular path of order 4 or
+less (walls, floor, surface and their combinations) reaches the +/-0.1 m gate at any bearing
+within +/-12 deg (``tests/test_experiments_sweep_physics.py`` checks it). The seed does not give
+its range; it reports the target detected to +/-12 deg. Ranges of k x 1 m carry the head's
+vertical floor-surface multiples at any head depth (order 4 at 2.0 m, 1.8 us before the edge's
+echo), and the side walls (1.5 m from the centre line) and the floor-wall corners reach the
+gate at 1.4-2.0 m. At 1.25 m the side receivers see the edge within 3.0 deg of the transmitter's
+angle."""
 
 
 def add_arguments(parser: Any) -> None:

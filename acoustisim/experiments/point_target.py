@@ -21,7 +21,10 @@ linearised covariance (``seed_point_covariance``) to range and bearing. It bound
 part of the error only. Kept alongside: the detector's own bound (``Echo.tof_std_s``, whose
 noise floor includes the frozen reverberation), the optimal bound of the received echo's
 spectrum in the noise's spectrum (``echo_tof_crlb_s``), and the bound with the diffuse
-reverberation counted as Gaussian interference.
+reverberation counted as Gaussian interference at its level at the echo's delay
+(``reverb_bound``). With ``fresh_reverberation`` every repeat draws a new realisation of the
+diffuse field, so the RMS over repeats is an estimate over that ensemble, which is what this last
+bound is an expectation over; by default the realisation is frozen, as in one tank.
 
 The threshold detector is the seed's: a preset level and an offset calibrated once per sweep
 (``calibrate_threshold``).
@@ -188,10 +191,19 @@ def bound_of(echoes: tuple[Any, Any, Any], range_m: float, bearing_deg: float, s
     return float(math.sqrt(cov[0, 0])), float(math.degrees(math.sqrt(cov[1, 1])))
 
 
+SWEEP_MAX_ORDER = 4
+"""Most reflections per specular path in the sweeps: the engine's maximum
+(``acoustisim.propagation.paths.MAX_INTERACTIONS``). In a tank of depth H = 1 m the head's
+vertical multiples (floor and surface, 90 deg off every axis) return at ranges k H / 2 for a head
+at mid-depth and at k H for any depth: the floor-surface pair (order 2) at 1.0 m, order 3 at
+1.5 m, order 4 at 2.0 m. Order 5, which returns at 2.5 m, is not modelled."""
+
+
 def solver_config(params: dict[str, Any]) -> Any:
-    """Propagation settings of a trial: ``max_order`` (default 2: the gate holds no higher order),
-    no amplitude floor, and, with ``reverberation`` False, no diffuse mechanism (no Lambert
-    reverberation from the floor, surface, walls and the prism's faces)."""
+    """Propagation settings of a trial: ``max_order`` (default ``SWEEP_MAX_ORDER``), no amplitude
+    floor, the diffuse tracer's ``diffuse_seed`` (default 0) and, with ``reverberation`` False,
+    no diffuse mechanism (no Lambert reverberation from the floor, surface, walls and the prism's
+    faces)."""
     from acoustisim.propagation import SolverConfig
     from acoustisim.propagation.config import MECHANISMS
 
@@ -199,7 +211,8 @@ def solver_config(params: dict[str, Any]) -> Any:
     # No amplitude floor: the floor is judged at 500 kHz, where the pistons' directivity has its
     # first null at 11 deg; the broadband edge echo there (carried by 300-400 kHz) is 90 dB below the
     # walls' specular echoes and would be dropped, leaving only other returns in the gate.
-    return SolverConfig(max_order=int(params.get("max_order", 2)), mechanisms=mechanisms, amplitude_floor_db=None)
+    return SolverConfig(max_order=int(params.get("max_order", SWEEP_MAX_ORDER)), mechanisms=mechanisms,
+                        amplitude_floor_db=None, seed=int(params.get("diffuse_seed", 0)))
 
 
 NOISE_FREE_PARTS: tuple[str, ...] = ("edge", "specular", "all")
@@ -414,6 +427,59 @@ def noise_bound(echo: Any, noise: Any, template: Any, fs_hz: float, range_m: flo
     return out
 
 
+def reverb_bound(echo: Any, noise: Any, reverbs: Any, template: Any, fs_hz: float, range_m: float,
+                 bearing_deg: float, sound_speed_m_s: float, half_baseline_m: float) -> dict[str, float]:
+    """The bound of ``noise_bound`` with the diffuse reverberation counted as Gaussian interference.
+
+    The reverberation is a sum of many independent scatterers (Gaussian by the central limit
+    theorem) whose power changes along the record, so it enters at its level at the echo's delay,
+    as the sonar equation's reverberation level does: the mean of |z_r|^2 (z_r the correlation of
+    the reverberation alone with the analytic template, as in ``matched_snr``) over one template
+    length centred on the peak of the edge's own correlation, averaged over the realisations
+    given. 2E/N0 = 2 max|z_s|^2 / (mean|z_n|^2 over the gate + that level), then the CRLB and the
+    localiser's covariance as in ``noise_bound``.
+
+    Parameters
+    ----------
+    echo, noise : ndarray, shape (3, n)
+        The edge's noise-free echo and the averaged noise over the gate (V).
+    reverbs : sequence of ndarray, shape (3, n)
+        Realisations of the diffuse reverberation alone over the same gate (V).
+    template : ndarray, shape (m,)
+
+    Returns
+    -------
+    dict
+        ``range_m``, ``bearing_deg``, ``snr_db`` (3), ``reverb_to_noise_db`` (3): the local
+        reverberation level over the noise's, at the matched filter's output.
+    """
+    from scipy.signal import fftconvolve, hilbert
+
+    from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
+    from binsonar.localization.point import seed_point_covariance
+
+    kernel = np.conj(hilbert(np.asarray(template, dtype=float)))[np.newaxis, ::-1]
+
+    def correlate(x: Any) -> Any:
+        return fftconvolve(np.asarray(x, dtype=float), kernel, mode="valid", axes=1)
+
+    z_s = correlate(echo)
+    peak = np.argmax(np.abs(z_s), axis=1)
+    half = len(template) // 2
+    n_out = z_s.shape[1]
+    window = np.stack([(np.arange(n_out) >= k - half) & (np.arange(n_out) <= k + half) for k in peak])
+    levels = [np.sum(np.abs(correlate(r)) ** 2 * window, axis=1) / np.sum(window, axis=1) for r in reverbs]
+    reverb_level = np.mean(levels, axis=0)
+    noise_level = np.mean(np.abs(correlate(noise)) ** 2, axis=1)
+    snr = 2.0 * np.max(np.abs(z_s) ** 2, axis=1) / (noise_level + reverb_level)
+    std_s = tof_crlb_s(snr, rms_bandwidth_hz(np.asarray(template, dtype=float), fs_hz))
+    cov = seed_point_covariance(range_m, math.radians(bearing_deg), half_baseline_m,
+                                sound_speed_m_s * std_s[0], sound_speed_m_s * std_s[2])
+    return {"range_m": float(math.sqrt(cov[0, 0])), "bearing_deg": float(math.degrees(math.sqrt(cov[1, 1]))),
+            "snr_db": [float(v) for v in 10.0 * np.log10(snr)],
+            "reverb_to_noise_db": [float(v) for v in 10.0 * np.log10(np.maximum(reverb_level, 1e-300) / noise_level)]}
+
+
 TEMPLATE_S = 20e-6
 """The record runs this long (a template length) past the gate, so the last echo is whole (s)."""
 THRESHOLD_LEVEL_SIGMA = 6.0
@@ -499,7 +565,10 @@ def measure_position(trial: Trial) -> dict[str, Any]:
 
     Trial parameters: ``range_m``, ``bearing_deg``, ``n_pings``, ``repeats``; optional
     ``detectors`` (tuple of method names), ``max_order`` and ``reverberation`` (propagation, see
-    ``solver_config``).
+    ``solver_config``) and ``fresh_reverberation``: False (default) keeps one realisation of the
+    diffuse reverberation for every repeat, as one tank does (diffuse seed 0); True draws a new
+    one per repeat (diffuse seeds from ``trial.seed``), the ensemble over rough surfaces that a
+    bound counting the reverberation as Gaussian interference is an expectation over.
 
     Returns
     -------
@@ -508,7 +577,9 @@ def measure_position(trial: Trial) -> dict[str, Any]:
         lists over the repeats of ``range_est_m``, ``bearing_est_deg``, ``range_error_m``,
         ``bearing_error_deg``, ``detected``, ``elapsed_s``, ``snr_db`` (left/right mean),
         ``bound_range_m``, ``bound_bearing_deg``, and ``noise_free``: per part of
-        ``NOISE_FREE_PARTS`` the ``noise_free_errors`` (the bias of every repeat).
+        ``NOISE_FREE_PARTS`` the ``noise_free_errors`` of the first repeat (the bias of every
+        repeat when the reverberation is frozen); with fresh reverberation also
+        ``noise_free_all_by_repeat``, the ``all`` part of every repeat.
     """
     from acoustisim.propagation import solve
     from acoustisim.propagation.paths import Paths
@@ -525,15 +596,19 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     start_s, stop_s = gate[0], gate[1] - TEMPLATE_S
     half_baseline = float(sonar.separation_m)
     transducers = beam_transducers(sonar)
+    fresh = bool(p.get("fresh_reverberation", False)) and bool(p.get("reverberation", True))
+    diffuse_seeds = ([int(v) for v in np.random.SeedSequence([trial.seed, 1]).generate_state(repeats, dtype=np.uint32)]
+                     if fresh else [int(p.get("diffuse_seed", 0))])
     t, cpu = time.perf_counter(), time.process_time()
-    paths = solve(scene, sonar, solver_config(p))
+    paths = solve(scene, sonar, solver_config({**p, "diffuse_seed": diffuse_seeds[0]}))
     synthesiser = PingSynthesiser.create(sonar, scene.medium)
     solve_s, solve_cpu_s = time.perf_counter() - t, time.process_time() - cpu
     out: dict[str, Any] = {
         "range_m": range_m, "bearing_deg": bearing_deg,
         "truth_range_m": truth.range_m, "truth_bearing_deg": truth.bearing_deg, "truth_tof_s": truth_tof,
         "sonar_position_m": list(sonar.position_m), "sonar_yaw_deg": sonar.yaw_deg,
-        "gate_s": [start_s, stop_s], "solve_s": solve_s, "solve_cpu_s": solve_cpu_s, "n_pings": n_pings,
+        "gate_s": [start_s, stop_s], "n_pings": n_pings, "fresh_reverberation": fresh,
+        "diffuse_seeds": diffuse_seeds,
         "detectors": {m: {k: [] for k in ("range_est_m", "bearing_est_deg", "range_error_m", "bearing_error_deg",
                                           "detected", "elapsed_s", "cpu_s", "snr_db", "bound_range_m",
                                           "bound_bearing_deg")}
@@ -541,7 +616,13 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     }
     sim_s = sim_cpu_s = 0.0
     seeds = np.random.SeedSequence(trial.seed).generate_state(repeats, dtype=np.uint32)
+    reverbs: list[Any] = []  # the diffuse reverberation alone over the gate, per realisation
     for k in range(repeats):
+        if fresh and k > 0:
+            t, cpu = time.perf_counter(), time.process_time()
+            paths = solve(scene, sonar, solver_config({**p, "diffuse_seed": diffuse_seeds[k]}))
+            solve_s += time.perf_counter() - t
+            solve_cpu_s += time.process_time() - cpu
         t, cpu = time.perf_counter(), time.process_time()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
@@ -581,13 +662,12 @@ def measure_position(trial: Trial) -> dict[str, Any]:
             out["noise_snr_db"] = bounds["snr_db"]
             out["optimal_bound_range_m"] = bounds["optimal_range_m"]
             out["optimal_bound_bearing_deg"] = bounds["optimal_bearing_deg"]
-            # The same bound with the diffuse reverberation counted as Gaussian interference (added
-            # to the noise): what the frozen speckle's bias would be on average over realisations.
-            reverb = np.asarray(sim.clean)[:, span] - np.asarray(specular_clean)[:, span]
-            with_reverb = noise_bound(np.asarray(edge_clean)[:, span], noise + reverb, template, fs, truth.range_m,
-                                      truth.bearing_deg, c, half_baseline)
-            b_r, b_b = with_reverb["range_m"], with_reverb["bearing_deg"]
-            out["reverb_bound_range_m"], out["reverb_bound_bearing_deg"] = b_r, b_b
+        elif fresh:
+            out.setdefault("noise_free_all_by_repeat", [out["noise_free"]["all"]]).append(
+                noise_free_errors(sim.recording, sim.clean, detectors, truth_tof, truth, c, half_baseline, gate,
+                                  transducers))
+        if k == 0 or fresh:
+            reverbs.append(np.asarray(sim.clean)[:, span] - np.asarray(specular_clean)[:, span])
         matched_run: tuple[Any, float] | None = None  # the matched filter's result and CPU time (s), shared
         for method in detectors:
             options = {}
@@ -625,6 +705,14 @@ def measure_position(trial: Trial) -> dict[str, Any]:
             rec["snr_db"].append(float(np.mean(snrs)) if snrs else float("nan"))
             rec["bound_range_m"].append(r_sd)
             rec["bound_bearing_deg"].append(b_sd)
+    # The bound with the diffuse reverberation counted as Gaussian interference at its level at the
+    # echo's delay (``reverb_bound``), averaged over the realisations measured (one when frozen).
+    with_reverb = reverb_bound(np.asarray(edge_clean)[:, span], noise, reverbs, template, fs, truth.range_m,
+                               truth.bearing_deg, c, half_baseline)
+    out["reverb_bound_range_m"], out["reverb_bound_bearing_deg"] = with_reverb["range_m"], with_reverb["bearing_deg"]
+    out["reverb_to_noise_db"] = with_reverb["reverb_to_noise_db"]
+    out["reverb_realisations"] = len(reverbs)
+    out["solve_s"], out["solve_cpu_s"] = solve_s, solve_cpu_s
     out["simulate_s_per_ping"] = sim_s / (repeats * n_pings)
     out["simulate_cpu_s_per_ping"] = sim_cpu_s / (repeats * n_pings)
     return out
@@ -672,6 +760,8 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
         row["optimal_bound_bearing_deg"] = float(pos.get("optimal_bound_bearing_deg", float("nan")))
         row["reverb_bound_range_m"] = float(pos.get("reverb_bound_range_m", float("nan")))
         row["reverb_bound_bearing_deg"] = float(pos.get("reverb_bound_bearing_deg", float("nan")))
+        row["reverb_to_noise_db"] = pos.get("reverb_to_noise_db")
+        row["fresh_reverberation"] = bool(pos.get("fresh_reverberation", False))
         for m in detectors:
             d = pos["detectors"][m]
             row[m] = {
@@ -688,11 +778,21 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
             parts = {part: pos.get("noise_free", {}).get(part, {}).get(m) for part in NOISE_FREE_PARTS}
             if parts["all"] is None:
                 continue
-            bias_r, bias_b = parts["all"]["range_error_m"], parts["all"]["bearing_error_deg"]
             d = pos["detectors"][m]
-            row[m]["bias_range_m"], row[m]["bias_bearing_deg"] = bias_r, bias_b
             row[m]["bias_range_parts_m"] = {part: v["range_error_m"] for part, v in parts.items() if v is not None}
             row[m]["bias_tof_parts_s"] = {part: v["tof_error_s"] for part, v in parts.items() if v is not None}
+            by_repeat = pos.get("noise_free_all_by_repeat")
+            if by_repeat:
+                # Fresh reverberation: every repeat has its own bias; the scatter is about each
+                # repeat's own, and the bias shown (and its ``all`` part) is their RMS.
+                bias_r = np.array([b[m]["range_error_m"] for b in by_repeat], dtype=float)
+                bias_b = np.array([b[m]["bearing_error_deg"] for b in by_repeat], dtype=float)
+                row[m]["bias_range_m"], row[m]["bias_bearing_deg"] = rms(bias_r), rms(bias_b)
+                row[m]["bias_range_parts_m"]["all"] = rms(bias_r)
+                row[m]["bias_range_per_repeat_m"] = [float(v) for v in bias_r]
+            else:
+                bias_r, bias_b = parts["all"]["range_error_m"], parts["all"]["bearing_error_deg"]
+                row[m]["bias_range_m"], row[m]["bias_bearing_deg"] = bias_r, bias_b
             row[m]["scatter_range_rms_m"] = rms(np.asarray(d["range_error_m"], dtype=float) - bias_r)
             row[m]["scatter_bearing_rms_deg"] = rms(np.asarray(d["bearing_error_deg"], dtype=float) - bias_b)
         for m in BOUNDED_DETECTORS:
@@ -735,6 +835,8 @@ def summarise(positions: list[dict[str, Any]], detectors: tuple[str, ...]) -> di
         summary[m]["positions_scatter_within_1_5_bound"] = int(np.sum(scatter <= 1.5))
         reverb = np.array([r[m]["range_rms_over_reverb_bound"] for r in rows], dtype=float)
         summary[m]["positions_within_1_5_reverb_bound"] = int(np.sum(reverb <= 1.5))
+        summary[m]["max_range_rms_over_reverb_bound"] = finite_max(reverb)
+        summary[m]["pooled_range_rms_over_reverb_bound"] = rms(reverb)
         # Pooled over positions: sqrt(mean((scatter / bound)^2)) is 1 for an efficient estimator.
         summary[m]["pooled_scatter_range_rms_over_bound"] = rms(scatter)
     return {"positions": rows, "summary": summary}
