@@ -132,3 +132,25 @@ def test_full_run(name: str, tmp_path: Path) -> None:
     else:
         rates = np.array([s["correct_rate"] for s in payload["summary"].values()])
         assert np.all((rates >= 0) & (rates <= 1))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["range-sweep", "angle-sweep"])
+def test_full_sweep_with_fresh_reverberation_reaches_the_reverberation_bound(name: str, tmp_path: Path) -> None:
+    """Over fresh realisations of the reverberation the beam-aware matched filter is close to
+    efficient against the CRLB that counts the reverberation as Gaussian interference: measured
+    (seed 0) pooled RMS ratio 0.97 (range) and 1.03 (angle), every position within 1.5x. With 8
+    measurements per position an efficient estimator exceeds 1.5x at a position with probability
+    2.1 %, and a few positions sit at a true ratio of 1.2-1.3, so up to two may exceed it; the
+    pooled ratio over 25 positions is known to about +/-5 %, so 1.2 fails only a real loss."""
+    config = ExperimentConfig(name=name, out_dir=tmp_path, seed=0, progress=False,
+                              options={"fresh_reverberation": True})
+    report = experiment_module(name).run(config)
+    report.write()
+    payload = json.loads((tmp_path / "results.json").read_text())
+    assert payload["fresh_reverberation"] is True
+    beam = payload["summary"]["beam-matched"]
+    assert beam["positions_within_1_5_reverb_bound"] >= 23
+    assert beam["pooled_range_rms_over_reverb_bound"] < 1.2
+    for raw in payload["raw"]:
+        assert raw["reverb_realisations"] == 8 and len(set(raw["diffuse_seeds"])) == 8
