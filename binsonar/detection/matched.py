@@ -157,15 +157,24 @@ class MatchedPlan:
             every full-overlap lag of the record, ``n_samples - template_length``.
         """
         span = self.n_samples - self.template_length if searched_lags is None else int(searched_lags)
-        duration = max(span, 1) / self.sample_rate_hz
-        c = 2.0 * math.sqrt(math.pi) * self.rms_bandwidth_hz * duration
-        factor = -math.log(pfa)
-        for _ in range(50):  # contraction: converges to 1e-12 in a few tens of steps
-            updated = math.log((1.0 + c * math.sqrt(factor)) / pfa)
-            if abs(updated - factor) < 1e-12:
-                break
-            factor = updated
-        return factor
+        return envelope_threshold_factor(pfa, self.rms_bandwidth_hz, max(span, 1) / self.sample_rate_hz)
+
+
+def envelope_threshold_factor(pfa: float, rms_bandwidth_hz: float, duration_s: float) -> float:
+    """T = r^2 / mean |z|^2 that the envelope of complex Gaussian noise exceeds over ``duration_s`` with probability pfa.
+
+    Rice's mean upcrossing rate of r is 2 sqrt(pi T) beta e^-T per second (beta the RMS bandwidth
+    of the output spectrum, Hz); adding the chance e^-T of starting above,
+    pfa = e^-T (1 + 2 sqrt(pi T) beta L), solved for T by fixed-point iteration (a contraction).
+    """
+    c = 2.0 * math.sqrt(math.pi) * rms_bandwidth_hz * duration_s
+    factor = -math.log(pfa)
+    for _ in range(50):  # contraction: converges to 1e-12 in a few tens of steps
+        updated = math.log((1.0 + c * math.sqrt(factor)) / pfa)
+        if abs(updated - factor) < 1e-12:
+            break
+        factor = updated
+    return factor
 
 
 def band_edge_cycles(samples: NDArray[np.float64]) -> float:

@@ -74,16 +74,29 @@ class BeamRefinementConfig:
         it covers the plain filter's bias at the closest ranges (about 4 us at 0.1 m).
     track_half_width_s : float
         Later passes: within this of the previous pass's TOF (s).
+    cue_missing_channel : bool
+        ``refine_echoes``: when one channel has no echo and the other two have, search it with
+        the beam-aware filter around the time the other two predict (``beam_cue``) before
+        refining. False: such a target is returned as it is.
+    cue_pfa : float
+        False-alarm probability of that search over its window.
     """
 
     model: BeamModelConfig = field(default_factory=BeamModelConfig)
     iterations: int = 3
     search_half_width_s: float = 6e-6
     track_half_width_s: float = 0.5e-6
+    cue_missing_channel: bool = True
+    cue_pfa: float = 1e-3
 
     def __post_init__(self) -> None:
         if not (isinstance(self.iterations, int) and 1 <= self.iterations <= 20):
             raise RecordingError(f"beam refinement: iterations must be an integer in [1, 20], got {self.iterations!r}")
+        if not isinstance(self.cue_missing_channel, bool):
+            raise RecordingError(f"beam refinement: cue_missing_channel must be True or False, got "
+                                 f"{self.cue_missing_channel!r}")
+        if not (isinstance(self.cue_pfa, float) and 0.0 < self.cue_pfa < 1.0):
+            raise RecordingError(f"beam refinement: cue_pfa must be a float in (0, 1), got {self.cue_pfa!r}")
         for name in ("search_half_width_s", "track_half_width_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
@@ -239,6 +252,53 @@ def _grid_values(base: NDArray[np.complex128], frequency_hz: NDArray[np.float64]
     return base @ np.exp(1j * np.outer(offsets, 2.0 * np.pi * f)).T
 
 
+@dataclass(frozen=True, eq=False)
+class CorrelationGrid:
+    """The frequency grid of a beam-aware correlation over a search window (``create``).
+
+    Attributes
+    ----------
+    model : BeamModelConfig
+        The model with its line-integral step set from the template's band.
+    n_fft : int
+        Segment length (samples): the widest search window plus the expected echo's span
+        (template, beam spread, edge tail), so a segment holds a(t - tau) for every searched tau
+        and the circular correlation equals the linear one.
+    frequency_hz : ndarray, shape (k,)
+        The band's rfft frequencies (Hz).
+    bins : ndarray, shape (k,)
+        Their rfft bin indices.
+    template_spectrum : ndarray, shape (k,)
+        ``template_spectrum`` on those bins.
+    lead_s : float
+        How far the expected echo starts before its reference delay (s).
+    """
+
+    model: BeamModelConfig
+    n_fft: int
+    frequency_hz: NDArray[np.float64] = field(repr=False)
+    bins: NDArray[np.intp] = field(repr=False)
+    template_spectrum: NDArray[np.complex128] = field(repr=False)
+    lead_s: float
+
+    @classmethod
+    def create(cls, template: Template, transducers: PistonTransducers, model: BeamModelConfig,
+               sound_speed_m_s: float, half_width_s: float) -> "CorrelationGrid":
+        """The grid for searches within ``half_width_s`` (s) of a centre."""
+        fs = float(template.sample_rate_hz)
+        m = template.samples.size
+        spread_s = 2.0 * float(transducers.radii_m.max()) / sound_speed_m_s  # a sin(theta) / c per piston, both ways
+        tail_s = model.edge_tail_s if model.target == "vertical-edge" else 0.0
+        lead_s = -template.t0_s + spread_s
+        span_s = 2.0 * half_width_s + m / fs + 2.0 * spread_s + tail_s
+        n_fft = 1 << int(math.ceil(math.log2(span_s * fs + 16)))
+        frequency, step_top_hz = _band(template, n_fft)
+        if model.step_frequency_hz is None:
+            model = replace(model, step_frequency_hz=step_top_hz)
+        bins = np.rint(frequency * n_fft / fs).astype(np.intp)
+        return cls(model, n_fft, frequency, bins, template_spectrum(template, n_fft, bins), lead_s)
+
+
 def refine_tofs(rows: ArrayLike, tof_s: ArrayLike, *, sample_rate_hz: float, t0_s: float, template: Template,
                 channel_positions_m: ArrayLike, sound_speed_m_s: float, transducers: PistonTransducers,
                 config: BeamRefinementConfig = BeamRefinementConfig()) -> BeamRefinement:
@@ -295,21 +355,9 @@ def refine_tofs(rows: ArrayLike, tof_s: ArrayLike, *, sample_rate_hz: float, t0_
     # Each channel's DC offset (its median, robust to the echoes) out: a segment's rectangular cut
     # of a constant would leak into the band's low bins.
     x = x - np.median(x, axis=1, keepdims=True)
-    model = config.model
-    # Segment: the widest search window plus the expected echo's span (template, beam spread,
-    # edge tail): a segment that long holds a(t - tau) for every searched tau, so the circular
-    # correlation equals the linear one (the periodic copies of a fall outside the segment).
-    m = template.samples.size
-    spread_s = 2.0 * float(transducers.radii_m.max()) / c  # a sin(theta) / c per piston, both ways
-    tail_s = model.edge_tail_s if model.target == "vertical-edge" else 0.0
-    lead_s = -template.t0_s + spread_s
-    span_s = 2.0 * config.search_half_width_s + m / fs + 2.0 * spread_s + tail_s
-    n_fft = 1 << int(math.ceil(math.log2(span_s * fs + 16)))
-    frequency, step_top_hz = _band(template, n_fft)
-    if model.step_frequency_hz is None:
-        model = replace(model, step_frequency_hz=step_top_hz)
-    bins = np.rint(frequency * n_fft / fs).astype(np.intp)
-    t_spec = template_spectrum(template, n_fft, bins)
+    grid = CorrelationGrid.create(template, transducers, config.model, c, config.search_half_width_s)
+    model, n_fft, frequency, bins, t_spec, lead_s = (grid.model, grid.n_fft, grid.frequency_hz, grid.bins,
+                                                     grid.template_spectrum, grid.lead_s)
     active = np.isfinite(tof0)
     tof = tof0.copy()
     peak = np.full(3, np.nan)
@@ -354,12 +402,21 @@ def refine_echoes(rows: ArrayLike, echoes: Sequence[Any], *, sample_rate_hz: flo
     Returns
     -------
     tuple of 3 Echo or None
-        The same echoes with ``tof_s`` replaced; unchanged when the left or right one is
-        missing (the target cannot be located).
+        The same echoes with ``tof_s`` replaced. With ``config.cue_missing_channel``, a channel
+        without an echo while the other two have one is first searched around the time they
+        predict (``beam_cue.cue_missing_echo``); the echo found there, if any, is refined with the
+        others. Unchanged when the left or right one is still missing (the target cannot be
+        located).
     """
     triple = tuple(echoes)
     if len(triple) != 3:
         raise RecordingError(f"beam refinement: needs 3 echoes (left, centre, right), got {len(triple)}")
+    if transducers is not None and config.cue_missing_channel and sum(e is None for e in triple) == 1:
+        from binsonar.localization.beam_cue import cue_missing_echo
+
+        triple = cue_missing_echo(rows, triple, sample_rate_hz=sample_rate_hz, t0_s=t0_s, template=template,
+                                  channel_positions_m=channel_positions_m, sound_speed_m_s=sound_speed_m_s,
+                                  transducers=transducers, config=config)
     if transducers is None or triple[0] is None or triple[2] is None:
         return triple  # type: ignore[return-value]
     tof = [float("nan") if e is None else float(e.tof_s) for e in triple]
@@ -428,5 +485,5 @@ def refine_detection(result: Any, recording: Any, transducers: PistonTransducers
     return replace(result, echoes=tuple(pings), method=f"{result.method}+beam")
 
 
-__all__ = ("BeamRefinement", "BeamRefinementConfig", "correlation_maximum", "refine_detection", "refine_echoes",
+__all__ = ("BeamRefinement", "BeamRefinementConfig", "CorrelationGrid", "correlation_maximum", "refine_detection", "refine_echoes",
            "refine_tofs", "template_spectrum")
