@@ -140,3 +140,12 @@ def test_refine_echoes_cues_then_refines_and_the_switch_turns_it_off() -> None:
     assert off == triple
     # Two missing channels: nothing to locate from, unchanged.
     assert refine_echoes(rows, (None, None, plain[2]), config=CONFIG, **kwargs) == (None, None, plain[2])
+
+
+@pytest.mark.parametrize("field,value", [("cue_pfa", 0.0), ("cue_pfa", 1.0), ("cue_pfa", float("nan")),
+                                         ("cue_pfa", 1), ("cue_missing_channel", 1)])
+def test_bad_cue_settings_are_refused(field: str, value: object) -> None:
+    from binsonar.recording import RecordingError
+
+    with pytest.raises(RecordingError, match=field):
+        BeamRefinementConfig(**{field: value})
