@@ -361,6 +361,17 @@ def echo_tof_crlb_s(echo: Any, noise: Any, fs_hz: float, segment: int = 1024) ->
     return 1.0 / (2.0 * np.pi * beta * np.sqrt(total)), 10.0 * np.log10(total)
 
 
+def analytic_correlation(rows: Any, template: Any) -> Any:
+    """z, shape (c, n - m + 1): each row (c, n) correlated with the analytic template (m,), full-overlap lags only.
+
+    The matched filter's complex output (``binsonar.detection.matched``): |z| is its envelope.
+    """
+    from scipy.signal import fftconvolve, hilbert
+
+    kernel = np.conj(hilbert(np.asarray(template, dtype=float)))[np.newaxis, ::-1]
+    return fftconvolve(np.asarray(rows, dtype=float), kernel, mode="valid", axes=1)
+
+
 def matched_snr(echo: Any, noise: Any, template: Any) -> Any:
     """2E/N0 (linear) at the matched filter's output: 2 max|z_s|^2 / mean|z_n|^2 per channel.
 
@@ -372,11 +383,8 @@ def matched_snr(echo: Any, noise: Any, template: Any) -> Any:
     echo, noise : ndarray, shape (c, n)
     template : ndarray, shape (m,)
     """
-    from scipy.signal import fftconvolve, hilbert
-
-    kernel = np.conj(hilbert(np.asarray(template, dtype=float)))[np.newaxis, ::-1]
-    z_s = fftconvolve(np.asarray(echo, dtype=float), kernel, mode="valid", axes=1)
-    z_n = fftconvolve(np.asarray(noise, dtype=float), kernel, mode="valid", axes=1)
+    z_s = analytic_correlation(echo, template)
+    z_n = analytic_correlation(noise, template)
     return 2.0 * np.max(np.abs(z_s) ** 2, axis=1) / np.mean(np.abs(z_n) ** 2, axis=1)
 
 
@@ -453,15 +461,11 @@ def reverb_bound(echo: Any, noise: Any, reverbs: Any, template: Any, fs_hz: floa
         ``range_m``, ``bearing_deg``, ``snr_db`` (3), ``reverb_to_noise_db`` (3): the local
         reverberation level over the noise's, at the matched filter's output.
     """
-    from scipy.signal import fftconvolve, hilbert
-
     from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
     from binsonar.localization.point import seed_point_covariance
 
-    kernel = np.conj(hilbert(np.asarray(template, dtype=float)))[np.newaxis, ::-1]
-
     def correlate(x: Any) -> Any:
-        return fftconvolve(np.asarray(x, dtype=float), kernel, mode="valid", axes=1)
+        return analytic_correlation(x, template)
 
     z_s = correlate(echo)
     peak = np.argmax(np.abs(z_s), axis=1)
