@@ -59,6 +59,8 @@ class DemoConfig:
         Receiver blanking after the trigger (s).
     max_order : int
         Propagation: most reflections per path.
+    backend : str
+        Propagation engine, "fast" or "reference" (:class:`~acoustisim.propagation.SolverConfig`).
     """
 
     scene: str = "thesis-tank"
@@ -68,6 +70,7 @@ class DemoConfig:
     record_length_s: float | None = None
     blanking_s: float = BLANKING_S
     max_order: int = 3
+    backend: str = "fast"
 
 
 @dataclass
@@ -183,7 +186,7 @@ def run_demo(config: DemoConfig, out_dir: Path | str, *, figures: bool = True) -
     t = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # arrivals later than the record are left out: expected
-        sim = simulate(scene, sonar, solver_config=SolverConfig(max_order=config.max_order), seed=config.seed,
+        sim = simulate(scene, sonar, solver_config=SolverConfig(max_order=config.max_order, backend=config.backend), seed=config.seed,
                        n_pings=config.n_pings)
     timings["simulate"] = time.perf_counter() - t
     recording = gate_recording(sim.recording, config.blanking_s)

@@ -121,7 +121,8 @@ def _floor_and_columns(prepared, args) -> None:
     from acoustisim.propagation.columns import complete_columns
     from acoustisim.propagation.context import SolveContext
     from acoustisim.propagation.diffuse import diffuse_paths
-    from acoustisim.propagation.floor import band_levels, floor_frequencies, floor_mask
+    from acoustisim.propagation.floor import floor_mask
+from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
 
     repeats = max(3, args.repeats)
     floored, keep_all = SolverConfig(), SolverConfig(amplitude_floor_db=None)

@@ -11,6 +11,7 @@ import argparse
 import json
 
 
+
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -28,7 +29,7 @@ def _run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
     demo = run_demo(DemoConfig(scene=args.scene, seed=args.seed, n_pings=args.pings, method=args.method,
-                               record_length_s=args.record_length), out)
+                               record_length_s=args.record_length, backend=args.backend), out)
     if args.json:
         print(json.dumps(demo.to_dict()))
     else:
@@ -50,5 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--scene", default="thesis-tank", help="built-in scene or scene file (default thesis-tank)")
     parser.add_argument("--record-length", type=float, default=None,
                         help="record length (s; default the sonar's)")
+    parser.add_argument("--backend", default="fast", metavar="{fast,reference}",
+                        help="propagation engine: fast (default) or reference (the readable one; minutes)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     parser.set_defaults(run=_run)

@@ -1,7 +1,7 @@
 """``acoustisim simulate``: trace a scene, synthesise pings, write a recording with ground truth.
 
 ``acoustisim simulate FILE_OR_NAME -o PING.h5 [--seed N] [--snr-db X] [--snr-echo NAME]
-[--pings N] [--max-order N] [--keep-all-paths] [--average] [--json]``
+[--pings N] [--max-order N] [--keep-all-paths] [--average] [--backend fast|reference] [--json]``
 
 With ``--json`` stdout holds one JSON object: the output file, the number of pings, the
 clipped channels and the arrivals table (``Paths.arrivals_table``).
@@ -28,6 +28,7 @@ def _finite_float(text: str) -> float:
     return value
 
 
+
 def _run(args: argparse.Namespace) -> int:
     from acoustisim.propagation.config import SolverConfig
     from acoustisim.simulation import simulate, write_simulation
@@ -37,6 +38,7 @@ def _run(args: argparse.Namespace) -> int:
     config = SolverConfig(
         max_order=args.max_order if args.max_order is not None else SolverConfig().max_order,
         amplitude_floor_db=None if args.keep_all_paths else SolverConfig().amplitude_floor_db,
+        backend=args.backend,
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
@@ -99,6 +101,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--pings", type=int_at_least(1), default=1, metavar="N", help="pings (independent noise)")
     parser.add_argument("--max-order", type=int_at_least(1), default=None, metavar="N", help="most reflections per path")
     parser.add_argument("--keep-all-paths", action="store_true", help="turn off the solver's amplitude floor")
+    parser.add_argument("--backend", default="fast", metavar="{fast,reference}",
+                        help="propagation engine: fast (compiled, default) or reference (plain numpy, "
+                             "one module per mechanism; the same paths, slower)")
     parser.add_argument("--average", action="store_true", help="store the mean of the pings as one ping")
     parser.add_argument("--json", action="store_true", help="print one JSON object (arrivals table) on stdout")
     parser.set_defaults(run=_run)

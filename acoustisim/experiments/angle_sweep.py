@@ -14,7 +14,7 @@ DEFAULT_PINGS = 50
 DEFAULT_RANGE_M = 1.25
 """Fixed range (m): the middle of the 1.15-1.35 m window in which no specular path of order 4 or
 less (walls, floor, surface and their combinations) reaches the +/-0.1 m gate at any bearing
-within +/-12 deg (``tests/test_experiments_sweep_physics.py`` checks it). The seed does not give
+within +/-12 deg (``tests/physics/test_experiments_sweep_physics.py`` checks it). The seed does not give
 its range; it reports the target detected to +/-12 deg. Ranges of k x 1 m carry the head's
 vertical floor-surface multiples at any head depth (order 4 at 2.0 m, 1.8 us before the edge's
 echo), and the side walls (1.5 m from the centre line) and the floor-wall corners reach the

@@ -291,7 +291,7 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     agree with it within a few ulp of the argument (< 2e-14 absolute) and amplitudes within
     that relative to |geometric_gain| 10^(-absorption_db / 20); delays, angles and absorption
     are identical
-    (tested in ``tests/test_propagation_columns.py``).
+    (tested in ``tests/parity/test_propagation_columns.py``).
     """
     if rows.size:
         fill_columns(rows, column_inputs(rows, context))

@@ -67,7 +67,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.config import VISIBILITY_MODES, SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse_screen import ObjectScreen, receiver_wedges, shared_wedges
 from acoustisim.propagation.directivity import piston_directivity
@@ -482,18 +482,12 @@ CHUNK_RAYS = 1 << 14
 seeded by ``(config.seed, chunk index)``) and their events concatenated in chunk order, so the
 result does not depend on the number of threads that trace them."""
 
-VISIBILITY_MODES: tuple[str, ...] = ("exact", "centre")
 FIRST_HIT_MODES: tuple[str, ...] = ("auto", "embree")
 """How the tracer finds each ray's first hit: "auto" without Embree where the scene allows it (a
 box tank with convex objects, :mod:`~acoustisim.propagation.diffuse_hits`; the same events as
 Embree's but for rays grazing an edge), else Embree INTERSECT; "embree" always Embree (the
 general triangle-mesh path, for comparisons and benchmarks)."""
-"""How the legs scattering point -> receiver are tested for occlusion: ``"exact"`` tests every
-receiver's leg; ``"centre"`` tests only the leg to the receiver nearest the receivers' centroid
-(the thesis sonar's centre transducer) and shares the answer with the other receivers (an
-approximation: a point can be hidden from one receiver and not from another 65 mm away; the
-side channels' diffuse energy changes by 0.003 % at the thesis tank's default pose, by up to
-1.2 % with the sonar among the posts)."""
+
 
 
 @dataclass(frozen=True, eq=False)

@@ -28,7 +28,7 @@ summed 0 + t0 + t1 + t2 + t3, squares as products), so the elements, points and 
 are bit-identical to the numpy reference, and the gains agree with it to the round-off of the
 elementary functions (``hypot`` is libm's in both; ``log1p``, ``sinh`` and ``arctan2`` are
 numpy's own loops in both, which may use SIMD code within 4 ulp of libm's, so the last bits of
-the gains depend on the CPU numpy dispatches to): ``tests/test_edges_kernels.py`` keeps the
+the gains depend on the CPU numpy dispatches to): ``tests/parity/test_edges_kernels.py`` keeps the
 numpy code and holds every row to 1e-12 relative. No ``fastmath`` (it would reassociate sums).
 ``cache=True`` stores the compiled code beside this file: the first call in a fresh checkout
 compiles for a few seconds.
@@ -429,7 +429,7 @@ def gauss_point_gains(
     former loop), then the sums (:func:`_gauss_point_sums`). The arithmetic is the former
     loop's in the same order; the gains differ from it only by the elementary functions'
     rounding (numpy's SIMD loops are within 4 ulp, libm within 1: a few 1e-16 relative, see
-    ``tests/test_edges_kernels.py``), as the numpy reference the loop replaced did.
+    ``tests/parity/test_edges_kernels.py``), as the numpy reference the loop replaced did.
 
     Parameters
     ----------

@@ -33,7 +33,7 @@ answer; every other leg (ends near a wall, grazing an object within ``tolerance`
 the box of a non-convex object) goes to Embree, as before, in one batch. The only leg where
 the two could differ is one Embree itself lets through a solid, across the shared edge of two
 triangles within its float32 rounding (its intersection test is not watertight), at both of
-the leg's crossings of the solid. ``tests/test_edges_visibility.py`` compares every decided
+the leg's crossings of the solid. ``tests/parity/test_edges_visibility.py`` compares every decided
 leg with Embree's answer over many poses.
 """
 

@@ -27,7 +27,7 @@ grades from its line's apex. Each element is two impulses at its Gauss points, a
 the band-limited response exact to third order in the phase across an element (one impulse per
 box-integrated element, as in the fine discretisation, low-passes the response by
 sinc(f dt): -0.06 dB at 500 kHz for dt = 1/(16 f0)). Measured against a 4x finer uniform
-reference (``tests/test_edges_adaptive.py``), the band-limited echo differs by -68 dB (oblique
+reference (``tests/physics/test_edges_adaptive.py``), the band-limited echo differs by -68 dB (oblique
 free-edge prism; fine discretisation -75 dB) and -49 dB (thesis tank's prism and pipe rim;
 fine: -52 dB) of each channel's strongest edge echo, with 48 % of the fine discretisation's
 rows on the thesis tank.

@@ -1,6 +1,7 @@
-"""The amplitude floor: which arrivals are strong enough to keep, judged across the pulse band.
+"""The amplitude floor of the fast engine: the reference rule
+(:mod:`acoustisim.propagation.reference.floor`), decided mostly from bounds.
 
-The rule (:func:`band_levels`): an arrival (a row, or the rows of an edge diffraction sharing
+The rule (:func:`~acoustisim.propagation.reference.floor.band_levels`): an arrival (a row, or the rows of an edge diffraction sharing
 ``path_id`` and channel) has as level its strongest pulse-weighted level over a few band
 frequencies (:func:`floor_frequencies`); it is dropped when that is below
 ``SolverConfig.amplitude_floor_db`` relative to the strongest non-direct arrival. Direct paths
@@ -17,7 +18,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation.floor_kernels import (
     arrival_bounds,
     directivity_table,
@@ -26,87 +26,7 @@ from acoustisim.propagation.floor_kernels import (
     table_levels,
 )
 from acoustisim.propagation.paths import PathKind
-from acoustisim.sonar import SonarHead
-
-FLOOR_BAND_DB = -20.0
-"""Default judging band of the amplitude floor: where the pulse spectrum is within this of its
-peak (dB)."""
-
-FLOOR_BAND_FREQUENCIES = 7
-"""Frequencies, evenly spread over the band (plus the centre frequency), at which the floor
-judges an arrival's level."""
-
-
-def pulse_band_hz(sonar: SonarHead, level_db: float = FLOOR_BAND_DB) -> tuple[float, float]:
-    """(lowest, highest) frequency (Hz) where the sonar's pulse spectrum |Q(f)| is within
-    ``level_db`` of its peak, on a grid of step f0 / 1000 over (0, 4 f0] (the seed's 5 us Gaussian
-    pulse at 500 kHz: about 141-859 kHz at -20 dB)."""
-    f0 = float(sonar.centre_frequency_hz)
-    grid = np.linspace(0.0, 4.0 * f0, 4001)[1:]
-    magnitude = np.abs(sonar.pulse.spectrum(grid))
-    inside = np.flatnonzero(magnitude >= magnitude.max() * 10.0 ** (level_db / 20.0))
-    return float(grid[inside[0]]), float(grid[inside[-1]])
-
-
-def floor_frequencies(context: SolveContext, band_hz: tuple[float, float] | None
-                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The frequencies (Hz, shape (m,)) at which the amplitude floor judges levels, and the
-    pulse's relative spectrum |Q(f)| / max |Q| at them (shape (m,)).
-
-    :data:`FLOOR_BAND_FREQUENCIES` evenly spaced over ``band_hz`` (None: :func:`pulse_band_hz`)
-    plus the centre frequency.
-    """
-    low, high = pulse_band_hz(context.sonar) if band_hz is None else band_hz
-    frequencies = np.unique(np.r_[np.linspace(low, high, FLOOR_BAND_FREQUENCIES), context.centre_frequency_hz])
-    magnitude = np.abs(context.sonar.pulse.spectrum(frequencies))
-    peak = max(float(magnitude.max()), float(np.abs(context.sonar.pulse.spectrum(context.centre_frequency_hz))))
-    return frequencies, magnitude / peak if peak > 0 else np.ones_like(magnitude)
-
-
-def band_levels(rows: NDArray[Any], group: NDArray[np.intp], n_groups: int, context: SolveContext,
-                frequencies_hz: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Each arrival's strongest level across the band: max over f of
-    w(f) |sum over its rows of g D_tx(f) D_rx(f) 10^(-alpha(f) L / 20) exp(j (phase - 2 pi f dtau))|
-    (dtau: delay relative to any one row of the arrival).
-
-    Parameters
-    ----------
-    rows : structured ndarray of PATH_DTYPE, shape (n,)
-        With the derived angles filled (:func:`complete_columns`).
-    group : ndarray of int, shape (n,)
-        The arrival (0 .. n_groups - 1) of each row: edge elements of one (path_id, channel)
-        add up coherently, with their delays dtau relative to the group's first row.
-    n_groups : int
-    context : SolveContext
-    frequencies_hz, weights : ndarray, shape (m,)
-        From :func:`floor_frequencies`.
-
-    Returns
-    -------
-    ndarray, shape (n_groups,)
-        Levels (Pa per Pa at 1 m, the ``amplitude`` column's unit, weighted by the pulse's
-        relative spectrum).
-    """
-    if rows.size == 0:
-        return np.zeros(n_groups)
-    c, a = context.sound_speed_m_s, context.piston_radius_m
-    f = frequencies_hz[None, :]
-    alpha = np.asarray(context.scene.medium.absorption_db_per_m(frequencies_hz), dtype=float)[None, :]
-    factor = (rows["geometric_gain"][:, None] * piston_directivity(rows["angle_tx_rad"][:, None], f, a, c)
-              * piston_directivity(rows["angle_rx_rad"][:, None], f, a, c)
-              * 10.0 ** (-alpha * rows["path_length_m"][:, None] / 20.0))
-    if n_groups == rows.size and np.array_equal(group, np.arange(n_groups)):
-        return np.max(np.abs(factor) * weights, axis=1)
-    # delays relative to one row of each group (the magnitude does not depend on which)
-    reference = np.empty(n_groups)
-    reference[group[::-1]] = rows["delay_s"][::-1]
-    phase = rows["phase_rad"][:, None] - 2.0 * np.pi * f * (rows["delay_s"] - reference[group])[:, None]
-    total = np.empty((n_groups, frequencies_hz.size), dtype=complex)
-    for j in range(frequencies_hz.size):  # a few band frequencies, each a vectorised sum over rows
-        total[:, j] = np.bincount(group, factor[:, j] * np.cos(phase[:, j]), n_groups) + 1j * np.bincount(
-            group, factor[:, j] * np.sin(phase[:, j]), n_groups)
-    return np.max(np.abs(total) * weights, axis=1)
-
+from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
 
 def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext,
                band_hz: tuple[float, float] | None = None) -> NDArray[np.bool_]:
@@ -134,7 +54,7 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
 
     Each bound contains the level numpy computes (the rounding of both is covered by
     :data:`~acoustisim.propagation.floor_kernels.ROUNDING_SLACK`), so the kept rows are those
-    of :func:`band_levels` applied to every arrival (``tests/test_propagation_floor.py``).
+    of :func:`band_levels` applied to every arrival (``tests/physics/test_propagation_floor.py``).
 
     Parameters
     ----------
@@ -226,5 +146,4 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     return keep
 
 
-__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "floor_frequencies",
-           "floor_mask", "pulse_band_hz"]
+__all__ = ["floor_mask"]

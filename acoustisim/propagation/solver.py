@@ -1,12 +1,11 @@
 """``solve(scene, sonar, config) -> Paths``: every path from the transmitter to each receiver.
 
-Mechanisms run in order, each given a :class:`SolveContext` whose ``first_path_id`` is the next
-free id: direct, specular (:mod:`.specular`), then edge diffraction
-(:func:`~acoustisim.propagation.edges.edge_paths`, on the prepared scene's diffracting
-edges, extracted and set up once per scene) and diffuse reverberation (:func:`~acoustisim.propagation.diffuse.diffuse_paths`),
-each when named in ``config.mechanisms``. :func:`~acoustisim.propagation.assemble.assemble_rows` then fills the
-derived columns of every row (:func:`~acoustisim.propagation.columns.complete_columns`), sorts them and applies the
-amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`, judged across the pulse band).
+The solve checks the pose (:func:`check_sonar`), builds the pose's :class:`SolveContext`, and
+asks the engine ``config.backend`` names (:func:`~acoustisim.propagation.engine.engine_for`)
+for each mechanism named in ``config.mechanisms``, in the order of
+:data:`~acoustisim.propagation.config.MECHANISMS` (direct, specular, edge, diffuse), each
+starting its path ids at the next free one; the engine then assembles the rows (derived
+columns, order by channel and delay, amplitude floor judged across the pulse band).
 """
 
 from __future__ import annotations
@@ -18,22 +17,11 @@ from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
-from acoustisim.propagation.assemble import assemble_rows
-from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.config import MECHANISMS, SolverConfig
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.diffuse import diffuse_paths
-from acoustisim.propagation.edges import edge_paths
-from acoustisim.propagation.floor import (
-    FLOOR_BAND_DB,
-    FLOOR_BAND_FREQUENCIES,
-    band_levels,
-    floor_frequencies,
-    floor_mask,
-    pulse_band_hz,
-)
+from acoustisim.propagation.engine import engine_for
 from acoustisim.propagation.paths import PATH_DTYPE, Paths
 from acoustisim.propagation.prepared import PreparedScene, prepare
-from acoustisim.propagation.specular import direct_rows, specular_rows
 from acoustisim.scene import Scene
 from acoustisim.sonar import CHANNEL_NAMES, SonarHead
 
@@ -123,28 +111,27 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     sonar = prepared.scene.sonar if sonar is None else sonar
     check_sonar(prepared, sonar)
     context = SolveContext.build(prepared.scene, sonar, prepared.raycaster)
+    engine = engine_for(config)
     parts: list[NDArray[Any]] = []
     next_id = 0
-
-    def add(rows: NDArray[Any]) -> None:
-        nonlocal next_id
+    for mechanism in MECHANISMS:  # in this order: it fixes the order of rows with equal delays
+        if mechanism not in config.mechanisms:
+            continue
+        mechanism_context = context.with_first_path_id(next_id)
+        if mechanism == "direct":
+            rows = engine.direct_rows(mechanism_context)
+        elif mechanism == "specular":
+            rows = engine.specular_rows(mechanism_context, prepared, config.max_order)
+        elif mechanism == "edge":
+            rows = engine.edge_rows(mechanism_context, config, prepared)
+        else:
+            rows = engine.diffuse_rows(mechanism_context, config, prepared)
         rows = np.asarray(rows, dtype=PATH_DTYPE)
         parts.append(rows)
         if rows.size:
             next_id = max(next_id, int(rows["path_id"].max()) + 1)
-
-    if "direct" in config.mechanisms:
-        add(direct_rows(context.with_first_path_id(next_id)))
-    if "specular" in config.mechanisms:
-        add(specular_rows(context.with_first_path_id(next_id), prepared, config.max_order))
-    if "edge" in config.mechanisms:
-        add(edge_paths(context.with_first_path_id(next_id), config, prepared.diffracting_edges, sort_rows=True))
-    if "diffuse" in config.mechanisms:
-        add(diffuse_paths(context.with_first_path_id(next_id), config, threads=config.threads,
-                          visibility=config.diffuse_visibility))
-    rows = assemble_rows(parts, context, config.amplitude_floor_db, config.amplitude_floor_band_hz)
+    rows = engine.assemble_rows(parts, context, config)
     return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s)
 
 
-__all__ = ["FLOOR_BAND_DB", "FLOOR_BAND_FREQUENCIES", "band_levels", "check_sonar", "floor_frequencies",
-           "floor_mask", "pulse_band_hz", "solve"]
+__all__ = ["check_sonar", "solve"]

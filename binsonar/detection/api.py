@@ -46,7 +46,7 @@ TAKES_ROBUST_SIGMA = frozenset({"threshold", "local-matched"})
 FOLDS_DC = frozenset({"threshold", "local-matched", "matched"})
 # Base methods that read int16 ADC codes as they are (``Signals.volts_per_code``: a quarter of
 # the bytes of the volts), converting to volts only the samples they use, with the result
-# they give on the volts to rounding (``tests/test_detection_codes.py``). They take the codes
+# they give on the volts to rounding (``tests/unit/test_detection_codes.py``). They take the codes
 # when they run without averaging or band-pass; the others, and those, get volts.
 TAKES_CODES = frozenset({"threshold", "local-matched", "matched"})
 # Base methods that read every sample of the codes they take and report each row's extremes

@@ -15,7 +15,7 @@ from counting, not sorting:
   microseconds of dispatch, and each numpy call as much again once a new ping has evicted
   the caches: one call instead of some fifteen).
 
-``tests/test_detection_codes.py`` checks them against numpy.
+``tests/unit/test_detection_codes.py`` checks them against numpy.
 """
 
 from __future__ import annotations

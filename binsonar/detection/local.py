@@ -53,7 +53,7 @@ band's inverse FFT decimated, then ``local_kernels.local_peaks``) gives the same
 bit for bit on the tests' records and is kept as the reference the direct search is checked
 against, with the numpy functions below (``block_tone_power``, ``coarse_lags``,
 ``segment_correlation``: the same steps written with numpy;
-``tests/test_detection_local_kernels.py``). The direct search does ~0.7 M multiply-adds for 9
+``tests/parity/test_detection_local_kernels.py``). The direct search does ~0.7 M multiply-adds for 9
 picks of the 5 us pulse (~0.05 ms), where the FFT route paid two scipy FFT calls and a dozen
 numpy calls between three kernels: ~0.3-0.5 ms CPU per ping once an FFT of the record has
 evicted the caches, as a new ping does (measured with ``benchmarks/bench_detection.py
@@ -588,7 +588,7 @@ def detect_local_matched(
     # Steps 1-3 and the echo values in one compiled call (``local_kernels.local_echoes``: the
     # coarse pass, each stretch searched every ``stride`` lags by direct correlations, the
     # refinement as the full matched filter's, ``matched.echo_values``; checked against the
-    # numpy definitions and the FFT route in tests/test_detection_local_kernels.py).
+    # numpy definitions and the FFT route in tests/parity/test_detection_local_kernels.py).
     lanes = plan.tone_lanes if volts_per_code is None else plan.tone_lanes32  # codes: float32 block sums
     local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), sigma,  # sigma: a new float64 array (noise_sigma)
                                lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,

@@ -19,7 +19,7 @@ of ``local._candidate_correlations``' batched short FFTs) and :func:`local_peaks
 
 All follow :mod:`binsonar.detection.local`'s numpy definitions step for step (same ties:
 first maximum; same bounds); only the order of the floating-point sums differs, i.e. results
-agree to rounding (``tests/test_detection_local_kernels.py``). ``cache=True`` stores the
+agree to rounding (``tests/parity/test_detection_local_kernels.py``). ``cache=True`` stores the
 compiled code in ``__pycache__`` beside this file (or numba's per-user cache directory): the
 first run in a fresh checkout compiles them (a few seconds of CPU), later processes load them.
 """
@@ -464,7 +464,7 @@ def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constant
               echoes: NDArray[np.float64]) -> None:
     """TOF, amplitude, SNR, score and TOF std of each row's refined peak: ``matched.echo_values``
     (with ``matched.white_noise_power`` for the noise) compiled for a few rows, the same
-    operations in the same order (``tests/test_detection_local_kernels.py``). One call instead of
+    operations in the same order (``tests/parity/test_detection_local_kernels.py``). One call instead of
     some twenty small numpy calls, which cost ~0.1-0.2 ms per ping once an FFT of the record
     has evicted numpy's code and data from the caches (a new ping).
 
@@ -580,7 +580,7 @@ def local_echoes(
     the stretch, ~1e-5): the two pick the same lag unless two sampled lags have |z| within
     ~1e-5 of each other, and then the same refined peak whenever both lie within
     ``stride - 1`` lags of it (two lattice lags straddling one peak), so the same echoes
-    (``tests/test_detection_local_kernels.py``). The direct search costs (2 half / stride + 1)
+    (``tests/parity/test_detection_local_kernels.py``). The direct search costs (2 half / stride + 1)
     dot products of the m_a analytic taps per pick (41 x 995 complex taps for the 5 us pulse:
     ~0.7 M multiply-adds for 9 picks), four lags at a time (``_four_lags32``) on a float32 copy
     of the stretch: measured ~0.05 ms per ping, against ~0.1 ms in float64 and ~0.33 ms one lag

@@ -382,7 +382,7 @@ def filtered_spectrum(
     rounding (~1e-7 of the record's RMS spectrum) is ~100 dB below the white noise of any real
     record, and only the decimated envelope (peak cell, noise median) comes from it: the TOF
     refinement is recomputed from the float64 samples (``refine_peaks``), so TOFs agree with
-    the float64 path to far below 0.1 ns (``tests/test_detection_matched.py``). Not for the
+    the float64 path to far below 0.1 ns (``tests/unit/test_detection_matched.py``). Not for the
     whitened filter, whose weights can amplify the rounding in bins where the noise is low.
     """
     import scipy.fft as sfft

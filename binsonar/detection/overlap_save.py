@@ -28,8 +28,8 @@ FFT sums them over the whole record; a block sums them over its own span and wra
 around (those beyond ``matched.ANALYTIC_TAIL`` = 1e-5 of the peak, the part the time-domain
 refinement also truncates). On white noise the two envelopes differ by up to ~6e-3 of the
 noise's RMS |z| at a block's first lags, less further in, and by ~1e-4 of an echo's peak
-(``tests/test_detection_overlap_save.py``): as much as the refinement's truncated template
-already differs from either (``tests/test_detection_matched.py``, ~1e-3 of the peak), and far
+(``tests/unit/test_detection_overlap_save.py``): as much as the refinement's truncated template
+already differs from either (``tests/unit/test_detection_matched.py``, ~1e-3 of the peak), and far
 below the noise on any cell. The decimated grids differ too (D ~ 14.6 against ~14.9), which
 changes neither the noise statistics (the median of |z|^2 over the cells: the same exponential
 law) nor the false-alarm design (Rice's rate over the searched lags, a property of the

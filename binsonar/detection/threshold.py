@@ -186,7 +186,7 @@ def detect_threshold(
     from binsonar.detection.threshold_kernels import threshold_echoes
 
     # ``first_crossings``, the echo measures at the crossing and the echo values, compiled in one
-    # call: each searched sample read once, up to the crossing (tests/test_detection_threshold_kernels.py).
+    # call: each searched sample read once, up to the crossing (tests/parity/test_detection_threshold_kernels.py).
     rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)
     per_row = np.empty((n_rows, 3))
     per_row[:, 0] = level

@@ -5,7 +5,7 @@ binsonar``). ``threshold.first_crossings`` and the test's ``crossing_measures`` 
 definitions: the first reads each searched sample twice (a block's maxima, then its minima)
 and pays a few array operations per block, the second a dozen small array operations; this
 loop reads each sample once, up to the crossing, stops there and measures the echo after it,
-in one call for all rows (``tests/test_detection_threshold_kernels.py`` checks that they agree).
+in one call for all rows (``tests/parity/test_detection_threshold_kernels.py`` checks that they agree).
 """
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ def first_crossings(rows: NDArray, scale: float, level: NDArray[np.float64], off
 def crossings(rows: NDArray, scale: float, level: NDArray[np.float64], offset: NDArray[np.float64], first: int,
               stop_at: int, window: int, found: NDArray[np.int64], measures: NDArray[np.float64]) -> None:
     """``first_crossings``, then the echo measures at each crossing (numpy reference:
-    ``crossing_measures`` in ``tests/test_detection_threshold_kernels.py``).
+    ``crossing_measures`` in ``tests/parity/test_detection_threshold_kernels.py``).
 
     Parameters
     ----------
@@ -143,7 +143,7 @@ def threshold_echoes(rows: NDArray, scale: float, per_row: NDArray[np.float64], 
                      constants: NDArray[np.float64], echoes: NDArray[np.float64]) -> None:
     """``crossings``, then each crossing's echo values: the whole threshold detector after its
     noise estimate, in one call (numpy reference: ``threshold_echo_values`` in
-    ``tests/test_detection_threshold_kernels.py``, the same operations in the same order).
+    ``tests/parity/test_detection_threshold_kernels.py``, the same operations in the same order).
     Once a new ping has evicted the caches, each numpy call costs tens of microseconds: the
     twenty-odd small ones this replaces cost ~0.2 ms per ping.
 

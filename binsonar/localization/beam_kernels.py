@@ -9,7 +9,7 @@ equally spaced frequencies (never by ``import binsonar``). It evaluates exactly 
 D read from the same linearly interpolated 2 J1(x)/x table, but without the (3, points, bins)
 temporaries: per point the delay phase advances by one complex multiplication per bin
 (exp(-j 2 pi df e) is the step between neighbouring bins; the recurrence's rounding stays below
-1e-13 over a few hundred bins). ``tests/test_beam_refine.py`` checks it against the numpy path.
+1e-13 over a few hundred bins). ``tests/unit/test_beam_refine.py`` checks it against the numpy path.
 """
 
 from __future__ import annotations

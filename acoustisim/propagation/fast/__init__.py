@@ -1,0 +1,53 @@
+"""The fast engine: the reference engine's rows from compiled kernels, screens and reused buffers.
+
+Every function here computes what its namesake in :mod:`acoustisim.propagation.reference`
+computes (the parity suite, ``tests/parity``, holds them to it); read the reference module for
+the physics. What this package adds is speed: numba kernels over rows, geometric screens that
+decide most occlusion queries without Embree, and buffers reused across a solve.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from numpy.typing import NDArray
+
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.prepared import PreparedScene
+
+
+class FastEngine:
+    """The compiled engine (``SolverConfig(backend="fast")``, the default)."""
+
+    name = "fast"
+
+    def direct_rows(self, context: SolveContext) -> NDArray[Any]:
+        from acoustisim.propagation.specular import direct_rows
+
+        return direct_rows(context)
+
+    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+        from acoustisim.propagation.specular import specular_rows
+
+        return specular_rows(context, prepared, max_order)
+
+    def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
+        from acoustisim.propagation.edges import edge_paths
+
+        return edge_paths(context, config, prepared.diffracting_edges, sort_rows=True)
+
+    def diffuse_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
+        from acoustisim.propagation.diffuse import diffuse_paths
+
+        return diffuse_paths(context, config, threads=config.threads, visibility=config.diffuse_visibility)
+
+    def assemble_rows(self, parts: Sequence[NDArray[Any]], context: SolveContext, config: SolverConfig
+                      ) -> NDArray[Any]:
+        from acoustisim.propagation.assemble import assemble_rows
+
+        return assemble_rows(parts, context, config.amplitude_floor_db, config.amplitude_floor_band_hz)
+
+
+__all__ = ["FastEngine"]

@@ -1,0 +1,62 @@
+"""The reference engine: one plain-numpy module per mechanism, each reading like its equations.
+
+Modules, each opening with its Physics (equations and sources), Method and Accuracy:
+
+* :mod:`.direct`: the direct path;
+* :mod:`.specular`: image-source chains on planar mirrors and specular points on curved
+  surfaces (spheres, cylinders, smooth meshes), with geometric-optics amplitudes;
+* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral);
+* :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
+* :mod:`.floor`: the amplitude floor;
+* :mod:`.columns`: the derived columns and the solve's assembled rows.
+
+Occlusion is asked of Embree in batches (:class:`~acoustisim.propagation.raycast.RayCaster`);
+everything else is numpy. The fast engine (:mod:`acoustisim.propagation.fast`) computes the
+same rows; the parity suite (``tests/parity``) holds it to this one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from numpy.typing import NDArray
+
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.prepared import PreparedScene
+
+
+class ReferenceEngine:
+    """The readable engine (``SolverConfig(backend="reference")``)."""
+
+    name = "reference"
+
+    def direct_rows(self, context: SolveContext) -> NDArray[Any]:
+        from acoustisim.propagation.reference.direct import direct_rows
+
+        return direct_rows(context)
+
+    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+        from acoustisim.propagation.reference.specular import specular_rows
+
+        return specular_rows(context, prepared, max_order)
+
+    def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
+        from acoustisim.propagation.reference.edges import edge_rows
+
+        return edge_rows(context, config, prepared)
+
+    def diffuse_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
+        from acoustisim.propagation.reference.diffuse import diffuse_rows
+
+        return diffuse_rows(context, config, prepared)
+
+    def assemble_rows(self, parts: Sequence[NDArray[Any]], context: SolveContext, config: SolverConfig
+                      ) -> NDArray[Any]:
+        from acoustisim.propagation.reference.columns import assemble_rows
+
+        return assemble_rows(parts, context, config.amplitude_floor_db, config.amplitude_floor_band_hz)
+
+
+__all__ = ["ReferenceEngine"]

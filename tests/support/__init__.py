@@ -1,0 +1,1 @@
+"""Test support shared across the test layers: synthetic signals, specs, row matching."""
