@@ -1,6 +1,8 @@
-"""Errors a user can cause. Their message names the file, the field and the value."""
+"""Errors a user can cause. Their message names the file, the field and the value.
 
+One hierarchy for the whole project, defined in :mod:`binsonar.errors` (the lowest layer).
+"""
 
-class InputError(ValueError):
-    """Bad user input (scene file, option, parameter). The command line prints it on one line
-    and exits with code 2."""
+from binsonar.errors import InputError, InputTypeError
+
+__all__ = ["InputError", "InputTypeError"]

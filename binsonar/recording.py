@@ -34,12 +34,14 @@ from typing import Any, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.errors import InputError
+
 FORMAT_VERSION = "1.0"
 CHANNEL_NAMES: tuple[str, str, str] = ("left", "centre", "right")
 POSE_COLUMNS: tuple[str, ...] = ("x_m", "y_m", "z_m", "yaw_deg", "pitch_deg", "roll_deg")
 
 
-class RecordingError(ValueError):
+class RecordingError(InputError):
     """A recording file or array that cannot be used; the message names file, field and value."""
 
 
