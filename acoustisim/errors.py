@@ -5,4 +5,4 @@ One hierarchy for the whole project, defined in :mod:`binsonar.errors` (the lowe
 
 from binsonar.errors import InputError, InputTypeError
 
-__all__ = ["InputError", "InputTypeError"]
+__all__ = ("InputError", "InputTypeError")

@@ -16,4 +16,4 @@ class InputTypeError(InputError, TypeError):
     """An argument of the wrong type (a string where a number is expected, say)."""
 
 
-__all__ = ["InputError", "InputTypeError"]
+__all__ = ("InputError", "InputTypeError")
