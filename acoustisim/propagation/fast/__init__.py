@@ -24,12 +24,12 @@ class FastEngine:
     name = "fast"
 
     def direct_rows(self, context: SolveContext) -> NDArray[Any]:
-        from acoustisim.propagation.specular import direct_rows
+        from acoustisim.propagation.fast.direct import direct_rows
 
         return direct_rows(context)
 
     def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
-        from acoustisim.propagation.specular import specular_rows
+        from acoustisim.propagation.fast.specular import specular_rows
 
         return specular_rows(context, prepared, max_order)
 
@@ -45,7 +45,7 @@ class FastEngine:
 
     def assemble_rows(self, parts: Sequence[NDArray[Any]], context: SolveContext, config: SolverConfig
                       ) -> NDArray[Any]:
-        from acoustisim.propagation.assemble import assemble_rows
+        from acoustisim.propagation.fast.assemble import assemble_rows
 
         return assemble_rows(parts, context, config.amplitude_floor_db, config.amplitude_floor_band_hz)
 

@@ -36,9 +36,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from acoustisim.propagation.columns import ColumnInputs, column_inputs, complete_columns, fill_columns
+from acoustisim.propagation.fast.columns import ColumnInputs, column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.floor import floor_mask
+from acoustisim.propagation.fast.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
 
 

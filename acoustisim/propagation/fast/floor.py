@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.floor_kernels import (
+from acoustisim.propagation.fast.floor_kernels import (
     arrival_bounds,
     directivity_table,
     angle_envelope,
