@@ -63,7 +63,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from acoustisim.propagation.columns import complete_columns  # noqa: E402
+from acoustisim.propagation.fast.columns import complete_columns  # noqa: E402
 from acoustisim.propagation.config import SolverConfig  # noqa: E402
 from acoustisim.propagation.context import SolveContext  # noqa: E402
 from acoustisim.propagation.diffuse import (  # noqa: E402

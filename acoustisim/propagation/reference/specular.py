@@ -334,13 +334,19 @@ def path_rows(chains: Chains, reflection: NDArray[np.complex128], first_path_id:
     return rows
 
 
-def first_distinct(rows: NDArray[Any]) -> NDArray[np.intp]:
-    """Indices (increasing) of the first row of each (channel, order, set of surfaces,
-    interaction points to :data:`DUPLICATE_RESOLUTION_M`)."""
+def duplicate_key(rows: NDArray[Any]) -> NDArray[np.int64]:
+    """What makes two rows the same path (n, 2 + 4 MAX_INTERACTIONS): channel, order, the
+    surfaces sorted (-1 padding), the interaction points in units of
+    :data:`DUPLICATE_RESOLUTION_M` (rounded half to even; 0 padding)."""
     points = np.nan_to_num(rows["points_m"], nan=0.0).reshape(rows.size, -1)
     surfaces = np.sort(rows["object_ids"].astype(np.int64), axis=1)
     key = np.column_stack([rows["channel"], rows["order"], surfaces, np.round(points / DUPLICATE_RESOLUTION_M)])
-    _, first = np.unique(key.astype(np.int64), axis=0, return_index=True)
+    return key.astype(np.int64)
+
+
+def first_distinct(rows: NDArray[Any]) -> NDArray[np.intp]:
+    """Indices (increasing) of the first row of each :func:`duplicate_key`."""
+    _, first = np.unique(duplicate_key(rows), axis=0, return_index=True)
     return np.sort(first)
 
 
@@ -388,6 +394,6 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     return rows[first_distinct(rows)] if rows.size > 1 else rows
 
 
-__all__ = ["Candidates", "MaterialTable", "candidates", "chains_through", "curved_chains", "first_distinct",
+__all__ = ["Candidates", "MaterialTable", "candidates", "chains_through", "curved_chains", "duplicate_key", "first_distinct",
            "incidence_cosines", "material_table", "path_rows", "receivers_in_front", "reflection_products",
            "smooth_chains", "specular_rows", "splits", "unblocked"]
