@@ -35,6 +35,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
+
 from acoustisim.propagation.fast.columns import ColumnInputs, column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.fast.floor import floor_mask
@@ -132,8 +134,9 @@ def _bytes(rows: NDArray[Any]) -> NDArray[np.uint8]:
     return rows.view(np.uint8).reshape(rows.size, PATH_DTYPE.itemsize)
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def merge_destinations(host: SortKeys, host_first: int, others: SortKeys, canonical: NDArray[np.int64],
+def merge_destinations(host_fields: tuple, host_first: int, others_fields: tuple, canonical: NDArray[np.int64],
                        order: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Sorted places of the rows of a sorted part and of the other rows, by merging.
 
@@ -157,6 +160,7 @@ def merge_destinations(host: SortKeys, host_first: int, others: SortKeys, canoni
         Increasing, ``host_destination[i] >= i``.
     destination : ndarray of int64, shape (o,)
     """
+    host, others = SortKeys(*host_fields), SortKeys(*others_fields)
     host_channel, host_delay = host.channel, host.delay_s
     channel, delay = others.channel, others.delay_s
     h = host_channel.size

@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
 from acoustisim.propagation.curved import SurfacePoints
 from acoustisim.propagation.fast.mirror_kernels import MirrorArrays, backtrace_one
 
@@ -237,8 +238,9 @@ def _write_transmitter(row: int, ends: ChainEnds, out: PaddedChains) -> None:
     out.vertices[row, 0, 2] = ends.transmitter[2]
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def fill_planar(mirrors: MirrorArrays, side: MirrorSide, chain_base: int, ends: ChainEnds, out: PaddedChains,
+def fill_planar(mirrors_fields: tuple, side_fields: tuple, chain_base: int, ends_fields: tuple, out_fields: tuple,
                 cursor: int) -> int:
     """Planar chains of ``side`` (the transmitter's images across s sequences of k mirrors), to
     every receiver, written from row ``cursor`` of ``out``.
@@ -247,6 +249,10 @@ def fill_planar(mirrors: MirrorArrays, side: MirrorSide, chain_base: int, ends: 
     skipped. Rows: receiver by receiver, sequences in order; length (m) the distance from the
     last image to the receiver, spreading 1 / length. Returns the next free row.
     """
+    mirrors = MirrorArrays(*mirrors_fields)
+    side = MirrorSide(*side_fields)
+    ends = ChainEnds(*ends_fields)
+    out = PaddedChains(*out_fields)
     sequences, images, unfolded = side
     receivers = ends.receivers
     s, k = sequences.shape
@@ -275,8 +281,9 @@ def fill_planar(mirrors: MirrorArrays, side: MirrorSide, chain_base: int, ends: 
     return cursor
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def mixed_candidates(seen_by: NDArray[np.bool_], before: MirrorSide, after: MirrorSide,
+def mixed_candidates(seen_by: NDArray[np.bool_], before_fields: tuple, after_fields: tuple,
                      n_receivers: int) -> MixedCandidates:
     """The candidates of one split [n_before mirrors, a curved reflector, n_after mirrors].
 
@@ -287,6 +294,7 @@ def mixed_candidates(seen_by: NDArray[np.bool_], before: MirrorSide, after: Mirr
     triple with valid images on both sides, allowed by ``seen_by`` at the mirrors next to the
     reflector, nested in that order.
     """
+    before, after = MirrorSide(*before_fields), MirrorSide(*after_fields)
     n_refl = seen_by.shape[0]
     n_before, n_after = before.sequences.shape[1], after.sequences.shape[1]
     capacity = 0
@@ -323,10 +331,11 @@ def mixed_candidates(seen_by: NDArray[np.bool_], before: MirrorSide, after: Mirr
     return MixedCandidates(before_row[:n], after_row[:n], reflector[:n], source_image[:n], receiver_image[:n])
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def fill_mixed(mirrors: MirrorArrays, before: MirrorSide, after: MirrorSide, n_receivers: int,
-               candidates: MixedCandidates, points: SurfacePoints, reflectors: ReflectorLabels, chain_base: int,
-               ends: ChainEnds, out: PaddedChains, out_candidate: NDArray[np.int64], candidate_base: int,
+def fill_mixed(mirrors_fields: tuple, before_fields: tuple, after_fields: tuple, n_receivers: int,
+               candidates_fields: tuple, points_fields: tuple, reflectors_fields: tuple, chain_base: int,
+               ends_fields: tuple, out_fields: tuple, out_candidate: NDArray[np.int64], candidate_base: int,
                cursor: int) -> int:
     """Mixed chains of one split's ``candidates`` (:func:`mixed_candidates`) through their
     specular ``points`` on the curved reflectors, written from row ``cursor`` of ``out``.
@@ -337,6 +346,14 @@ def fill_mixed(mirrors: MirrorArrays, before: MirrorSide, after: MirrorSide, n_r
     |x - a| + |x - b|. ``out_candidate`` receives ``candidate_base`` + the candidate of each row
     written (to pick the amplitudes, left to the caller). Returns the next free row.
     """
+    mirrors = MirrorArrays(*mirrors_fields)
+    before = MirrorSide(*before_fields)
+    after = MirrorSide(*after_fields)
+    candidates = MixedCandidates(*candidates_fields)
+    points = SurfacePoints(*points_fields)
+    reflectors = ReflectorLabels(*reflectors_fields)
+    ends = ChainEnds(*ends_fields)
+    out = PaddedChains(*out_fields)
     n_refl = reflectors.surface.shape[0]
     n_before, n_after = before.sequences.shape[1], after.sequences.shape[1]
     order = n_before + 1 + n_after
@@ -389,11 +406,13 @@ def fill_mixed(mirrors: MirrorArrays, before: MirrorSide, after: MirrorSide, n_r
     return cursor
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def chain_legs(chains: PaddedChains, rows: NDArray[np.int64]) -> ChainLegs:
+def chain_legs(chains_fields: tuple, rows: NDArray[np.int64]) -> ChainLegs:
     """The legs of the chains ``rows`` (c,) as occlusion segments, chain by chain, leg by leg
     (directions ``(end - start) / |end - start|``, lengths summed x + y + z as
     ``np.linalg.norm``)."""
+    chains = PaddedChains(*chains_fields)
     vertices, patch, order = chains.vertices, chains.patch, chains.order
     n_legs = 0
     for i in range(rows.shape[0]):
@@ -439,12 +458,14 @@ def unblocked_chains(blocked_legs: NDArray[np.bool_], order: NDArray[np.int64],
     return out[:n]
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def duplicate_keys(rows: NDArray[np.int64], chains: PaddedChains, slots: int, resolution_m: float) -> NDArray[np.int64]:
+def duplicate_keys(rows: NDArray[np.int64], chains_fields: tuple, slots: int, resolution_m: float) -> NDArray[np.int64]:
     """The duplicate key (c, 2 + 4 ``slots``) of the chains ``rows`` (c,): channel, order, the
     surfaces of the first ``slots`` reflections sorted (-1 padding), then their points in units
     of ``resolution_m``, rounded half to even (0 for padding): the key of
     :func:`acoustisim.propagation.reference.specular.first_distinct`."""
+    chains = PaddedChains(*chains_fields)
     channel, order, surface, vertices = chains.channel, chains.order, chains.surface, chains.vertices
     n = rows.shape[0]
     big = surface.shape[1]
@@ -472,13 +493,15 @@ def duplicate_keys(rows: NDArray[np.int64], chains: PaddedChains, slots: int, re
     return key
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def write_rows(rows: NDArray[np.int64], path_id_base: int, kind: int, chains: PaddedChains, out: PathColumns) -> None:
+def write_rows(rows: NDArray[np.int64], path_id_base: int, kind: int, chains_fields: tuple, out_fields: tuple) -> None:
     """The geometric columns of the path rows of the chains ``rows`` (c,), written into ``out``
     (views of a fresh ``empty_paths_array(c)``; object ids and points of the padding slots are
     left at -1 and NaN): path id ``path_id_base`` + chain number, channel, ``kind``, order,
     length, the unit departure and arrival directions (as ``d / np.linalg.norm(d)``) and the
     first ``out.points_m.shape[1]`` reflections' surfaces and points."""
+    chains, out = PaddedChains(*chains_fields), PathColumns(*out_fields)
     chain, channel, order, surface = chains.chain, chains.channel, chains.order, chains.surface
     vertices, length = chains.vertices, chains.length
     out_departure, out_arrival = out.departure_dir, out.arrival_dir
@@ -539,8 +562,9 @@ def incidence_cosines(vertices: NDArray[np.float64], normals: NDArray[np.float64
     return out
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def vertex_groups(rows: NDArray[np.int64], chains: PaddedChains, codes: MaterialCodes
+def vertex_groups(rows: NDArray[np.int64], chains_fields: tuple, codes_fields: tuple
                   ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The reflections of the chains ``rows`` (c,) grouped by material code, by a counting sort.
 
@@ -552,6 +576,7 @@ def vertex_groups(rows: NDArray[np.int64], chains: PaddedChains, codes: Material
     starts : ndarray of int64, shape (codes.count + 1,)
         Group q is ``positions[starts[q]:starts[q + 1]]``.
     """
+    chains, codes = PaddedChains(*chains_fields), MaterialCodes(*codes_fields)
     kind, material = chains.kind, chains.material
     code_of, kind_offset = codes.code_of, codes.kind_offset
     big = kind.shape[1]
@@ -574,12 +599,14 @@ def vertex_groups(rows: NDArray[np.int64], chains: PaddedChains, codes: Material
     return positions, starts
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def occlusion_queries32(legs: ChainLegs, shift: NDArray[np.float64], eps: float) -> OcclusionQueries:
+def occlusion_queries32(legs_fields: tuple, shift: NDArray[np.float64], eps: float) -> OcclusionQueries:
     """The ``legs`` as Embree's float32 buffers, as ``RayCaster.occluded_rays`` builds them, with
     the same operations in the same order (so the same buffers): start ``eps d + o`` minus
     ``shift`` rounded once to float32, direction rounded to float32, length ``L - 2 eps``; legs
     with ``L <= 2 eps`` are never blocked and get no query."""
+    legs = ChainLegs(*legs_fields)
     origins, directions, lengths = legs.origins, legs.directions, legs.lengths
     n = lengths.shape[0]
     q = 0

@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
 from acoustisim.propagation.context import SolveContext
 
 
@@ -74,11 +75,13 @@ def _parts(x: float, y: float, z: float, ax: float, ay: float, az: float) -> tup
     return math.sqrt(cx * cx + cy * cy + cz * cz), x * ax + y * ay + z * az
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def _parts_pass(rows: DirectionFields, boresight: tuple[float, float, float], c: float, out: OffAxisParts) -> int:
+def _parts_pass(rows_fields: tuple, boresight: tuple[float, float, float], c: float, out_fields: tuple) -> int:
     """Fill ``out`` (:class:`OffAxisParts`) from ``rows`` in one pass: -arrival_dir has the same
     |d x a| and exactly the negated cosine; the delay is the very division :func:`_row_pass`
     makes. Returns the number of runs."""
+    rows, out = DirectionFields(*rows_fields), OffAxisParts(*out_fields)
     ax, ay, az = boresight
     departure, arrival = rows.departure_dir, rows.arrival_dir
     runs = -1
@@ -166,8 +169,9 @@ class ColumnInputs(NamedTuple):
     absorption_db_per_m: float
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], inputs: ColumnInputs, out: DerivedColumns,
+def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], inputs_fields: tuple, out_fields: tuple,
               records: NDArray[np.uint8], destination: NDArray[np.int64]) -> None:
     """Every derived field of every row (``length``, ``gain``: its ``path_length_m`` and
     ``geometric_gain``), written into ``out`` in one pass; 10^(-L / 20) is exp(L * _NEPER_PER_DB)
@@ -178,6 +182,7 @@ def _row_pass(length: NDArray[np.float64], gain: NDArray[np.float64], inputs: Co
     one back (no record is overwritten before it is moved), and its derived fields are written
     there: the move and the fill touch each row once (:func:`fill_columns`).
     """
+    inputs, out = ColumnInputs(*inputs_fields), DerivedColumns(*out_fields)
     run = inputs.run
     head_angle, head_x, head_j1 = inputs.head_angle, inputs.head_argument, inputs.head_j1
     rx_angle, rx_x, rx_j1 = inputs.rx_angle, inputs.rx_argument, inputs.rx_j1

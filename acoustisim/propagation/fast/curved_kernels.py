@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
 from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, NEWTON_STEPS, NEWTON_TOLERANCE_RAD, CurvedSet,
                                           SurfacePoints)
 
@@ -77,8 +78,9 @@ def _norm3(x0: float, x1: float, x2: float) -> float:
     return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def primitive_specular_points(curved: CurvedSet, which: NDArray[np.int64], a: NDArray[np.float64],
+def primitive_specular_points(curved_fields: tuple, which: NDArray[np.int64], a: NDArray[np.float64],
                               b: NDArray[np.float64], max_steps: int, tol: float, end_tolerance: float
                               ) -> SurfacePoints:
     """:func:`acoustisim.propagation.reference.curved.specular_points` of sources ``a`` and
@@ -86,6 +88,7 @@ def primitive_specular_points(curved: CurvedSet, which: NDArray[np.int64], a: ND
     the same order, the Newton steps of :func:`circle_newton` (at most ``max_steps``, until no
     step exceeds ``tol``); a cylinder's point may lie ``end_tolerance`` (m) beyond its ends.
     """
+    curved = CurvedSet(*curved_fields)
     is_sphere, centre, frame, radius, length = curved
     n = which.shape[0]
     ax, ay = np.empty(n), np.empty(n)
@@ -196,12 +199,14 @@ def _dot3(u0: float, u1: float, u2: float, v0: float, v1: float, v2: float) -> f
     return (u0 * v0 + u2 * v2) + u1 * v1
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64], surface: SurfacePoints
+def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64], surface_fields: tuple
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`acoustisim.propagation.reference.curved.go_amplitude` (amplitude and phase (r,)) of
     the ``rows`` (r,) of (image) sources ``a``, receivers ``b`` (n, 3) and their specular
     points ``surface`` (n of them), without gathering them first."""
+    surface = SurfacePoints(*surface_fields)
     x, normal, e1, e2 = surface.point, surface.normal, surface.e1, surface.e2
     k11, k22, k12 = surface.k11, surface.k22, surface.k12
     n = rows.shape[0]

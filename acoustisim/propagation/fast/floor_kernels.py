@@ -29,6 +29,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
+
 ENVELOPE_CELLS = 4096
 """Angle cells of the directivity envelope over [0, pi/2] (:func:`angle_envelope`)."""
 
@@ -277,10 +279,12 @@ class DirectivityTable(NamedTuple):
     error: float
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def arrival_bounds(rows: FloorFields, settings: BoundSettings) -> Arrivals:
+def arrival_bounds(rows_fields: tuple, settings_fields: tuple) -> Arrivals:
     """The :class:`Arrivals` of ``rows`` (edge rows with equal (path_id, channel) form one
     arrival; direct rows none) and first bounds of their band levels."""
+    rows, settings = FloorFields(*rows_fields), BoundSettings(*settings_fields)
     kind, path_id, channel, gain = rows.kind, rows.path_id, rows.channel, rows.geometric_gain
     angle_tx, angle_rx, length, delay, phase = (rows.angle_tx_rad, rows.angle_rx_rad, rows.path_length_m,
                                                 rows.delay_s, rows.phase_rad)
@@ -389,9 +393,10 @@ def _directivity(front: bool, sine: float, scale: float, table: NDArray[np.float
     return _interpolate(scale * sine, table, inverse_step)
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def table_levels(arrivals: NDArray[np.int64], groups: Arrivals, rows: FloorFields, band: BandTable,
-                 directivity: DirectivityTable, threshold: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def table_levels(arrivals: NDArray[np.int64], groups_fields: tuple, rows_fields: tuple, band_fields: tuple,
+                 directivity_fields: tuple, threshold: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """An interval [lo, hi] containing the band level of each of ``arrivals`` (q,) (numbered as
     ``groups`` numbers them), by the rule of
     :func:`~acoustisim.propagation.reference.floor.band_levels`.
@@ -411,6 +416,10 @@ def table_levels(arrivals: NDArray[np.int64], groups: Arrivals, rows: FloorField
     row within 1e-12 of 90 degrees off a piston's axis (where the front test decides whether D
     is 0).
     """
+    groups = Arrivals(*groups_fields)
+    rows = FloorFields(*rows_fields)
+    band = BandTable(*band_fields)
+    directivity = DirectivityTable(*directivity_fields)
     single_rows, group_start, group_rows = groups.single_rows, groups.group_start, groups.group_rows
     gain, angle_tx, angle_rx = rows.geometric_gain, rows.angle_tx_rad, rows.angle_rx_rad
     length, delay, phase = rows.path_length_m, rows.delay_s, rows.phase_rad

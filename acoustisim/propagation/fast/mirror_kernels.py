@@ -12,7 +12,9 @@ The compiled twins of :func:`acoustisim.propagation.reference.image_source.unfol
    :class:`~acoustisim.propagation.image_source.TriangleFrames`).
 
 Dot products are summed x + y + z as numpy sums a row of three; no ``fastmath`` (it would
-reassociate sums).
+reassociate sums). The kernels take :class:`MirrorArrays` and unpack it once: the private
+per-chain helpers take plain arrays, because every read of a tuple's array field inside a loop
+costs a reference count in numba (ten times the arithmetic of a chain).
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
 from acoustisim.propagation.image_source import INSIDE_TOLERANCE, ON_PLANE_TOLERANCE_M, PlanarMirrors
 
 
@@ -69,18 +73,20 @@ def mirror_arrays(mirrors: PlanarMirrors) -> MirrorArrays:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _signed_distance(p0: float, p1: float, p2: float, mirrors: MirrorArrays, m: int) -> float:
-    point, normal = mirrors.point, mirrors.normal
+def _signed_distance(p0: float, p1: float, p2: float, point: NDArray[np.float64], normal: NDArray[np.float64],
+                     m: int) -> float:
     return (p0 - point[m, 0]) * normal[m, 0] + (p1 - point[m, 1]) * normal[m, 1] + (p2 - point[m, 2]) * normal[m, 2]
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def unfold_chains(mirrors: MirrorArrays, start: NDArray[np.float64], sequences: NDArray[np.int64]
+def unfold_chains(mirrors_fields: tuple, start: NDArray[np.float64], sequences: NDArray[np.int64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Images (n, k + 1, 3) of ``start`` (n, 3) across ``sequences`` (n, k) of mirrors, and
     validity (n,): each image strictly in front of the next mirror."""
+    mirrors = MirrorArrays(*mirrors_fields)
     n, k = sequences.shape
-    normal = mirrors.normal
+    point, normal = mirrors.point, mirrors.normal
     images = np.empty((n, k + 1, 3))
     valid = np.ones(n, dtype=np.bool_)
     for i in range(n):
@@ -89,7 +95,7 @@ def unfold_chains(mirrors: MirrorArrays, start: NDArray[np.float64], sequences: 
         ok = True
         for j in range(k):
             m = sequences[i, j]
-            d = _signed_distance(x0, x1, x2, mirrors, m)
+            d = _signed_distance(x0, x1, x2, point, normal, m)
             ok = ok and d > 0.0
             x0 = x0 - 2.0 * d * normal[m, 0]
             x1 = x1 - 2.0 * d * normal[m, 1]
@@ -99,15 +105,17 @@ def unfold_chains(mirrors: MirrorArrays, start: NDArray[np.float64], sequences: 
     return images, valid
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def unfold_reversed(mirrors: MirrorArrays, starts: NDArray[np.float64], sequences: NDArray[np.int64]
+def unfold_reversed(mirrors_fields: tuple, starts: NDArray[np.float64], sequences: NDArray[np.int64]
                     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """:func:`unfold_chains` of every start point (r, 3) across every sequence (s, k) taken in
     reverse order: row ``q * r + i`` is start i across ``sequences[q, ::-1]`` (images
     (s r, k + 1, 3), validity (s r,)), without materialising the repeated rows."""
+    mirrors = MirrorArrays(*mirrors_fields)
     s, k = sequences.shape
     r = starts.shape[0]
-    normal = mirrors.normal
+    point, normal = mirrors.point, mirrors.normal
     images = np.empty((s * r, k + 1, 3))
     valid = np.ones(s * r, dtype=np.bool_)
     for q in range(s):
@@ -118,7 +126,7 @@ def unfold_reversed(mirrors: MirrorArrays, starts: NDArray[np.float64], sequence
             ok = True
             for j in range(k):
                 m = sequences[q, k - 1 - j]
-                d = _signed_distance(x0, x1, x2, mirrors, m)
+                d = _signed_distance(x0, x1, x2, point, normal, m)
                 ok = ok and d > 0.0
                 x0 = x0 - 2.0 * d * normal[m, 0]
                 x1 = x1 - 2.0 * d * normal[m, 1]
@@ -129,16 +137,15 @@ def unfold_reversed(mirrors: MirrorArrays, starts: NDArray[np.float64], sequence
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _contains(x0: float, x1: float, x2: float, m: int, mirrors: MirrorArrays) -> bool:
-    """:meth:`PlanarMirrors.contains` of one point on mirror ``m``."""
-    tol = mirrors.inside_tolerance
-    radius = mirrors.disc_radius[m]
+def _contains(x0: float, x1: float, x2: float, m: int, point: NDArray[np.float64], disc_radius: NDArray[np.float64],
+              a: NDArray[np.float64], v0: NDArray[np.float64], v1: NDArray[np.float64], d00: NDArray[np.float64],
+              d01: NDArray[np.float64], d11: NDArray[np.float64], den: NDArray[np.float64], tol: float) -> bool:
+    """:meth:`PlanarMirrors.contains` of one point on mirror ``m`` (the :class:`MirrorArrays`
+    fields of that name)."""
+    radius = disc_radius[m]
     if not math.isnan(radius):
-        point = mirrors.point
         e0, e1, e2 = x0 - point[m, 0], x1 - point[m, 1], x2 - point[m, 2]
         return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) <= radius * (1.0 + tol)
-    a, v0, v1 = mirrors.corner, mirrors.edge0, mirrors.edge1
-    d00, d01, d11, den = mirrors.d00, mirrors.d01, mirrors.d11, mirrors.det
     for t in range(a.shape[1]):
         w0, w1, w2 = x0 - a[m, t, 0], x1 - a[m, t, 1], x2 - a[m, t, 2]
         d20 = w0 * v0[m, t, 0] + w1 * v0[m, t, 1] + w2 * v0[m, t, 2]
@@ -152,26 +159,20 @@ def _contains(x0: float, x1: float, x2: float, m: int, mirrors: MirrorArrays) ->
 
 
 @njit(cache=True, nogil=True, inline="always")
-def backtrace_one(mirrors: MirrorArrays, images: NDArray[np.float64], image_row: int, sequences: NDArray[np.int64],
-                  sequence_row: int, reverse: bool, c0: float, c1: float, c2: float, points: NDArray[np.float64],
-                  point_row: int, first_slot: int, slot_step: int) -> bool:
-    """One chain of :func:`backtrace_chains`, read and written in place (no array views: they
-    would cost reference counting in the loops that call this).
-
-    The chain's images are ``images[image_row]`` (k + 1, 3), its mirrors
-    ``sequences[sequence_row]`` (k,) (in reverse order if ``reverse``: the chain is the
-    sequence reversed); it is traced back from the end point (c0, c1, c2). The point of the
-    chain's mirror j goes to ``points[point_row, first_slot + slot_step * j]``. Returns whether
-    the chain is valid.
-    """
+def _backtrace_one(point: NDArray[np.float64], normal: NDArray[np.float64], disc_radius: NDArray[np.float64],
+                   a: NDArray[np.float64], v0: NDArray[np.float64], v1: NDArray[np.float64], d00: NDArray[np.float64],
+                   d01: NDArray[np.float64], d11: NDArray[np.float64], den: NDArray[np.float64], on_plane_tol: float,
+                   inside_tol: float, images: NDArray[np.float64], image_row: int, sequences: NDArray[np.int64],
+                   sequence_row: int, reverse: bool, c0: float, c1: float, c2: float, points: NDArray[np.float64],
+                   point_row: int, first_slot: int, slot_step: int) -> bool:
+    """:func:`backtrace_one` on the unpacked :class:`MirrorArrays` (``point`` .. ``inside_tol``)."""
     k = sequences.shape[1]
-    on_plane_tol = mirrors.on_plane_tolerance_m
     ok = True
     for j in range(k - 1, -1, -1):
         m = sequences[sequence_row, k - 1 - j] if reverse else sequences[sequence_row, j]
         s0, s1, s2 = images[image_row, j + 1, 0], images[image_row, j + 1, 1], images[image_row, j + 1, 2]
-        d_cur = _signed_distance(c0, c1, c2, mirrors, m)
-        d_src = _signed_distance(s0, s1, s2, mirrors, m)
+        d_cur = _signed_distance(c0, c1, c2, point, normal, m)
+        d_src = _signed_distance(s0, s1, s2, point, normal, m)
         ok = ok and (d_cur > -on_plane_tol) and (d_src < 0.0)
         denom = d_cur - d_src if ok else 1.0
         t = max(d_cur, 0.0) / denom
@@ -179,25 +180,47 @@ def backtrace_one(mirrors: MirrorArrays, images: NDArray[np.float64], image_row:
         c1 = c1 + t * (s1 - c1)
         c2 = c2 + t * (s2 - c2)
         if ok:
-            ok = _contains(c0, c1, c2, m, mirrors)
+            ok = _contains(c0, c1, c2, m, point, disc_radius, a, v0, v1, d00, d01, d11, den, inside_tol)
         slot = first_slot + slot_step * j
         points[point_row, slot, 0], points[point_row, slot, 1], points[point_row, slot, 2] = c0, c1, c2
     return ok
 
 
+@njit(cache=True, nogil=True, inline="always")
+def backtrace_one(mirrors: MirrorArrays, images: NDArray[np.float64], image_row: int, sequences: NDArray[np.int64],
+                  sequence_row: int, reverse: bool, c0: float, c1: float, c2: float, points: NDArray[np.float64],
+                  point_row: int, first_slot: int, slot_step: int) -> bool:
+    """One chain of :func:`backtrace_chains`, read and written in place.
+
+    The chain's images are ``images[image_row]`` (k + 1, 3), its mirrors
+    ``sequences[sequence_row]`` (k,) (in reverse order if ``reverse``: the chain is the
+    sequence reversed); it is traced back from the end point (c0, c1, c2). The point of the
+    chain's mirror j goes to ``points[point_row, first_slot + slot_step * j]``. Returns whether
+    the chain is valid. (A loop over chains unpacks ``mirrors`` once and calls the private
+    twin instead: see the module's note.)
+    """
+    (point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, _, _, _, on_plane_tol, inside_tol) = mirrors
+    return _backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, on_plane_tol, inside_tol, images,
+                          image_row, sequences, sequence_row, reverse, c0, c1, c2, points, point_row, first_slot,
+                          slot_step)
+
+
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def backtrace_chains(mirrors: MirrorArrays, images: NDArray[np.float64], sequences: NDArray[np.int64],
+def backtrace_chains(mirrors_fields: tuple, images: NDArray[np.float64], sequences: NDArray[np.int64],
                      end: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Reflection points (n, k, 3) of chains from their images (n, k + 1, 3) back to ``end``
     (n, 3), and validity (n,), as
     :func:`acoustisim.propagation.reference.image_source.backtrace` (the points of a chain
     found invalid are still computed, but its polygon tests are skipped)."""
+    mirrors = MirrorArrays(*mirrors_fields)
+    (point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, _, _, _, on_plane_tol, inside_tol) = mirrors
     n, k = sequences.shape
     points = np.empty((n, k, 3))
     valid = np.ones(n, dtype=np.bool_)
     for i in range(n):
-        valid[i] = backtrace_one(mirrors, images, i, sequences, i, False, end[i, 0], end[i, 1], end[i, 2], points, i,
-                                 0, 1)
+        valid[i] = _backtrace_one(point, normal, disc_radius, a, v0, v1, d00, d01, d11, den, on_plane_tol, inside_tol,
+                                  images, i, sequences, i, False, end[i, 0], end[i, 1], end[i, 2], points, i, 0, 1)
     return points, valid
 
 
