@@ -4,6 +4,13 @@ Every function here computes what its namesake in :mod:`acoustisim.propagation.r
 computes (the parity suite, ``tests/parity``, holds them to it); read the reference module for
 the physics. What this package adds is speed: numba kernels over rows, geometric screens that
 decide most occlusion queries without Embree, and buffers reused across a solve.
+
+Its specular, direct and assembly modules: :mod:`.direct`, :mod:`.specular` (orchestration)
+over :mod:`.mirror_kernels` (image sources), :mod:`.curved_kernels` (specular points on
+primitives, geometric-optics factors) and :mod:`.chain_kernels` (candidate chains, legs,
+duplicate keys, rows); :mod:`.columns`, :mod:`.floor` with :mod:`.floor_kernels`, and
+:mod:`.assemble`. Kernels take typed bundles (NamedTuples), passed across the numba boundary
+as plain tuples (:mod:`.bundles`).
 """
 
 from __future__ import annotations

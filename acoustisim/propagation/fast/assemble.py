@@ -236,8 +236,8 @@ def _merged_in_place(rows: NDArray[Any], parts: list[NDArray[Any]], host: int, d
     rows first), that part sorted itself: the other rows (their derived columns filled) are sorted and
     merged in; the host's rows, whose derived columns are not filled yet, are spread out to
     make room for them, each moved once, backwards, and its columns filled as it moves
-    (:func:`~acoustisim.propagation.columns.fill_columns` with ``inputs``, the host's
-    :func:`~acoustisim.propagation.columns.column_inputs`). ``delay`` and ``channel``: every
+    (:func:`~acoustisim.propagation.fast.columns.fill_columns` with ``inputs``, the host's
+    :func:`~acoustisim.propagation.fast.columns.column_inputs`). ``delay`` and ``channel``: every
     part's keys, in the parts' order (the host's from ``inputs``: the bits of its ``delay_s``
     to be)."""
     offsets = np.cumsum([0] + [part.size for part in parts])
