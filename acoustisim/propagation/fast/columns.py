@@ -238,7 +238,7 @@ def column_inputs(rows: NDArray[Any], context: SolveContext) -> ColumnInputs:
                                        rows["channel"]), (ax, ay, az), c,
                        OffAxisParts(run, head_x, head_cos, rx_x, rx_cos, delay, channel))
     head_x, head_cos = head_x[:runs], head_cos[:runs]
-    # numpy's (vectorised) arctan2, as the previous formulation
+    # numpy's (vectorised) arctan2, as the reference engine's off_axis_angle
     head_angle = np.arctan2(head_x, head_cos)
     rx_angle = np.arctan2(rx_x, rx_cos)
     _arguments_into(head_angle, head_x, head_cos, ka)

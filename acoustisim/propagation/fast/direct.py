@@ -29,7 +29,8 @@ def direct_rows(context: SolveContext) -> NDArray[Any]:
                                             np.full((channels.size, 2), -1, dtype=np.int64)),
                                   raycaster.shift_m, DEFAULT_EPS_M)
     blocked = np.zeros(channels.size, dtype=bool)
-    blocked[queries.leg[raycaster.occluded_segments32(queries.starts32, queries.directions32, queries.lengths32)]] = True
+    hit = raycaster.occluded_segments32(queries.starts32, queries.directions32, queries.lengths32)
+    blocked[queries.leg[hit]] = True
     channels = channels[~blocked]
     rows = empty_paths_array(channels.size)
     rows["path_id"] = context.first_path_id

@@ -1,8 +1,8 @@
 """The amplitude floor of the fast engine: the reference rule
 (:mod:`acoustisim.propagation.reference.floor`), decided mostly from bounds.
 
-The rule (:func:`~acoustisim.propagation.reference.floor.band_levels`): an arrival (a row, or the rows of an edge diffraction sharing
-``path_id`` and channel) has as level its strongest pulse-weighted level over a few band
+The rule (:func:`~acoustisim.propagation.reference.floor.band_levels`): an arrival (a row, or
+the rows of an edge diffraction sharing ``path_id`` and channel) has as level its strongest pulse-weighted level over a few band
 frequencies (:func:`floor_frequencies`); it is dropped when that is below
 ``SolverConfig.amplitude_floor_db`` relative to the strongest non-direct arrival. Direct paths
 are always kept. :func:`floor_mask` applies the rule, deciding most arrivals from bounds

@@ -166,7 +166,8 @@ def smooth_chains(pose: Pose, prepared: PreparedScene, max_order: int, chain_bas
             sequence_b, sequence_a = side_b.sequences[b_row], side_a.sequences[a_row // n_receivers]
             x = np.ascontiguousarray(x)
             points_b, ok_b = backtrace_chains(arrays, side_b.images[b_row], sequence_b, x)
-            points_a, ok_a = backtrace_chains(arrays, side_a.images[a_row], np.ascontiguousarray(sequence_a[:, ::-1]), x)
+            points_a, ok_a = backtrace_chains(arrays, side_a.images[a_row], np.ascontiguousarray(sequence_a[:, ::-1]),
+                                              x)
             keep = np.flatnonzero(ok_b & ok_a)
             n = keep.size
             sb, sa, xk = sequence_b[keep], sequence_a[keep], x[keep]
@@ -175,8 +176,8 @@ def smooth_chains(pose: Pose, prepared: PreparedScene, max_order: int, chain_bas
                                       axis=1)
             length = (np.linalg.norm(xk - cand.source_image[rows[keep]], axis=1)
                       + np.linalg.norm(xk - cand.receiver_image[rows[keep]], axis=1))
-            surface = SurfacePoints(*(np.ascontiguousarray(v[keep]) for v in (x, normal, np.ones(pair.size, bool), e1, e2,
-                                                                              k11, k22, k12)))
+            found = (x, normal, np.ones(pair.size, bool), e1, e2, k11, k22, k12)
+            surface = SurfacePoints(*(np.ascontiguousarray(v[keep]) for v in found))
             spreading, phase = go_factors(np.arange(n), np.ascontiguousarray(a[pair][keep]),
                                           np.ascontiguousarray(b[pair][keep]), surface)
             one = np.ones((n, 1), dtype=np.int64)
