@@ -199,7 +199,8 @@ class PlanarMirrors:
             ang = np.linspace(0.0, 2.0 * np.pi, corners.shape[1], endpoint=False)
             corners[i] = point_arr[i] + disc_arr[i] * (np.outer(np.cos(ang), u) + np.outer(np.sin(ang), w))
         # front[i, j]: some corner of mirror j is in front of plane i (beyond 1e-9 m of round-off)
-        height = np.einsum("jvk,ik->ijv", corners, normal_arr) - np.einsum("ik,ik->i", point_arr, normal_arr)[:, None, None]
+        offset = np.einsum("ik,ik->i", point_arr, normal_arr)
+        height = np.einsum("jvk,ik->ijv", corners, normal_arr) - offset[:, None, None]
         front = np.any(height > 1e-9, axis=2)
         sees = front & front.T
         np.fill_diagonal(sees, False)
