@@ -108,5 +108,5 @@ def cylinder_frame(cylinder: CylinderPrimitive) -> NDArray[np.float64]:
     return np.stack([p, q, axis])
 
 
-__all__ = ["CYLINDER_END_TOLERANCE_M", "CurvedSet", "NEWTON_STEPS", "NEWTON_TOLERANCE_RAD", "SurfacePoints",
-           "cylinder_frame"]
+__all__ = ("CYLINDER_END_TOLERANCE_M", "CurvedSet", "NEWTON_STEPS", "NEWTON_TOLERANCE_RAD", "SurfacePoints",
+           "cylinder_frame")

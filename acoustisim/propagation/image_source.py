@@ -332,5 +332,5 @@ def mirror_sequences(sees: NDArray[np.bool_], length: int, first: NDArray[np.boo
     return seqs.astype(np.int64)
 
 
-__all__ = ["CACHED_SEQUENCE_ROWS", "INSIDE_TOLERANCE", "MAX_OBJECT_MIRRORS", "ON_PLANE_TOLERANCE_M", "PlanarMirrors",
-           "TriangleFrames", "is_polyhedral", "mirror_sequences", "object_patch_count"]
+__all__ = ("CACHED_SEQUENCE_ROWS", "INSIDE_TOLERANCE", "MAX_OBJECT_MIRRORS", "ON_PLANE_TOLERANCE_M", "PlanarMirrors",
+           "TriangleFrames", "is_polyhedral", "mirror_sequences", "object_patch_count")

@@ -372,5 +372,5 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     return rows
 
 
-__all__ = ["IN_PLACE_MAX_BYTES", "SortKeys", "assemble_rows", "compact_records", "is_sorted", "merge_destinations",
-           "permute_records", "scatter_records", "spread_records"]
+__all__ = ("IN_PLACE_MAX_BYTES", "SortKeys", "assemble_rows", "compact_records", "is_sorted", "merge_destinations",
+           "permute_records", "scatter_records", "spread_records")

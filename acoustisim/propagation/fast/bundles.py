@@ -25,4 +25,4 @@ def plain_tuple_arguments(kernel: Any) -> Callable[..., Any]:
     return call
 
 
-__all__ = ["plain_tuple_arguments"]
+__all__ = ("plain_tuple_arguments",)

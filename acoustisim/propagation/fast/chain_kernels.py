@@ -632,7 +632,7 @@ def occlusion_queries32(legs_fields: tuple, shift: NDArray[np.float64], eps: flo
     return OcclusionQueries(starts32, directions32, lengths32, leg)
 
 
-__all__ = ["CURVED_KIND", "ChainEnds", "ChainLegs", "MIRROR_KIND", "MaterialCodes", "MirrorSide", "MixedCandidates",
+__all__ = ("CURVED_KIND", "ChainEnds", "ChainLegs", "MIRROR_KIND", "MaterialCodes", "MirrorSide", "MixedCandidates",
            "OcclusionQueries", "PaddedChains", "PathColumns", "ReflectorLabels", "SMOOTH_KIND", "chain_legs",
            "duplicate_keys", "fill_mixed", "fill_planar", "incidence_cosines", "mixed_candidates",
-           "occlusion_queries32", "path_columns", "unblocked_chains", "vertex_groups", "write_rows"]
+           "occlusion_queries32", "path_columns", "unblocked_chains", "vertex_groups", "write_rows")

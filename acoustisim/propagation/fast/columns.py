@@ -283,5 +283,5 @@ def complete_columns(rows: NDArray[Any], context: SolveContext) -> NDArray[Any]:
     return rows
 
 
-__all__ = ["ColumnInputs", "DerivedColumns", "DirectionFields", "OffAxisParts", "column_inputs", "complete_columns",
-           "fill_columns"]
+__all__ = ("ColumnInputs", "DerivedColumns", "DirectionFields", "OffAxisParts", "column_inputs", "complete_columns",
+           "fill_columns")

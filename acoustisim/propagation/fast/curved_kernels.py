@@ -240,4 +240,4 @@ def go_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.fl
     return amplitude, phase
 
 
-__all__ = ["circle_newton", "go_factors", "primitive_specular_points", "specular_points"]
+__all__ = ("circle_newton", "go_factors", "primitive_specular_points", "specular_points")

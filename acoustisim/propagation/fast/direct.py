@@ -46,4 +46,4 @@ def direct_rows(context: SolveContext) -> NDArray[Any]:
     return rows
 
 
-__all__ = ["direct_rows"]
+__all__ = ("direct_rows",)

@@ -138,4 +138,4 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     return keep
 
 
-__all__ = ["floor_mask"]
+__all__ = ("floor_mask",)

@@ -516,6 +516,6 @@ def table_levels(arrivals: NDArray[np.int64], groups_fields: tuple, rows_fields:
     return lo, hi
 
 
-__all__ = ["Arrivals", "BandTable", "BoundSettings", "DIRECTIVITY_TABLE_INTERVALS", "DirectivityTable", "FloorFields",
+__all__ = ("Arrivals", "BandTable", "BoundSettings", "DIRECTIVITY_TABLE_INTERVALS", "DirectivityTable", "FloorFields",
            "ROUNDING_SLACK", "angle_envelope", "arrival_bounds", "directivity_table", "floor_fields",
-           "interpolation_error", "table_levels"]
+           "interpolation_error", "table_levels")

@@ -224,4 +224,4 @@ def backtrace_chains(mirrors_fields: tuple, images: NDArray[np.float64], sequenc
     return points, valid
 
 
-__all__ = ["MirrorArrays", "backtrace_chains", "backtrace_one", "mirror_arrays", "unfold_chains", "unfold_reversed"]
+__all__ = ("MirrorArrays", "backtrace_chains", "backtrace_one", "mirror_arrays", "unfold_chains", "unfold_reversed")

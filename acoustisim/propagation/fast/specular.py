@@ -306,5 +306,5 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     return rows
 
 
-__all__ = ["first_distinct_rows", "planar_and_mixed", "reflection_products", "smooth_chains", "specular_rows",
-           "unblocked"]
+__all__ = ("first_distinct_rows", "planar_and_mixed", "reflection_products", "smooth_chains", "specular_rows",
+           "unblocked")

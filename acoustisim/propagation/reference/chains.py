@@ -70,4 +70,4 @@ class Chains:
         return Chains(**{f.name: getattr(self, f.name)[rows] for f in fields(self)})
 
 
-__all__ = ["Chains"]
+__all__ = ("Chains",)

@@ -205,4 +205,4 @@ def go_amplitude(a: NDArray[np.float64], b: NDArray[np.float64], x: NDArray[np.f
     return cos_i / (r1 * r2 * np.sqrt(np.abs(det))), -(np.pi / 4.0) * (signature - 2)
 
 
-__all__ = ["circle_specular_point", "go_amplitude", "specular_points"]
+__all__ = ("circle_specular_point", "go_amplitude", "specular_points")

@@ -165,4 +165,4 @@ def planar_chains(context: SolveContext, mirrors: PlanarMirrors, order: int, fir
     return chains, chain_base + sequences.shape[0]
 
 
-__all__ = ["backtrace", "planar_chains", "unfold"]
+__all__ = ("backtrace", "planar_chains", "unfold")

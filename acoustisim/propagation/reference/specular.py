@@ -394,6 +394,6 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     return rows[first_distinct(rows)] if rows.size > 1 else rows
 
 
-__all__ = ["Candidates", "MaterialTable", "candidates", "chains_through", "curved_chains", "duplicate_key",
+__all__ = ("Candidates", "MaterialTable", "candidates", "chains_through", "curved_chains", "duplicate_key",
            "first_distinct", "incidence_cosines", "material_table", "path_rows", "receivers_in_front", "reflection_products",
-           "smooth_chains", "specular_rows", "splits", "unblocked"]
+           "smooth_chains", "specular_rows", "splits", "unblocked")
