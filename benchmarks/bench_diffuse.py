@@ -36,7 +36,7 @@ at its default sonar pose, with the tracer's own ray directions for the seed:
   Lambert next-event estimation with exact occlusion to the three receivers, speckle),
   on 1 and N threads, and with ``visibility="centre"`` (approximate, off by default);
 * ``diffuse_paths``: the tracer plus packing into ``PATH_DTYPE`` rows (N threads);
-* ``+ columns``: that plus :func:`~acoustisim.propagation.columns.complete_columns` (what
+* ``+ columns``: that plus :func:`~acoustisim.propagation.fast.columns.complete_columns` (what
   :func:`~acoustisim.propagation.solve` adds to every mechanism's rows).
 
 Every repeat times each stage once, in turn (round-robin: on a shared machine the load
@@ -63,7 +63,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from acoustisim.propagation.columns import complete_columns  # noqa: E402
+from acoustisim.propagation.fast.columns import complete_columns  # noqa: E402
 from acoustisim.propagation.config import SolverConfig  # noqa: E402
 from acoustisim.propagation.context import SolveContext  # noqa: E402
 from acoustisim.propagation.diffuse import (  # noqa: E402

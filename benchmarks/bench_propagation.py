@@ -10,13 +10,17 @@ of over a million triangles loads and solves.
 Figures of the whole solve follow: the CPU-time cost of the amplitude floor (judged across
 the pulse band, ``SolverConfig.amplitude_floor_db = -80``) against keep-all (``None``) on the
 default configuration (with 20 000 diffuse rays); the floor alone
-(:func:`~acoustisim.propagation.floor.floor_mask`) on the keep-all rows against the same-run
-baseline of the rule evaluated on every arrival (:func:`~acoustisim.propagation.floor.band_levels`);
-and the CPU time of
-:func:`~acoustisim.propagation.columns.complete_columns` on the diffuse rows of
-``--columns-rays`` rays (about 2.1 rows per ray), with ``--columns-before FILE`` (an older
-``acoustisim/propagation/columns.py``, e.g. ``git show 21590e5:acoustisim/propagation/columns.py
-> /tmp/columns_before.py``) timed interleaved with it as the same-run baseline.
+(:func:`~acoustisim.propagation.fast.floor.floor_mask`) on the keep-all rows against the same-run
+baseline of the rule evaluated on every arrival
+(:func:`~acoustisim.propagation.reference.floor.band_levels`); and the CPU time of
+:func:`~acoustisim.propagation.fast.columns.complete_columns` on the diffuse rows of
+``--columns-rays`` rays (about 2.1 rows per ray), with ``--columns-before FILE`` (another
+``columns.py`` defining ``complete_columns(rows, context)``, e.g. the reference engine's
+``acoustisim/propagation/reference/columns.py``) timed interleaved with it as the same-run
+baseline.
+
+The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``)
+is timed against the fast engine's in the same run.
 
 The per-pose figures include ``specular_rows`` alone (the specular solve without the solver's
 direct rows, checks and assembly). ``--before-tree DIR`` (an older checkout's root, holding its
@@ -62,14 +66,28 @@ def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
     return float(np.median(times))
 
 
+def _specular_rows_function():
+    """``specular_rows(context, prepared, max_order)`` of the tree on the path: this tree's fast
+    engine, or the top-level module of a tree from before the engines were split (the
+    ``--before-tree`` side of the A/B)."""
+    import importlib
+
+    for module in ("acoustisim.propagation.fast.specular", "acoustisim.propagation.specular"):
+        try:
+            return importlib.import_module(module).specular_rows
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError("no specular_rows in this tree")
+
+
 def _per_pose(prepared, repeats: int, fine: bool) -> dict[str, tuple[float, int]]:
     """CPU-time medians (s) and row counts per pose of the deterministic solves (``_FIGURES``;
     with ``fine``, also the edge solves with the fine 1/16-period discretisation, the same-run
     baseline of the graded one)."""
     from acoustisim.propagation import SolverConfig, solve
     from acoustisim.propagation.context import SolveContext
-    from acoustisim.propagation.specular import specular_rows
 
+    specular_rows = _specular_rows_function()
     scene = prepared.scene
     context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
     out = {"specular_rows": (_median_time(lambda: specular_rows(context, prepared, 3), repeats, time.process_time),
@@ -91,6 +109,27 @@ def _print_per_pose(prepared, repeats: int, fine: bool) -> None:
     print(f"  CPU-time medians per pose over {repeats} (goal < 20 ms for direct + specular + edges):")
     for key, (cpu, n_rows) in _per_pose(prepared, repeats, fine).items():
         print(f"    {labels[key]}: {cpu * 1e3:.2f} ms, {n_rows} rows")
+
+
+def _reference_engine(prepared, repeats: int) -> None:
+    """CPU-time medians of direct + specular (order 3) on the reference and fast engines, interleaved."""
+    from dataclasses import replace
+
+    from acoustisim.propagation import SolverConfig, solve
+
+    fast = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None)
+    reference = replace(fast, backend="reference")
+    n_rows = (len(solve(prepared, config=fast)), len(solve(prepared, config=reference)))
+    cpu = {"fast": [], "reference": []}
+    for _ in range(repeats):
+        for key, config in (("fast", fast), ("reference", reference)):
+            start = time.process_time()
+            solve(prepared, config=config)
+            cpu[key].append(time.process_time() - start)
+    fast_s, reference_s = float(np.median(cpu["fast"])), float(np.median(cpu["reference"]))
+    print(f"  direct + specular (order 3), CPU medians over {repeats}: reference engine {reference_s * 1e3:.1f} ms "
+          f"({n_rows[1]} rows), fast engine {fast_s * 1e3:.2f} ms ({n_rows[0]} rows); reference / fast = "
+          f"{reference_s / fast_s:.1f}")
 
 
 def _before_and_after(args) -> None:
@@ -118,11 +157,11 @@ def _floor_and_columns(prepared, args) -> None:
     import importlib.util
 
     from acoustisim.propagation import SolverConfig, solve
-    from acoustisim.propagation.columns import complete_columns
     from acoustisim.propagation.context import SolveContext
-    from acoustisim.propagation.diffuse import diffuse_paths
-    from acoustisim.propagation.floor import floor_mask
-from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
+    from acoustisim.propagation.engine import engine_for
+    from acoustisim.propagation.fast.columns import complete_columns
+    from acoustisim.propagation.fast.floor import floor_mask
+    from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
 
     repeats = max(3, args.repeats)
     floored, keep_all = SolverConfig(), SolverConfig(amplitude_floor_db=None)
@@ -159,7 +198,8 @@ from acoustisim.propagation.reference.floor import band_levels, floor_frequencie
     print(f"  floor_mask alone on those {everything.size} rows ({int(mask.sum())} kept): CPU median "
           f"{bounds_s * 1e3:.1f} ms; the rule's band levels of every arrival (numpy band_levels, the same-run "
           f"baseline) {rule_s * 1e3:.1f} ms; ratio {rule_s / bounds_s:.1f}")
-    rows = diffuse_paths(context, SolverConfig(diffuse_rays=args.columns_rays))
+    diffuse = SolverConfig(diffuse_rays=args.columns_rays)
+    rows = engine_for(diffuse).diffuse_rows(context, diffuse, prepared)
     functions = {"compiled": complete_columns}
     if args.columns_before:
         spec = importlib.util.spec_from_file_location("columns_before", args.columns_before)
@@ -216,6 +256,7 @@ def main() -> None:
         return
     if args.deterministic_only:
         _print_per_pose(prepared, max(3, args.repeats), fine=False)
+        _reference_engine(prepared, max(3, args.repeats // 3))
         if args.before_tree:
             _before_and_after(args)
         return
@@ -238,6 +279,7 @@ def main() -> None:
     print(f"  baseline raw Embree occlusion of {n_legs} segments: median {t_raw * 1e3:.3f} ms "
           f"(solve / baseline = {t_specular / t_raw:.1f})")
     _print_per_pose(prepared, max(3, args.repeats), fine=True)
+    _reference_engine(prepared, max(3, args.repeats // 3))
     if args.before_tree:
         _before_and_after(args)
 

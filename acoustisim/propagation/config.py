@@ -50,7 +50,7 @@ class SolverConfig:
     amplitude_floor_band_hz : tuple of 2 float or None
         (lowest, highest) frequency (Hz) over which an arrival's level is judged against the
         floor; None (default): the band where the sonar's pulse spectrum is within 20 dB of
-        its peak. See :func:`acoustisim.propagation.floor.band_levels`.
+        its peak. See :func:`acoustisim.propagation.reference.floor.band_levels`.
     seed : int
         Seed of the diffuse tracer's random draws (>= 0).
     threads : int or None

@@ -6,7 +6,7 @@ array of ``PATH_DTYPE`` rows. Path ids of a mechanism start at ``first_path_id``
 renumbers nothing, it passes each mechanism the next free id. Mechanisms fill the geometric
 columns (ids, channel, kind, order, ``path_length_m``, ``geometric_gain``, ``phase_rad``,
 directions, ``object_ids``, ``points_m``); the solver then fills the derived ones with
-:func:`acoustisim.propagation.columns.complete_columns`.
+:meth:`~acoustisim.propagation.engine.Engine.assemble_rows`.
 """
 
 from __future__ import annotations

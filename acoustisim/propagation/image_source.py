@@ -1,27 +1,27 @@
-"""Planar mirrors and the image-source geometry, over arrays of candidate chains.
+"""Planar mirrors: the bounded planes of a scene that reflect specularly, shared by both engines.
 
 A *mirror* is a bounded planar polygon that reflects specularly: a tank boundary, a coplanar
 facet of a polyhedral object (prism, plate: trimesh ``facets``), or a flat cap of a cylinder.
 The facets of spheres and of the curved side of cylinders are never mirrors (their flat
-facets would give the wrong spreading; see :mod:`acoustisim.propagation.curved`).
-
-:func:`unfold` mirrors a point across a sequence of planes (the images); :func:`backtrace`
-recovers the reflection points from the last image toward an end point and checks that each
-lies inside its polygon and that the path stays on the reflecting side of every mirror (both
-compiled per-chain loops, :mod:`acoustisim.propagation.specular_kernels`).
+facets would give the wrong spreading; see :mod:`acoustisim.propagation.reference.curved`).
+:class:`PlanarMirrors` holds their planes, polygons and materials, which mirror can see which
+(:func:`mirror_sequences`), and the point-in-polygon test; the image-source method that uses
+them is :mod:`acoustisim.propagation.reference.image_source` (and its compiled twin in
+:mod:`acoustisim.propagation.fast`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material
 from acoustisim.propagation.raycast import RayCaster
-from acoustisim.propagation.specular_kernels import backtrace_chains, sequences_between, unfold_chains
 from acoustisim.scene import Scene, SceneObject
 
 CACHED_SEQUENCE_ROWS = 200_000
@@ -35,12 +35,39 @@ mirrors: they are smooth or finely detailed meshes, not polyhedra (traced throug
 interpolated normals instead, :mod:`acoustisim.propagation.smooth_mesh`), and order-3 chains
 over their facets would explode combinatorially."""
 
-_ON_PLANE_TOL_M = 1e-12
+ON_PLANE_TOLERANCE_M = 1e-12
 """A point this close (m) to a mirror's plane counts as on it (float64 round-off at tank scale)."""
 
-_INSIDE_TOL = 1e-9
+INSIDE_TOLERANCE = 1e-9
 """Barycentric tolerance of the point-in-polygon test (dimensionless): points on a shared
 edge of two facets' triangles, or on the tank's corner lines, count as inside."""
+
+
+class TriangleFrames(NamedTuple):
+    """The pose-independent parts of the barycentric point-in-triangle test of every mirror's
+    triangles (m mirrors, t triangles each, padded).
+
+    For a point p, with w = p - corner, d20 = w . edge0, d21 = w . edge1:
+    v = (d11 d20 - d01 d21) / det, w = (d00 d21 - d01 d20) / det, u = 1 - v - w; p is inside
+    when u, v, w >= -:data:`INSIDE_TOLERANCE`.
+
+    Attributes
+    ----------
+    corner, edge0, edge1 : ndarray, shape (m, t, 3)
+        First vertex a, and b - a, c - a (m).
+    d00, d01, d11 : ndarray, shape (m, t)
+        edge0 . edge0, edge0 . edge1, edge1 . edge1 (m^2).
+    det : ndarray, shape (m, t)
+        d00 d11 - d01^2 (m^4), inf for a degenerate triangle (nothing is inside it).
+    """
+
+    corner: NDArray[np.float64]
+    edge0: NDArray[np.float64]
+    edge1: NDArray[np.float64]
+    d00: NDArray[np.float64]
+    d01: NDArray[np.float64]
+    d11: NDArray[np.float64]
+    det: NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,7 +199,8 @@ class PlanarMirrors:
             ang = np.linspace(0.0, 2.0 * np.pi, corners.shape[1], endpoint=False)
             corners[i] = point_arr[i] + disc_arr[i] * (np.outer(np.cos(ang), u) + np.outer(np.sin(ang), w))
         # front[i, j]: some corner of mirror j is in front of plane i (beyond 1e-9 m of round-off)
-        height = np.einsum("jvk,ik->ijv", corners, normal_arr) - np.einsum("ik,ik->i", point_arr, normal_arr)[:, None, None]
+        offset = np.einsum("ik,ik->i", point_arr, normal_arr)
+        height = np.einsum("jvk,ik->ijv", corners, normal_arr) - offset[:, None, None]
         front = np.any(height > 1e-9, axis=2)
         sees = front & front.T
         np.fill_diagonal(sees, False)
@@ -198,10 +226,8 @@ class PlanarMirrors:
         return points - 2.0 * self.signed_distance(points, mirror)[:, None] * self.normal[mirror]
 
     @cached_property
-    def _barycentric_frames(self) -> tuple[NDArray[np.float64], ...]:
-        """Per mirror and triangle, the pose-independent parts of the barycentric test: the
-        first vertex a, the edges v0 = b - a and v1 = c - a (m, t, 3), and d00, d01, d11 and
-        the determinant (m, t) (inf where degenerate)."""
+    def triangle_frames(self) -> TriangleFrames:
+        """The :class:`TriangleFrames` of the mirrors' triangles (computed once)."""
         tri = self.triangles
         a, b, c = tri[:, :, 0], tri[:, :, 1], tri[:, :, 2]
         v0, v1 = b - a, c - a
@@ -210,7 +236,7 @@ class PlanarMirrors:
         d11 = np.einsum("ntk,ntk->nt", v1, v1)
         den = d00 * d11 - d01 * d01
         den = np.where(den > 0, den, np.inf)
-        return tuple(np.ascontiguousarray(part) for part in (a, v0, v1, d00, d01, d11, den))
+        return TriangleFrames(*(np.ascontiguousarray(part) for part in (a, v0, v1, d00, d01, d11, den)))
 
     @cached_property
     def _sequence_cache(self) -> dict[int, NDArray[np.int64]]:
@@ -235,24 +261,25 @@ class PlanarMirrors:
                 return mirror_sequences(self.sees, length, first, last)
             cache[length] = mirror_sequences(self.sees, length)
         seqs = cache[length]
-        if first is None and last is None:
-            return seqs.copy()  # (the cache stays the caller's to read only)
-        anything = np.ones(self.count, dtype=bool)
-        return sequences_between(seqs, anything if first is None else np.ascontiguousarray(first, dtype=bool),
-                                 anything if last is None else np.ascontiguousarray(last, dtype=bool))
+        keep = np.ones(seqs.shape[0], dtype=bool)
+        if first is not None:
+            keep &= np.asarray(first, dtype=bool)[seqs[:, 0]]
+        if last is not None:
+            keep &= np.asarray(last, dtype=bool)[seqs[:, -1]]
+        return seqs[keep]  # a copy (the cache stays the caller's to read only)
 
     def contains(self, points: NDArray[np.float64], mirror: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether points (n, 3) on the planes of mirrors (n,) lie inside their polygons (or discs)."""
         radius = self.disc_radius[mirror]
-        in_disc = np.linalg.norm(points - self.point[mirror], axis=1) <= radius * (1.0 + _INSIDE_TOL)
-        a, v0, v1, d00, d01, d11, den = (part[mirror] for part in self._barycentric_frames)
+        in_disc = np.linalg.norm(points - self.point[mirror], axis=1) <= radius * (1.0 + INSIDE_TOLERANCE)
+        a, v0, v1, d00, d01, d11, den = (part[mirror] for part in self.triangle_frames)
         v2 = points[:, None, :] - a
         d20 = np.einsum("ntk,ntk->nt", v2, v0)
         d21 = np.einsum("ntk,ntk->nt", v2, v1)
         v = (d11 * d20 - d01 * d21) / den
         w = (d00 * d21 - d01 * d20) / den
         u = 1.0 - v - w
-        inside = (u >= -_INSIDE_TOL) & (v >= -_INSIDE_TOL) & (w >= -_INSIDE_TOL)
+        inside = (u >= -INSIDE_TOLERANCE) & (v >= -INSIDE_TOLERANCE) & (w >= -INSIDE_TOLERANCE)
         return np.where(np.isnan(radius), np.any(inside, axis=1), in_disc)
 
 
@@ -305,62 +332,5 @@ def mirror_sequences(sees: NDArray[np.bool_], length: int, first: NDArray[np.boo
     return seqs.astype(np.int64)
 
 
-def unfold(mirrors: PlanarMirrors, start: NDArray[np.float64],
-           sequences: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """Successive images of ``start`` across the mirrors of each sequence.
-
-    Parameters
-    ----------
-    start : ndarray, shape (n, 3)
-        The real point (transmitter, or receiver for a reversed sequence).
-    sequences : ndarray of int64, shape (n, k)
-        Mirror indices in the order the wave meets them from ``start``.
-
-    Returns
-    -------
-    images : ndarray, shape (n, k + 1, 3)
-        ``images[:, 0] = start``, ``images[:, j]`` the image across the first j mirrors.
-    valid : ndarray of bool, shape (n,)
-        Each image lies strictly in front of the next mirror (the wave can reach its face).
-    """
-    images, valid = unfold_chains(mirrors.point, mirrors.normal, _as_float_rows(start, sequences.shape[0]),
-                                  np.ascontiguousarray(sequences, dtype=np.int64))
-    return images, valid
-
-
-def backtrace(mirrors: PlanarMirrors, images: NDArray[np.float64], sequences: NDArray[np.int64],
-              end: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """Reflection points of the chains start -> mirrors -> ``end``.
-
-    Parameters
-    ----------
-    images : ndarray, shape (n, k + 1, 3)
-        From :func:`unfold`.
-    sequences : ndarray of int64, shape (n, k)
-    end : ndarray, shape (n, 3)
-        The point the chain arrives at (receiver, or a curved object's specular point).
-
-    Returns
-    -------
-    points : ndarray, shape (n, k, 3)
-        Reflection points in the order met from the start.
-    valid : ndarray of bool, shape (n,)
-        Every point lies inside its polygon, between its neighbours on the unfolded line, and
-        every leg leaves and reaches the mirrors on their water side.
-    """
-    n = sequences.shape[0]
-    a, v0, v1, d00, d01, d11, den = mirrors._barycentric_frames
-    return backtrace_chains(mirrors.point, mirrors.normal, mirrors.disc_radius, a, v0, v1, d00, d01, d11, den,
-                            np.ascontiguousarray(images, dtype=float), np.ascontiguousarray(sequences, dtype=np.int64),
-                            _as_float_rows(end, n), _ON_PLANE_TOL_M, _INSIDE_TOL)
-
-
-def _as_float_rows(points: NDArray[np.float64], n: int) -> NDArray[np.float64]:
-    """``points`` as a C-contiguous float64 array (n, 3) (broadcast views copied)."""
-    points = np.asarray(points, dtype=float)
-    if points.shape != (n, 3):
-        points = np.broadcast_to(points, (n, 3))
-    return np.ascontiguousarray(points)
-
-
-__all__ = ["MAX_OBJECT_MIRRORS", "PlanarMirrors", "backtrace", "mirror_sequences", "is_polyhedral", "object_patch_count", "unfold"]
+__all__ = ("CACHED_SEQUENCE_ROWS", "INSIDE_TOLERANCE", "MAX_OBJECT_MIRRORS", "ON_PLANE_TOLERANCE_M", "PlanarMirrors",
+           "TriangleFrames", "is_polyhedral", "mirror_sequences", "object_patch_count")

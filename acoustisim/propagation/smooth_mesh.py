@@ -10,7 +10,7 @@ possible (non-convex meshes).
 
 The curvature tensor at X is the gradient of the interpolated normal (the shape operator
 dn = S dX, symmetrised), which feeds the general bistatic Hessian of
-:func:`acoustisim.propagation.curved.go_amplitude_general`. Position and curvature converge to
+:func:`acoustisim.propagation.reference.curved.go_amplitude`. Position and curvature converge to
 the smooth surface's as O(h^2) in the mesh spacing h.
 """
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.fast.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import (

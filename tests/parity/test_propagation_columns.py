@@ -1,4 +1,4 @@
-"""complete_columns (compiled) against the per-column numpy formulation it replaced."""
+"""The fast engine's complete_columns (compiled) against the reference engine's (numpy, per column)."""
 
 from __future__ import annotations
 
@@ -6,35 +6,21 @@ import numpy as np
 import pytest
 
 from acoustisim.propagation import PathKind, SolverConfig, prepare, solve
-from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.fast.columns import complete_columns
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.diffuse import diffuse_paths
-from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation.engine import engine_for
 from acoustisim.propagation.paths import empty_paths_array
+from acoustisim.propagation.reference import columns as reference_columns
 from scenes.builtin import builtin_scene
 
 DERIVED = ("delay_s", "angle_tx_rad", "angle_rx_rad", "directivity_tx", "directivity_rx", "absorption_db",
            "amplitude")
 
 
-def _angle(directions, axis):
-    """atan2(|d x a|, d . a) with numpy, per row (the previous formulation)."""
-    return np.arctan2(np.linalg.norm(np.cross(directions, axis), axis=1), directions @ axis)
-
-
 def _reference(rows, context):
-    """The previous numpy formulation of the derived columns."""
-    out = {}
-    c, f0, a = context.sound_speed_m_s, context.centre_frequency_hz, context.piston_radius_m
-    out["delay_s"] = rows["path_length_m"] / c
-    out["angle_tx_rad"] = _angle(rows["departure_dir"], context.boresight)
-    out["angle_rx_rad"] = _angle(-rows["arrival_dir"], context.boresight)
-    out["directivity_tx"] = piston_directivity(out["angle_tx_rad"], f0, a, c)
-    out["directivity_rx"] = piston_directivity(out["angle_rx_rad"], f0, a, c)
-    out["absorption_db"] = rows["path_length_m"] * context.absorption_db_per_m
-    out["amplitude"] = (np.abs(rows["geometric_gain"] * out["directivity_tx"] * out["directivity_rx"])
-                        * 10.0 ** (-out["absorption_db"] / 20.0))
-    return out
+    """The reference engine's derived columns of ``rows``."""
+    filled = reference_columns.complete_columns(rows.copy(), context)
+    return {name: filled[name] for name in DERIVED}
 
 
 @pytest.fixture(scope="module")
@@ -42,14 +28,15 @@ def solved():
     prepared = prepare(builtin_scene("thesis-tank"))
     paths = solve(prepared, config=SolverConfig(max_order=2, diffuse_rays=3000, amplitude_floor_db=None))
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
-    return paths, context
+    return paths, context, prepared
 
 
-def test_columns_match_the_numpy_formulation(solved):
-    paths, context = solved
+def test_columns_match_the_reference_engine(solved):
+    paths, context, prepared = solved
     # the solved rows (sorted by channel and delay) and the diffuse tracer's own rows, where
     # the receivers of one scattering event are adjacent (runs of one departure direction)
-    raw = diffuse_paths(context, SolverConfig(diffuse_rays=3000, seed=1))
+    config = SolverConfig(diffuse_rays=3000, seed=1)
+    raw = engine_for(config).diffuse_rows(context, config, prepared)
     rows = np.concatenate([paths.rows, raw])
     for name in DERIVED:
         rows[name] = np.nan
@@ -81,6 +68,6 @@ def test_columns_match_the_numpy_formulation(solved):
 
 
 def test_empty_rows_are_returned_unchanged(solved):
-    _, context = solved
+    _, context, _ = solved
     rows = empty_paths_array(0)
     assert complete_columns(rows, context).size == 0

@@ -1,5 +1,5 @@
-"""The amplitude floor's compiled bounds contain the rule's levels, and the floor keeps exactly
-the arrivals the rule keeps (numpy reference: :func:`band_levels` over every arrival)."""
+"""The fast engine's amplitude floor: its compiled bounds contain the rule's levels, and it keeps
+exactly the arrivals the reference engine's floor (:func:`band_levels` over every arrival) keeps."""
 
 from __future__ import annotations
 
@@ -11,15 +11,12 @@ from scipy.special import j1
 
 from acoustisim.propagation import PathKind, SolverConfig, prepare, solve
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.floor import floor_mask
+from acoustisim.propagation.fast.floor import floor_mask
+from acoustisim.propagation.fast.floor_kernels import (BandTable, BoundSettings, DirectivityTable, angle_envelope,
+                                                       arrival_bounds, directivity_table, floor_fields,
+                                                       interpolation_error, table_levels)
+from acoustisim.propagation.reference import floor as reference_floor
 from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
-from acoustisim.propagation.floor_kernels import (
-    angle_envelope,
-    arrival_bounds,
-    directivity_table,
-    interpolation_error,
-    table_levels,
-)
 from scenes.builtin import builtin_scene
 
 
@@ -37,23 +34,21 @@ def tank() -> tuple[Any, SolveContext, np.ndarray]:
     return prepared, context, rows
 
 
-def _reference_mask(rows: np.ndarray, floor_db: float, context: SolveContext) -> np.ndarray:
-    """The rule, no bounds: band_levels of every arrival; direct rows always kept."""
+def _level_ratio(rows: np.ndarray, floor_db: float, context: SolveContext) -> np.ndarray:
+    """Each row's arrival level over the reference floor's threshold."""
     frequencies, weights = floor_frequencies(context, None)
-    keys = rows["path_id"].astype(np.int64) * 8 + rows["channel"]
-    _, group = np.unique(keys, return_inverse=True)
-    group = group.ravel()
-    levels = band_levels(rows, group, int(group.max()) + 1, context, frequencies, weights)
-    direct = np.zeros(levels.size, dtype=bool)
+    group, n_groups = reference_floor.arrival_groups(rows)
+    levels = band_levels(rows, group, n_groups, context, frequencies, weights)
+    direct = np.zeros(n_groups, dtype=bool)
     direct[group[rows["kind"] == int(PathKind.DIRECT)]] = True
-    threshold = levels[~direct].max() * 10.0 ** (floor_db / 20.0)
-    return (levels >= threshold)[group] | direct[group], levels[group] / threshold
+    return levels[group] / (levels[~direct].max() * 10.0 ** (floor_db / 20.0))
 
 
 @pytest.mark.parametrize("floor_db", [-20.0, -60.0, -100.0])
 def test_floor_mask_equals_the_rule_on_every_arrival(tank, floor_db):
     _, context, rows = tank
-    expected, ratio = _reference_mask(rows, floor_db, context)
+    expected = reference_floor.floor_mask(rows, floor_db, context)
+    ratio = _level_ratio(rows, floor_db, context)
     got = floor_mask(rows, floor_db, context)
     # a level within 1e-12 of the threshold may go either way with the summation order
     clear = np.abs(ratio - 1.0) > 1e-12
@@ -104,19 +99,17 @@ def test_table_intervals_contain_the_rule_levels(tank):
     scales = 2.0 * np.pi * frequencies / c * a
     table, step = directivity_table(float(scales.max()))
     envelope = angle_envelope(table, step, float(scales[0]) / step)
-    single_rows, group_start, group_rows, lower, upper = arrival_bounds(
-        rows["kind"], rows["path_id"], rows["channel"], rows["geometric_gain"], rows["angle_tx_rad"],
-        rows["angle_rx_rad"], rows["path_length_m"], rows["delay_s"], rows["phase_rad"], rows["amplitude"],
-        rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"], envelope, float(alpha.min()),
-        float(weights[np.searchsorted(frequencies, context.centre_frequency_hz)]),
-        2.0 * np.pi * context.centre_frequency_hz, int(PathKind.DIRECT), int(PathKind.EDGE))
+    fields = floor_fields(rows)
+    arrivals = arrival_bounds(fields, BoundSettings(
+        envelope, float(alpha.min()), float(weights[np.searchsorted(frequencies, context.centre_frequency_hz)]),
+        2.0 * np.pi * context.centre_frequency_hz, int(PathKind.DIRECT), int(PathKind.EDGE)))
+    single_rows, group_start, group_rows, lower, upper = arrivals
     steps = np.diff(frequencies)
     chained = np.r_[False, np.abs(steps - steps.max()) <= 1e-9 * steps.max()]
-    arrivals = np.arange(lower.size, dtype=np.int64)
-    lo, hi = table_levels(arrivals, single_rows, group_start, group_rows, rows["geometric_gain"], rows["angle_tx_rad"],
-                          rows["angle_rx_rad"], rows["path_length_m"], rows["delay_s"], rows["phase_rad"], scales,
-                          weights, alpha, 2.0 * np.pi * frequencies, np.argsort(-weights, kind="stable"), chained,
-                          2.0 * np.pi * float(steps.max()), table, 1.0 / step, interpolation_error(step), np.inf)
+    band = BandTable(scales, weights, alpha, 2.0 * np.pi * frequencies, np.argsort(-weights, kind="stable"), chained,
+                     2.0 * np.pi * float(steps.max()))
+    lo, hi = table_levels(np.arange(lower.size, dtype=np.int64), arrivals, fields, band,
+                          DirectivityTable(table, 1.0 / step, interpolation_error(step)), np.inf)
     # the rule's levels, arrival by arrival (singles, then edge groups)
     members = np.concatenate([single_rows, group_rows])
     group = np.concatenate([np.arange(single_rows.size),

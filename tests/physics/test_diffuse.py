@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from acoustisim.materials import Material
-from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.fast.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import ObjectScreen, diffuse_paths, sample_directions, speckle, trace_diffuse

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from acoustisim.propagation import btm
-from acoustisim.propagation.columns import complete_columns
+from acoustisim.propagation.fast.columns import complete_columns
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edges import edge_paths

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.special import jn_zeros
@@ -49,8 +51,8 @@ def _centre_echo(paths, name: str):
     return rows
 
 
-def _config(floor_db):
-    return SolverConfig(max_order=1, mechanisms=("direct", "specular"), amplitude_floor_db=floor_db)
+def _config(floor_db, backend):
+    return SolverConfig(max_order=1, mechanisms=("direct", "specular"), amplitude_floor_db=floor_db, backend=backend)
 
 
 def test_pulse_band_is_the_gaussian_minus_20_db_band():
@@ -63,9 +65,9 @@ def test_pulse_band_is_the_gaussian_minus_20_db_band():
     assert high == pytest.approx(sonar.centre_frequency_hz + half, abs=500.0)
 
 
-def test_echo_at_the_first_null_is_kept_across_the_band(null_scene):
+def test_echo_at_the_first_null_is_kept_across_the_band(null_scene, backend):
     prepared, theta = null_scene
-    paths = solve(prepared, config=_config(-80.0))
+    paths = solve(prepared, config=_config(-80.0, backend))
     axis, null = _centre_echo(paths, "axis"), _centre_echo(paths, "null")
     assert axis.size == 1 and null.size == 1
     assert null["angle_tx_rad"][0] == pytest.approx(theta, abs=1e-6)
@@ -81,20 +83,20 @@ def test_echo_at_the_first_null_is_kept_across_the_band(null_scene):
     assert 10 ** (-25 / 20) < relative < 10 ** (-12 / 20)
 
 
-def test_echo_below_the_floor_at_every_band_frequency_is_culled(null_scene):
+def test_echo_below_the_floor_at_every_band_frequency_is_culled(null_scene, backend):
     prepared, _ = null_scene
     # the null echo peaks ~18 dB down across the band (previous test): a -10 dB floor culls it,
     # keeps the on-axis echo; a -30 dB floor keeps both
-    culled = solve(prepared, config=_config(-10.0))
+    culled = solve(prepared, config=_config(-10.0, backend))
     assert _centre_echo(culled, "axis").size == 1 and _centre_echo(culled, "null").size == 0
-    kept = solve(prepared, config=_config(-30.0))
+    kept = solve(prepared, config=_config(-30.0, backend))
     assert _centre_echo(kept, "null").size == 1
 
 
-def test_keep_all_keeps_every_row(null_scene):
+def test_keep_all_keeps_every_row(null_scene, backend):
     prepared, _ = null_scene
-    everything = solve(prepared, config=_config(None))
-    culled = solve(prepared, config=_config(-10.0))
+    everything = solve(prepared, config=_config(None, backend))
+    culled = solve(prepared, config=_config(-10.0, backend))
     assert _centre_echo(everything, "null").size == 1
     assert len(culled) < len(everything)
 
@@ -119,14 +121,14 @@ def _brute_force_levels(paths, context, frequencies, weights):
 
 
 @pytest.mark.parametrize("floor_db", [-40.0, -80.0])
-def test_floor_keeps_exactly_the_arrivals_above_it(floor_db):
+def test_floor_keeps_exactly_the_arrivals_above_it(floor_db, backend):
     """Against a per-arrival brute-force evaluation of the rule (no bounds, no shortcuts), on the
     thesis tank with specular paths, edge-element groups and diffuse rows."""
     scene = builtin_scene("thesis-tank")
     prepared = prepare(scene)
-    base = SolverConfig(max_order=2, diffuse_rays=2000, amplitude_floor_db=None)
+    base = SolverConfig(max_order=2, diffuse_rays=2000, amplitude_floor_db=None, backend=backend)
     everything = solve(prepared, config=base)
-    culled = solve(prepared, config=SolverConfig(max_order=2, diffuse_rays=2000, amplitude_floor_db=floor_db))
+    culled = solve(prepared, config=replace(base, amplitude_floor_db=floor_db))
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
     frequencies, weights = floor_frequencies(context, None)
     levels = _brute_force_levels(everything, context, frequencies, weights)

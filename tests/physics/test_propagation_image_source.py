@@ -13,6 +13,7 @@ from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import get_material
 from acoustisim.medium import Medium
 from acoustisim.propagation import PathKind, SolverConfig, prepare, solve
+from acoustisim.propagation.config import BACKENDS
 from acoustisim.scene import Scene, SceneObject, Tank
 from acoustisim.sonar import SonarHead
 from scenes.builders import cylinder, edge_prism, plate, sphere
@@ -39,9 +40,9 @@ def _box_images(point: np.ndarray, order: int, size: tuple[float, float, float])
     return np.array(out)
 
 
-def test_empty_tank_delays_equal_closed_form_images_all_orders():
+def test_empty_tank_delays_equal_closed_form_images_all_orders(backend):
     scene = _tank_scene()
-    paths = solve(scene, config=DETERMINISTIC)
+    paths = solve(scene, config=replace(DETERMINISTIC, backend=backend))
     c = scene.medium.sound_speed
     tx = SONAR.transmitter_position
     for channel, rx in enumerate(SONAR.receiver_positions):
@@ -71,14 +72,14 @@ def _legs(row: np.void, tx: np.ndarray, rx: np.ndarray) -> list[tuple[np.ndarray
     return list(zip(pts[:-1], pts[1:]))
 
 
-def test_sphere_blocks_exactly_the_image_paths_crossing_it():
+def test_sphere_blocks_exactly_the_image_paths_crossing_it(backend):
     centre = np.array([3.4, 1.4, 0.45])
     radius = 0.15
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=radius)
     mesh.apply_translation(centre)
     ball = SceneObject("ball", "sphere", get_material("steel"), mesh, SpherePrimitive(tuple(centre), radius))
-    empty = solve(_tank_scene(), config=DETERMINISTIC)
-    blocked_scene = solve(_tank_scene((ball,)), config=DETERMINISTIC)
+    empty = solve(_tank_scene(), config=replace(DETERMINISTIC, backend=backend))
+    blocked_scene = solve(_tank_scene((ball,)), config=replace(DETERMINISTIC, backend=backend))
     kept = {(int(r["channel"]), tuple(r["object_ids"])) for r in blocked_scene.rows if 6 not in r["object_ids"]}
     tx, rxs = SONAR.transmitter_position, SONAR.receiver_positions
     n_blocked = n_clear = 0
@@ -126,10 +127,11 @@ def _true_normal(scene: Scene, surface: int, point: np.ndarray) -> np.ndarray:
     return obj.mesh.face_normals[tri[0]]
 
 
-@pytest.fixture(scope="module")
-def object_paths():
+@pytest.fixture(scope="module", params=BACKENDS)
+def object_paths(request):
+    backend = request.param
     scene = _object_scene()
-    return scene, solve(scene, config=DETERMINISTIC)
+    return scene, solve(scene, config=replace(DETERMINISTIC, backend=backend))
 
 
 def test_reflection_law_and_fermat_at_every_specular_vertex(object_paths):
@@ -195,7 +197,7 @@ def test_path_lengths_match_leg_sums(object_paths):
         assert abs(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)) - row["path_length_m"]) < 1e-11
 
 
-def test_reciprocity_swapping_transmitter_and_receiver():
+def test_reciprocity_swapping_transmitter_and_receiver(backend):
     scene = _object_scene()
     a = replace(SONAR, channel_positions_m=((-0.3, 0.05, 0.12), (0.0, 0.0, 0.0), (0.065, 0.0, 0.0)))
     p, q = a.transmitter_position, a.receiver_positions[0]
@@ -203,8 +205,8 @@ def test_reciprocity_swapping_transmitter_and_receiver():
     b = replace(b0, channel_positions_m=(tuple(b0.tank_to_head(p[None])[0]), (0.0, 0.0, 0.0), (0.065, 0.0, 0.0)))
     np.testing.assert_allclose(b.receiver_positions[0], p, atol=1e-12)
     prepared = prepare(scene)
-    forward = solve(prepared, a, DETERMINISTIC).for_channel(0)
-    backward = solve(prepared, b, DETERMINISTIC).for_channel(0)
+    forward = solve(prepared, a, replace(DETERMINISTIC, backend=backend)).for_channel(0)
+    backward = solve(prepared, b, replace(DETERMINISTIC, backend=backend)).for_channel(0)
     assert len(forward) == len(backward) and len(forward) > 100
     fr = forward.rows[np.lexsort((forward["geometric_gain"], forward["delay_s"]))]
     br = backward.rows[np.lexsort((backward["geometric_gain"], backward["delay_s"]))]

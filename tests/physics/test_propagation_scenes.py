@@ -8,16 +8,17 @@ import numpy as np
 import pytest
 
 from acoustisim.propagation import PathKind, SolverConfig, prepare, solve
+from acoustisim.propagation.config import BACKENDS
 from scenes.builtin import builtin_scene
 
 DETERMINISTIC = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None)
 
 
-@pytest.fixture(scope="module")
-def tank():
+@pytest.fixture(scope="module", params=BACKENDS)
+def tank(request):
     scene = builtin_scene("thesis-tank")
     prepared = prepare(scene)
-    return scene, prepared, solve(prepared, config=DETERMINISTIC)
+    return scene, prepared, solve(prepared, config=replace(DETERMINISTIC, backend=request.param)), request.param
 
 
 def _rows(paths, channel: int, label: str):
@@ -26,7 +27,7 @@ def _rows(paths, channel: int, label: str):
 
 
 def test_target_echoes_at_their_ranges(tank):
-    scene, _, paths = tank
+    scene, _, paths, _ = tank
     c = scene.medium.sound_speed
     tx = scene.sonar.transmitter_position
     # (post-3 is left out: the line from the sonar to it grazes post-1 within 0.3 mm, where the
@@ -45,7 +46,7 @@ def test_target_echoes_at_their_ranges(tank):
 
 
 def test_surface_and_floor_multipaths(tank):
-    scene, _, paths = tank
+    scene, _, paths, _ = tank
     c = scene.medium.sound_speed
     surface = _rows(paths, 1, "surface")
     floor = _rows(paths, 1, "floor")
@@ -64,13 +65,13 @@ def test_surface_and_floor_multipaths(tank):
 
 
 def test_far_wall_is_shadowed_by_the_prism_on_the_axis(tank):
-    scene, _, paths = tank
+    scene, _, paths, backend = tank
     c = scene.medium.sound_speed
     # the prism on the boresight hides the far wall's normal echo ...
     assert _rows(paths, 1, "wall-x1").size == 0
     # ... which appears, at 2 x 8 m, once the prism is taken out
     open_scene = replace(scene, objects=tuple(o for o in scene.objects if o.name != "edge-1"))
-    open_paths = solve(open_scene, config=DETERMINISTIC)
+    open_paths = solve(open_scene, config=replace(DETERMINISTIC, backend=backend))
     far = _rows(open_paths, 1, "wall-x1")
     assert far.size == 1 and far["delay_s"][0] == pytest.approx(16.0 / c, rel=1e-12)
     # multipaths reaching the far wall around the prism remain
@@ -79,7 +80,7 @@ def test_far_wall_is_shadowed_by_the_prism_on_the_axis(tank):
 
 
 def test_every_row_is_labelled_consistently(tank):
-    _, _, paths = tank
+    _, _, paths, _ = tank
     labels = paths.object_labels()
     for row, label in zip(paths.rows, labels):
         k = int(row["order"])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
@@ -27,16 +29,16 @@ def _blob(subdivisions: int, primitive: bool = False) -> SceneObject:
                        SpherePrimitive(CENTRE, 0.05) if primitive else None)
 
 
-def _gains(obj: SceneObject) -> np.ndarray:
-    paths = solve(Scene("s", Medium(), SONAR, None, (obj,)), config=CONFIG)
+def _gains(obj: SceneObject, backend: str) -> np.ndarray:
+    paths = solve(Scene("s", Medium(), SONAR, None, (obj,)), config=replace(CONFIG, backend=backend))
     assert paths.object_labels() == ["blob"] * 3 or sorted(paths["channel"].tolist()) == [0, 1, 2]
     return paths.rows[np.argsort(paths["channel"])]
 
 
-def test_mesh_sphere_matches_the_analytic_sphere_and_converges():
-    exact = _gains(_blob(4, primitive=True))
-    coarse = _gains(_blob(4))
-    fine = _gains(_blob(5))  # edges halved (2x finer)
+def test_mesh_sphere_matches_the_analytic_sphere_and_converges(backend):
+    exact = _gains(_blob(4, primitive=True), backend)
+    coarse = _gains(_blob(4), backend)
+    fine = _gains(_blob(5), backend)  # edges halved (2x finer)
     # monostatic a / (2 r (r + a)): Max-weighted vertex normals of an icosphere are exactly radial,
     # so the interpolated normal at X on a flat triangle is radial too and only the sagitta
     # (X inside the sphere) errs, O(h^2): measured 1e-3 (subdivision 4), 2.5e-4 (5)
@@ -52,7 +54,7 @@ def test_mesh_sphere_matches_the_analytic_sphere_and_converges():
     np.testing.assert_allclose(fine["path_length_m"], exact["path_length_m"], atol=2e-4)
 
 
-def test_concave_cavity_gives_both_walls_with_the_focusing_phase():
+def test_concave_cavity_gives_both_walls_with_the_focusing_phase(backend):
     """Inside a spherical cavity of radius R0, off centre by d, looking along the diameter: the near
     wall (r = R0 - d < R0) echoes R0 / (2 r d) with no extra phase; the far wall (r = R0 + d > R0,
     beyond the centre of curvature: the Hessian of the path length is negative definite, a
@@ -61,7 +63,8 @@ def test_concave_cavity_gives_both_walls_with_the_focusing_phase():
     sphere = trimesh.creation.icosphere(subdivisions=5, radius=radius)
     cavity = trimesh.Trimesh(sphere.vertices + (offset, 0.0, 0.0), sphere.faces[:, ::-1], process=False)
     obj = SceneObject("cavity", "mesh", get_material("rigid"), cavity)
-    paths = solve(Scene("c", Medium(), SonarHead(position_m=(0.0, 0.0, 0.0)), None, (obj,)), config=CONFIG)
+    paths = solve(Scene("c", Medium(), SonarHead(position_m=(0.0, 0.0, 0.0)), None, (obj,)),
+                  config=replace(CONFIG, backend=backend))
     mono = paths.for_channel(1).rows
     mono = mono[np.argsort(mono["path_length_m"])]
     near, far = radius - offset, radius + offset
@@ -81,10 +84,8 @@ def test_polyhedra_stay_mirrors_and_smooth_meshes_do_not():
     assert [r.surface for r in prepared.smooth] == [1]
 
 
-def test_smooth_mesh_via_the_free_surface_equals_the_image_receiver():
+def test_smooth_mesh_via_the_free_surface_equals_the_image_receiver(backend):
     """Mixed chain [mesh, surface]: -1 x the free-field echo of the same mesh at the receiver's image."""
-    from dataclasses import replace
-
     from acoustisim.scene import Tank
 
     sonar = SonarHead(position_m=(1.0, 1.5, 0.6), channel_positions_m=((-0.2, 0.0, 0.0), (0.0, 0.0, 0.0),
@@ -92,7 +93,7 @@ def test_smooth_mesh_via_the_free_surface_equals_the_image_receiver():
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=0.06)
     mesh.apply_translation((2.0, 1.45, 0.5))
     blob = SceneObject("blob", "mesh", get_material("rigid"), mesh)
-    config = SolverConfig(max_order=2, mechanisms=("specular",), amplitude_floor_db=None)
+    config = SolverConfig(max_order=2, mechanisms=("specular",), amplitude_floor_db=None, backend=backend)
     tank = solve(Scene("t", Medium(), sonar, Tank(9.0, 3.0, 1.0), (blob,)), config=config)
     labels = np.array(tank.object_labels(), dtype=object)
     row = tank.rows[(labels == "blob>surface") & (tank["channel"] == 0)]

@@ -4,6 +4,13 @@ Every function here computes what its namesake in :mod:`acoustisim.propagation.r
 computes (the parity suite, ``tests/parity``, holds them to it); read the reference module for
 the physics. What this package adds is speed: numba kernels over rows, geometric screens that
 decide most occlusion queries without Embree, and buffers reused across a solve.
+
+Its specular, direct and assembly modules: :mod:`.direct`, :mod:`.specular` (orchestration)
+over :mod:`.mirror_kernels` (image sources), :mod:`.curved_kernels` (specular points on
+primitives, geometric-optics factors) and :mod:`.chain_kernels` (candidate chains, legs,
+duplicate keys, rows); :mod:`.columns`, :mod:`.floor` with :mod:`.floor_kernels`, and
+:mod:`.assemble`. Kernels take typed bundles (NamedTuples), passed across the numba boundary
+as plain tuples (:mod:`.bundles`).
 """
 
 from __future__ import annotations
@@ -24,12 +31,12 @@ class FastEngine:
     name = "fast"
 
     def direct_rows(self, context: SolveContext) -> NDArray[Any]:
-        from acoustisim.propagation.specular import direct_rows
+        from acoustisim.propagation.fast.direct import direct_rows
 
         return direct_rows(context)
 
     def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
-        from acoustisim.propagation.specular import specular_rows
+        from acoustisim.propagation.fast.specular import specular_rows
 
         return specular_rows(context, prepared, max_order)
 
@@ -45,7 +52,7 @@ class FastEngine:
 
     def assemble_rows(self, parts: Sequence[NDArray[Any]], context: SolveContext, config: SolverConfig
                       ) -> NDArray[Any]:
-        from acoustisim.propagation.assemble import assemble_rows
+        from acoustisim.propagation.fast.assemble import assemble_rows
 
         return assemble_rows(parts, context, config.amplitude_floor_db, config.amplitude_floor_band_hz)
 

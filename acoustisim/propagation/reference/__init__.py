@@ -3,8 +3,11 @@
 Modules, each opening with its Physics (equations and sources), Method and Accuracy:
 
 * :mod:`.direct`: the direct path;
-* :mod:`.specular`: image-source chains on planar mirrors and specular points on curved
-  surfaces (spheres, cylinders, smooth meshes), with geometric-optics amplitudes;
+* :mod:`.specular`: specular chains of planar mirrors and at most one curved surface, their
+  occlusion, duplicates and reflection coefficients, built on :mod:`.image_source` (image
+  sources, unfolding and back-tracing on planar mirrors), :mod:`.curved` (specular points on
+  spheres and cylinders, the geometric-optics amplitude) and :mod:`.chains` (the candidate
+  chains);
 * :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral);
 * :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
 * :mod:`.floor`: the amplitude floor;

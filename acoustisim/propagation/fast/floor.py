@@ -1,12 +1,12 @@
 """The amplitude floor of the fast engine: the reference rule
 (:mod:`acoustisim.propagation.reference.floor`), decided mostly from bounds.
 
-The rule (:func:`~acoustisim.propagation.reference.floor.band_levels`): an arrival (a row, or the rows of an edge diffraction sharing
-``path_id`` and channel) has as level its strongest pulse-weighted level over a few band
+The rule (:func:`~acoustisim.propagation.reference.floor.band_levels`): an arrival (a row, or
+the rows of an edge diffraction sharing ``path_id`` and channel) has as level its strongest pulse-weighted level over a few band
 frequencies (:func:`floor_frequencies`); it is dropped when that is below
 ``SolverConfig.amplitude_floor_db`` relative to the strongest non-direct arrival. Direct paths
 are always kept. :func:`floor_mask` applies the rule, deciding most arrivals from bounds
-computed in the compiled passes of :mod:`acoustisim.propagation.floor_kernels` and evaluating
+computed in the compiled passes of :mod:`acoustisim.propagation.fast.floor_kernels` and evaluating
 the rule itself (in numpy) only on the few the bounds leave open.
 """
 
@@ -18,13 +18,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.floor_kernels import (
-    arrival_bounds,
-    directivity_table,
-    angle_envelope,
-    interpolation_error,
-    table_levels,
-)
+from acoustisim.propagation.fast.floor_kernels import (BandTable, BoundSettings, DirectivityTable, angle_envelope,
+                                                       arrival_bounds, directivity_table, floor_fields,
+                                                       interpolation_error, table_levels)
 from acoustisim.propagation.paths import PathKind
 from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
 
@@ -45,15 +41,15 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
        frequencies; from the ``amplitude``-side columns, no Bessel function) and an upper
        bound (the sum of |g| times the directivity envelopes, times the absorption at the
        band's least-absorbed frequency; pulse weights <= 1)
-       (:func:`~acoustisim.propagation.floor_kernels.arrival_bounds`);
+       (:func:`~acoustisim.propagation.fast.floor_kernels.arrival_bounds`);
     2. arrivals these leave open get an interval of width about 1e-5 of their terms around
        the level, with 2 J1(x)/x interpolated from a table with a proven error bound
-       (:func:`~acoustisim.propagation.floor_kernels.table_levels`);
+       (:func:`~acoustisim.propagation.fast.floor_kernels.table_levels`);
     3. arrivals still open (within that of the threshold, or competing for the strongest)
        are evaluated by :func:`band_levels`.
 
     Each bound contains the level numpy computes (the rounding of both is covered by
-    :data:`~acoustisim.propagation.floor_kernels.ROUNDING_SLACK`), so the kept rows are those
+    :data:`~acoustisim.propagation.fast.floor_kernels.ROUNDING_SLACK`), so the kept rows are those
     of :func:`band_levels` applied to every arrival (``tests/physics/test_propagation_floor.py``).
 
     Parameters
@@ -82,14 +78,11 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     table, step = directivity_table(float(scales.max()))
     envelope = angle_envelope(table, step, float(scales[0]) / step)  # from the lowest frequency up
 
-    gain, angle_tx, angle_rx = rows["geometric_gain"], rows["angle_tx_rad"], rows["angle_rx_rad"]
-    length, delay, phase = rows["path_length_m"], rows["delay_s"], rows["phase_rad"]
-    single_rows, group_start, group_rows, lower, upper = arrival_bounds(
-        rows["kind"], rows["path_id"], rows["channel"], gain, angle_tx, angle_rx, length, delay, phase,
-        rows["amplitude"], rows["directivity_tx"], rows["directivity_rx"], rows["absorption_db"], envelope,
-        float(alpha.min()), centre_weight, 2.0 * np.pi * context.centre_frequency_hz,
-        int(PathKind.DIRECT), int(PathKind.EDGE),
-    )
+    fields = floor_fields(rows)
+    arrivals = arrival_bounds(fields, BoundSettings(envelope, float(alpha.min()), centre_weight,
+                                                    2.0 * np.pi * context.centre_frequency_hz, int(PathKind.DIRECT),
+                                                    int(PathKind.EDGE)))
+    single_rows, group_start, group_rows, lower, upper = arrivals
     n_single = single_rows.size
     # frequencies increasing (floor_frequencies sorts them); singles visit them highest pulse
     # weight first (early exits); edge groups step the phase factor across evenly spaced ones
@@ -97,21 +90,20 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     steps = np.diff(frequencies)
     step_hz = float(steps.max(initial=0.0))
     chained = np.r_[False, np.abs(steps - step_hz) <= 1e-9 * step_hz]
-    per_frequency = (scales, weights, alpha, 2.0 * np.pi * frequencies, visit, chained, 2.0 * np.pi * step_hz)
-    error = interpolation_error(step)
+    band = BandTable(scales, weights, alpha, 2.0 * np.pi * frequencies, visit, chained, 2.0 * np.pi * step_hz)
+    directivity = DirectivityTable(table, 1.0 / step, interpolation_error(step))
 
-    def intervals(arrivals: NDArray[np.intp], threshold: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return table_levels(arrivals.astype(np.int64), single_rows, group_start, group_rows, gain, angle_tx, angle_rx,
-                            length, delay, phase, *per_frequency, table, 1.0 / step, error, threshold)
+    def intervals(which: NDArray[np.intp], threshold: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return table_levels(which.astype(np.int64), arrivals, fields, band, directivity, threshold)
 
-    def exact(arrivals: NDArray[np.intp]) -> NDArray[np.float64]:
+    def exact(which: NDArray[np.intp]) -> NDArray[np.float64]:
         """Band levels of arrivals (singles 0 .. n_single - 1, then edge groups) by the rule."""
-        levels = np.empty(arrivals.size)
-        is_single = arrivals < n_single
-        picked = single_rows[arrivals[is_single]]
+        levels = np.empty(which.size)
+        is_single = which < n_single
+        picked = single_rows[which[is_single]]
         levels[is_single] = band_levels(np.take(rows, picked), np.arange(picked.size), picked.size, context,
                                         frequencies, weights)
-        chosen = arrivals[~is_single] - n_single
+        chosen = which[~is_single] - n_single
         if chosen.size:
             sizes = group_start[chosen + 1] - group_start[chosen]
             members = np.concatenate([group_rows[group_start[g]:group_start[g + 1]] for g in chosen])
@@ -146,4 +138,4 @@ def floor_mask(rows: NDArray[Any], floor_db: float | None, context: SolveContext
     return keep
 
 
-__all__ = ["floor_mask"]
+__all__ = ("floor_mask",)

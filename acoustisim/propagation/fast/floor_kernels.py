@@ -1,11 +1,11 @@
 """Compiled passes of the amplitude floor (numba, cached on disk, GIL released).
 
-:func:`acoustisim.propagation.floor.floor_mask` judges every arrival (a row, or the rows of an
+:func:`acoustisim.propagation.fast.floor.floor_mask` judges every arrival (a row, or the rows of an
 edge diffraction sharing ``path_id`` and channel) by its strongest pulse-weighted level over a
-few band frequencies (:func:`~acoustisim.propagation.floor.band_levels`, the rule). The full
-default solve has some 60 000 rows: evaluating the rule on all of them (two Bessel functions,
-an exponential and, for edge groups, a phase per row and frequency) is what the floor used to
-cost. These loops decide almost every arrival from bounds instead, each one pass over the rows
+few band frequencies (:func:`~acoustisim.propagation.reference.floor.band_levels`, the rule). The full
+default solve has some 60 000 rows, and the rule costs two Bessel functions, an exponential
+and, for edge groups, a phase per row and frequency. These loops decide almost every arrival
+from bounds instead, each one pass over the rows
 (read in place from the structured array's strided fields):
 
 1. :func:`arrival_bounds`: per arrival, a lower bound (its level at the centre frequency, from
@@ -23,10 +23,13 @@ strongest level) goes to the numpy rule itself. No ``fastmath`` (it would reasso
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
 
 ENVELOPE_CELLS = 4096
 """Angle cells of the directivity envelope over [0, pi/2] (:func:`angle_envelope`)."""
@@ -169,23 +172,34 @@ def _edge_groups(kind: NDArray[np.int8], path_id: NDArray[np.int64], channel: ND
     return groups, n_groups + 1
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def arrival_bounds(
-    kind: NDArray[np.int8], path_id: NDArray[np.int64], channel: NDArray[np.int8], gain: NDArray[np.float64],
-    angle_tx: NDArray[np.float64], angle_rx: NDArray[np.float64], length: NDArray[np.float64],
-    delay: NDArray[np.float64], phase: NDArray[np.float64], amplitude: NDArray[np.float64],
-    directivity_tx: NDArray[np.float64], directivity_rx: NDArray[np.float64], absorption_db: NDArray[np.float64],
-    envelope: NDArray[np.float64], alpha_min_db_per_m: float, centre_weight: float,
-    two_pi_f0: float, direct_kind: int, edge_kind: int,
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-    """The arrivals of ``rows`` and first bounds of their band levels.
+class FloorFields(NamedTuple):
+    """The fields of the rows the floor reads (views of the structured array, any strides)."""
 
-    Parameters
+    kind: NDArray[np.int8]
+    path_id: NDArray[np.int64]
+    channel: NDArray[np.int8]
+    geometric_gain: NDArray[np.float64]
+    angle_tx_rad: NDArray[np.float64]
+    angle_rx_rad: NDArray[np.float64]
+    path_length_m: NDArray[np.float64]
+    delay_s: NDArray[np.float64]
+    phase_rad: NDArray[np.float64]
+    amplitude: NDArray[np.float64]
+    directivity_tx: NDArray[np.float64]
+    directivity_rx: NDArray[np.float64]
+    absorption_db: NDArray[np.float64]
+
+
+def floor_fields(rows: NDArray[Any]) -> FloorFields:
+    """The :class:`FloorFields` views of PATH_DTYPE ``rows`` (derived columns filled)."""
+    return FloorFields(*(rows[name] for name in FloorFields._fields))
+
+
+class BoundSettings(NamedTuple):
+    """What :func:`arrival_bounds` needs besides the rows.
+
+    Attributes
     ----------
-    kind, path_id, channel, gain, angle_tx, angle_rx, length, delay, phase, amplitude,
-    directivity_tx, directivity_rx, absorption_db : ndarray, shape (n,)
-        The rows' fields (views of the structured array; derived columns filled). Edge rows
-        with equal (path_id, channel) form one arrival.
     envelope : ndarray, shape (c + 1,)
         :func:`angle_envelope` at the band's lowest frequency.
     alpha_min_db_per_m : float
@@ -196,9 +210,21 @@ def arrival_bounds(
         2 pi f0 (rad/s).
     direct_kind, edge_kind : int
         ``PathKind.DIRECT`` and ``PathKind.EDGE``.
+    """
 
-    Returns
-    -------
+    envelope: NDArray[np.float64]
+    alpha_min_db_per_m: float
+    centre_weight: float
+    two_pi_f0: float
+    direct_kind: int
+    edge_kind: int
+
+
+class Arrivals(NamedTuple):
+    """The arrivals of some rows and first bounds of their band levels (:func:`arrival_bounds`).
+
+    Attributes
+    ----------
     single_rows : ndarray of int64, shape (s,)
         Rows of the single-row arrivals (neither direct nor edge), increasing; arrivals 0 .. s-1.
     group_start : ndarray of int64, shape (g + 1,)
@@ -212,6 +238,60 @@ def arrival_bounds(
         2 pi f0 (delay - first row's delay)); ``upper``: the sum over the arrival's rows of
         |g| envelope(angle_tx) envelope(angle_rx) 10^(-alpha_min L / 20) (pulse weights <= 1).
     """
+
+    single_rows: NDArray[np.int64]
+    group_start: NDArray[np.int64]
+    group_rows: NDArray[np.int64]
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+
+
+class BandTable(NamedTuple):
+    """The band frequencies as :func:`table_levels` reads them (m of them, increasing).
+
+    Attributes
+    ----------
+    scales, weights, alpha_db_per_m, two_pi_f : ndarray, shape (m,)
+        k a = 2 pi f a / c, pulse weight, absorption (dB/m) and 2 pi f.
+    visit : ndarray of int64, shape (m,)
+        The order in which single-row arrivals visit the frequencies (highest weight first).
+    chained : ndarray of bool, shape (m,)
+        Whether f_j - f_(j-1) is the step (to 1e-9 of it).
+    two_pi_step : float
+        2 pi times the step (rad/s).
+    """
+
+    scales: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    alpha_db_per_m: NDArray[np.float64]
+    two_pi_f: NDArray[np.float64]
+    visit: NDArray[np.int64]
+    chained: NDArray[np.bool_]
+    two_pi_step: float
+
+
+class DirectivityTable(NamedTuple):
+    """2 J1(x)/x tabulated (:func:`directivity_table`), 1 / its step, and the interpolation's
+    error bound (:func:`interpolation_error`)."""
+
+    values: NDArray[np.float64]
+    inverse_step: float
+    error: float
+
+
+@plain_tuple_arguments
+@njit(cache=True, nogil=True, error_model="numpy")
+def arrival_bounds(rows_fields: tuple, settings_fields: tuple) -> Arrivals:
+    """The :class:`Arrivals` of ``rows`` (edge rows with equal (path_id, channel) form one
+    arrival; direct rows none) and first bounds of their band levels."""
+    rows, settings = FloorFields(*rows_fields), BoundSettings(*settings_fields)
+    kind, path_id, channel, gain = rows.kind, rows.path_id, rows.channel, rows.geometric_gain
+    angle_tx, angle_rx, length, delay, phase = (rows.angle_tx_rad, rows.angle_rx_rad, rows.path_length_m,
+                                                rows.delay_s, rows.phase_rad)
+    amplitude, directivity_tx, directivity_rx, absorption_db = (rows.amplitude, rows.directivity_tx,
+                                                                rows.directivity_rx, rows.absorption_db)
+    envelope, alpha_min_db_per_m, centre_weight = settings.envelope, settings.alpha_min_db_per_m, settings.centre_weight
+    two_pi_f0, direct_kind, edge_kind = settings.two_pi_f0, settings.direct_kind, settings.edge_kind
     alpha_min_neper = -alpha_min_db_per_m * _NEPER_PER_DB  # >= 0: nepers per metre
     n = kind.size
     # pass 1 (kind and path_id only): counts, and the edge keys' range
@@ -302,7 +382,7 @@ def arrival_bounds(
         g = edge_group[r]
         group_rows[fill[g]] = edge_rows[r]
         fill[g] += 1
-    return single_rows, group_start, group_rows, lower, upper
+    return Arrivals(single_rows, group_start, group_rows, lower, upper)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -313,60 +393,39 @@ def _directivity(front: bool, sine: float, scale: float, table: NDArray[np.float
     return _interpolate(scale * sine, table, inverse_step)
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def table_levels(
-    arrivals: NDArray[np.int64], single_rows: NDArray[np.int64], group_start: NDArray[np.int64],
-    group_rows: NDArray[np.int64], gain: NDArray[np.float64], angle_tx: NDArray[np.float64],
-    angle_rx: NDArray[np.float64], length: NDArray[np.float64], delay: NDArray[np.float64],
-    phase: NDArray[np.float64], scales: NDArray[np.float64], weights: NDArray[np.float64],
-    alpha_db_per_m: NDArray[np.float64], two_pi_f: NDArray[np.float64], visit: NDArray[np.int64],
-    chained: NDArray[np.bool_], two_pi_step: float, table: NDArray[np.float64], inverse_step: float,
-    error: float, threshold: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """An interval [lo, hi] containing each arrival's band level (the rule of
-    :func:`~acoustisim.propagation.floor.band_levels`).
+def table_levels(arrivals: NDArray[np.int64], groups_fields: tuple, rows_fields: tuple, band_fields: tuple,
+                 directivity_fields: tuple, threshold: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """An interval [lo, hi] containing the band level of each of ``arrivals`` (q,) (numbered as
+    ``groups`` numbers them), by the rule of
+    :func:`~acoustisim.propagation.reference.floor.band_levels`.
 
     Per frequency f_j the arrival's level w_j |sum_i g_i D(x_tx) D(x_rx) A_ij exp(j phi_ij)|
-    is evaluated with the interpolated D (each within ``error`` of the true one, and |D| <= 1,
-    so each product within error (2 + error)); with B_j = w_j sum_i |g_i| A_ij the level is
-    within B_j (error (2 + error) + :data:`ROUNDING_SLACK`) of the value found. lo and hi are
-    the maxima over f_j of the value minus and plus that.
+    is evaluated with the interpolated D (each within ``directivity.error`` of the true one, and
+    |D| <= 1, so each product within error (2 + error)); with B_j = w_j sum_i |g_i| A_ij the
+    level is within B_j (error (2 + error) + :data:`ROUNDING_SLACK`) of the value found. lo and
+    hi are the maxima over f_j of the value minus and plus that.
 
     An edge group's phase factors exp(j (phase - 2 pi f_j dtau)) at frequencies one step above
-    the previous (``chained``) are the previous one's times exp(-j 2 pi step dtau): a complex
-    product instead of a cosine and a sine (a few ulp per step; within the slack).
+    the previous (``band.chained``) are the previous one's times exp(-j 2 pi step dtau): a
+    complex product instead of a cosine and a sine (a few ulp per step; within the slack).
 
-    Parameters
-    ----------
-    arrivals : ndarray of int64, shape (q,)
-        Arrival indices as :func:`arrival_bounds` numbers them.
-    single_rows, group_start, group_rows
-        From :func:`arrival_bounds`.
-    gain, angle_tx, angle_rx, length, delay, phase : ndarray, shape (n,)
-        The rows' fields.
-    scales, weights, alpha_db_per_m, two_pi_f : ndarray, shape (m,)
-        Per band frequency, increasing: k a = 2 pi f a / c, pulse weight, absorption (dB/m)
-        and 2 pi f.
-    visit : ndarray of int64, shape (m,)
-        The order in which single-row arrivals visit the frequencies (highest weight first).
-    chained : ndarray of bool, shape (m,)
-        Whether f_j - f_(j-1) is the step (to 1e-9 of it).
-    two_pi_step : float
-        2 pi times the step (rad/s).
-    table, inverse_step
-        :func:`directivity_table` and 1 / its step.
-    error : float
-        :func:`interpolation_error` of the table.
-    threshold : float
-        A single-row arrival stops at the first frequency where lo reaches it (hi is then
-        +inf); pass +inf for complete intervals.
-
-    Returns
-    -------
-    lo, hi : ndarray, shape (q,)
-        hi = +inf (and lo = 0) for an arrival with a row within 1e-12 of 90 degrees off a
-        piston's axis (where the front test decides whether D is 0).
+    A single-row arrival stops at the first frequency where lo reaches ``threshold`` (hi is
+    then +inf); pass +inf for complete intervals. hi = +inf (and lo = 0) for an arrival with a
+    row within 1e-12 of 90 degrees off a piston's axis (where the front test decides whether D
+    is 0).
     """
+    groups = Arrivals(*groups_fields)
+    rows = FloorFields(*rows_fields)
+    band = BandTable(*band_fields)
+    directivity = DirectivityTable(*directivity_fields)
+    single_rows, group_start, group_rows = groups.single_rows, groups.group_start, groups.group_rows
+    gain, angle_tx, angle_rx = rows.geometric_gain, rows.angle_tx_rad, rows.angle_rx_rad
+    length, delay, phase = rows.path_length_m, rows.delay_s, rows.phase_rad
+    scales, weights, alpha_db_per_m, two_pi_f = band.scales, band.weights, band.alpha_db_per_m, band.two_pi_f
+    visit, chained, two_pi_step = band.visit, band.chained, band.two_pi_step
+    table, inverse_step, error = directivity.values, directivity.inverse_step, directivity.error
     n_single = single_rows.size
     m = scales.size
     neper = alpha_db_per_m * _NEPER_PER_DB
@@ -457,5 +516,6 @@ def table_levels(
     return lo, hi
 
 
-__all__ = ["DIRECTIVITY_TABLE_INTERVALS", "ROUNDING_SLACK", "arrival_bounds", "angle_envelope", "directivity_table",
-           "interpolation_error", "table_levels"]
+__all__ = ("Arrivals", "BandTable", "BoundSettings", "DIRECTIVITY_TABLE_INTERVALS", "DirectivityTable", "FloorFields",
+           "ROUNDING_SLACK", "angle_envelope", "arrival_bounds", "directivity_table", "floor_fields",
+           "interpolation_error", "table_levels")

@@ -1,44 +1,45 @@
-"""The solve's result from the mechanisms' row arrays: columns, order and floor, in two buffers.
+"""The fast engine's assembly: :func:`acoustisim.propagation.reference.columns.assemble_rows`'s rows
+(derived columns, sorted by channel then delay then the parts' order, amplitude floor), with as
+few fresh buffers as it can.
 
-:func:`assemble_rows` turns the ``PATH_DTYPE`` arrays of the mechanisms (direct, specular,
-edge, diffuse, in that order) into the sorted, floored rows :func:`acoustisim.propagation.solve`
-returns. A deterministic pose has some 16 000 rows of 243 bytes (4 MB), a default solve with
-diffuse rays 60 000 (14 MB): each fresh buffer of that size costs its copy and, more, a page
-fault per 4 kB page (the allocator returns such buffers to the system when they are freed),
-so the steps work in place where they can:
+A deterministic pose has some 16 000 rows of 243 bytes, a default solve with diffuse rays
+60 000: each fresh buffer of that size costs its copy and a page fault per page, so the steps
+work in place where they can:
 
-1. :func:`~acoustisim.propagation.columns.complete_columns` fills the derived columns of each
-   part in place (it is row by row: the same values as on the joined array); the sorted host
-   of step 2 gets them as its rows move (one pass over them, not two);
+1. :func:`~acoustisim.propagation.fast.columns.complete_columns` fills the derived columns of
+   each part in place (row by row: the same values as on the joined array); the sorted host of
+   step 2 gets them as its rows move;
 2. the rows are ordered by channel, then delay, then their place in the mechanisms' order (the
    order a stable sort of the joined parts gives). Up to :data:`IN_PLACE_MAX_BYTES` of rows
    (a deterministic pose), the largest part's buffer is grown (realloc) and the rows put in
-   order there, without a new buffer: when that part is sorted already (the edge rows, which
+   order there: when that part is sorted already (the edge rows, which
    :func:`~acoustisim.propagation.edges.edge_paths` writes in this order for the solver), the
    other rows are sorted and merged in (:func:`merge_destinations`), its own rows moved once,
    backwards, to make room, their derived columns filled as they move
-   (:func:`~acoustisim.propagation.columns.fill_columns`; the host's sort keys are read with
-   its directions, :func:`~acoustisim.propagation.columns.column_inputs`: its
+   (:func:`~acoustisim.propagation.fast.columns.fill_columns`; the host's sort keys are read
+   with its directions, :func:`~acoustisim.propagation.fast.columns.column_inputs`: its
    ``path_length_m / c``, the very bits of its ``delay_s``); otherwise the rows are permuted
    (:func:`permute_records`). Beyond, each part's records are copied straight to their sorted
    places in one new buffer (:func:`scatter_records`);
-3. the amplitude floor (:func:`~acoustisim.propagation.floor.floor_mask`) judges the sorted
-   rows; the kept ones are moved to the front in place (:func:`compact_records`) and the
-   buffer is shrunk (``ndarray.resize``: the allocator's realloc, no copy of the kept rows).
+3. the amplitude floor (:func:`~acoustisim.propagation.fast.floor.floor_mask`) judges the
+   sorted rows; the kept ones are moved to the front in place (:func:`compact_records`) and
+   the buffer is shrunk (``ndarray.resize``: realloc, no copy of the kept rows).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from acoustisim.propagation.columns import ColumnInputs, column_inputs, complete_columns, fill_columns
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
+
+from acoustisim.propagation.fast.columns import ColumnInputs, column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.floor import floor_mask
+from acoustisim.propagation.fast.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, empty_paths_array
 
 
@@ -46,9 +47,14 @@ IN_PLACE_MAX_BYTES = 8 << 20
 """Rows up to this size (bytes; 34 000 rows) are sorted in place (:func:`permute_records`), larger
 sets are scattered into a new buffer (:func:`scatter_records`): the in-place permutation reads
 and writes at random, which stays fast only while the rows fit in the last-level cache
-(measured on the shared 2-core machine under load: a deterministic pose of 16 000 rows about
-1.5 ms faster in place, the page faults saved included; 60 000 rows, 14 MB, 2.7 times slower in
-place than scattered)."""
+(``benchmarks/bench_propagation.py`` times both)."""
+
+
+class SortKeys(NamedTuple):
+    """The keys rows are sorted by: ``channel`` (int8) and ``delay_s`` (float64), shape (n,)."""
+
+    channel: NDArray[np.int8]
+    delay_s: NDArray[np.float64]
 
 
 @njit(cache=True, nogil=True)
@@ -128,9 +134,9 @@ def _bytes(rows: NDArray[Any]) -> NDArray[np.uint8]:
     return rows.view(np.uint8).reshape(rows.size, PATH_DTYPE.itemsize)
 
 
+@plain_tuple_arguments
 @njit(cache=True, nogil=True)
-def merge_destinations(host_channel: NDArray[np.int8], host_delay: NDArray[np.float64], host_first: int,
-                       channel: NDArray[np.int8], delay: NDArray[np.float64], canonical: NDArray[np.int64],
+def merge_destinations(host_fields: tuple, host_first: int, others_fields: tuple, canonical: NDArray[np.int64],
                        order: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Sorted places of the rows of a sorted part and of the other rows, by merging.
 
@@ -139,11 +145,11 @@ def merge_destinations(host_channel: NDArray[np.int8], host_delay: NDArray[np.fl
 
     Parameters
     ----------
-    host_channel, host_delay : ndarray, shape (h,)
+    host : SortKeys, shape (h,)
         The sorted part's keys, non-decreasing; its canonical indices are
         ``host_first .. host_first + h - 1``.
-    channel, delay, canonical : ndarray, shape (o,)
-        The other rows' keys and canonical indices.
+    others : SortKeys, shape (o,)
+        The other rows' keys; ``canonical`` (o,) their canonical indices.
     order : ndarray of int64, shape (o,)
         The other rows in sorted order (a stable sort of them by (channel, delay), their
         canonical indices increasing along their arrays).
@@ -154,6 +160,9 @@ def merge_destinations(host_channel: NDArray[np.int8], host_delay: NDArray[np.fl
         Increasing, ``host_destination[i] >= i``.
     destination : ndarray of int64, shape (o,)
     """
+    host, others = SortKeys(*host_fields), SortKeys(*others_fields)
+    host_channel, host_delay = host.channel, host.delay_s
+    channel, delay = others.channel, others.delay_s
     h = host_channel.size
     o = order.size
     host_destination = np.empty(h, dtype=np.int64)
@@ -227,8 +236,8 @@ def _merged_in_place(rows: NDArray[Any], parts: list[NDArray[Any]], host: int, d
     rows first), that part sorted itself: the other rows (their derived columns filled) are sorted and
     merged in; the host's rows, whose derived columns are not filled yet, are spread out to
     make room for them, each moved once, backwards, and its columns filled as it moves
-    (:func:`~acoustisim.propagation.columns.fill_columns` with ``inputs``, the host's
-    :func:`~acoustisim.propagation.columns.column_inputs`). ``delay`` and ``channel``: every
+    (:func:`~acoustisim.propagation.fast.columns.fill_columns` with ``inputs``, the host's
+    :func:`~acoustisim.propagation.fast.columns.column_inputs`). ``delay`` and ``channel``: every
     part's keys, in the parts' order (the host's from ``inputs``: the bits of its ``delay_s``
     to be)."""
     offsets = np.cumsum([0] + [part.size for part in parts])
@@ -237,8 +246,8 @@ def _merged_in_place(rows: NDArray[Any], parts: list[NDArray[Any]], host: int, d
     other_channel = np.concatenate([channel[:lo], channel[hi:]])
     other_delay = np.concatenate([delay[:lo], delay[hi:]])
     order = np.lexsort((other_delay, other_channel)).astype(np.int64)
-    host_destination, destination = merge_destinations(channel[lo:hi], delay[lo:hi], lo, other_channel, other_delay,
-                                                       canonical, order)
+    host_destination, destination = merge_destinations(SortKeys(channel[lo:hi], delay[lo:hi]), lo,
+                                                       SortKeys(other_channel, other_delay), canonical, order)
     fill_columns(rows, inputs, host_destination)
     records = _bytes(rows)
     at = 0
@@ -363,5 +372,5 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
     return rows
 
 
-__all__ = ["IN_PLACE_MAX_BYTES", "assemble_rows", "compact_records", "is_sorted", "merge_destinations",
-           "permute_records", "scatter_records", "spread_records"]
+__all__ = ("IN_PLACE_MAX_BYTES", "SortKeys", "assemble_rows", "compact_records", "is_sorted", "merge_destinations",
+           "permute_records", "scatter_records", "spread_records")
