@@ -19,9 +19,10 @@ from acoustisim.propagation.assemble import (
 from acoustisim.propagation.columns import column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.diffuse import diffuse_paths
-from acoustisim.propagation.edges import edge_paths
+from acoustisim.propagation.fast.edges import edge_rows as fast_edge_rows
 from acoustisim.propagation.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind
+from acoustisim.propagation.reference.edges import edge_rows as reference_edge_rows
 from acoustisim.propagation.specular import direct_rows, specular_rows
 from scenes.builtin import builtin_scene
 
@@ -35,7 +36,7 @@ def parts() -> tuple[SolveContext, list[np.ndarray]]:
     out = []
     next_id = 0
     for make in (lambda c: direct_rows(c), lambda c: specular_rows(c, prepared, 2),
-                 lambda c: edge_paths(c, config, prepared.sharp_edges), lambda c: diffuse_paths(c, config, threads=1)):
+                 lambda c: reference_edge_rows(c, config, prepared), lambda c: diffuse_paths(c, config, threads=1)):
         rows = make(context.with_first_path_id(next_id))
         out.append(rows)
         next_id = int(rows["path_id"].max()) + 1
@@ -118,8 +119,7 @@ def sorted_parts() -> tuple[SolveContext, list[np.ndarray]]:
     config = SolverConfig(max_order=3)
     direct = direct_rows(context)
     specular = specular_rows(context.with_first_path_id(1), prepared, 3)
-    edge = edge_paths(context.with_first_path_id(int(specular["path_id"].max()) + 1), config,
-                      prepared.diffracting_edges, sort_rows=True)
+    edge = fast_edge_rows(context.with_first_path_id(int(specular["path_id"].max()) + 1), config, prepared)
     return context, [direct, specular, edge]
 
 
@@ -127,7 +127,7 @@ def test_sorted_edge_rows_are_the_default_rows_in_solve_order(sorted_parts):
     context, (_, specular, edge) = sorted_parts
     prepared = prepare(builtin_scene("thesis-tank"))
     first = int(specular["path_id"].max()) + 1
-    default = edge_paths(context.with_first_path_id(first), SolverConfig(max_order=3), prepared.diffracting_edges)
+    default = reference_edge_rows(context.with_first_path_id(first), SolverConfig(max_order=3), prepared)
     delay = default["path_length_m"] / context.sound_speed_m_s
     assert edge.tobytes() == default[np.lexsort((delay, default["channel"]))].tobytes()
 

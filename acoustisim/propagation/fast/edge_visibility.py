@@ -70,11 +70,15 @@ OTHERS_BIT = 63
 (tested on every leg), so that the mask is never zero (a zero mask skips the leg)."""
 
 
+FLOAT32_EPS = 2.0**-23
+"""One float32 ulp at 1 (``np.finfo(np.float32).eps``)."""
+
+
 def screen_tolerance(bounds_m: NDArray[np.float64]) -> float:
     """The screen's margin (m) for a scene within the box ``bounds_m`` (2, 3):
     :data:`TOLERANCE_ULPS` float32 ulps of the box's diagonal (2.3e-5 m in the thesis tank)."""
-    diagonal = float(np.linalg.norm(bounds_m[1] - bounds_m[0]))
-    return TOLERANCE_ULPS * float(np.finfo(np.float32).eps) * diagonal
+    diagonal = bounds_m[1] - bounds_m[0]
+    return TOLERANCE_ULPS * FLOAT32_EPS * math.sqrt(float(diagonal @ diagonal))
 
 
 class ScreenGeometry(NamedTuple):
@@ -113,21 +117,23 @@ class ScreenGeometry(NamedTuple):
         (:attr:`~acoustisim.propagation.raycast.RayCaster.convex_planes`; None: every leg
         crossing an object's box goes to Embree)."""
         n_objects = object_bounds_m.shape[0]
-        boxes = object_bounds_m if tank_bounds_m is None else np.concatenate([object_bounds_m, tank_bounds_m[None]])
-        if boxes.shape[0] == 0:
-            tolerance = 0.0
-        else:
-            tolerance = screen_tolerance(np.array([boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)]))
+        box_lo, box_hi = object_bounds_m[:, 0], object_bounds_m[:, 1]
         if tank_bounds_m is None:
             water_lo, water_hi = np.full(3, -np.inf), np.full(3, np.inf)
+            scene_box = np.array([box_lo.min(axis=0), box_hi.max(axis=0)]) if n_objects else None
+        elif n_objects:
+            scene_box = np.array([np.minimum(box_lo.min(axis=0), tank_bounds_m[0]),
+                                  np.maximum(box_hi.max(axis=0), tank_bounds_m[1])])
         else:
+            scene_box = tank_bounds_m
+        tolerance = 0.0 if scene_box is None else screen_tolerance(scene_box)
+        if tank_bounds_m is not None:
             water_lo, water_hi = tank_bounds_m[0] + tolerance, tank_bounds_m[1] - tolerance
         if planes is not None and planes.start.size == n_objects + 1 and planes.normal.shape[0]:
             start, normal, offset = planes.start, planes.normal, planes.offset
         else:
             start, normal, offset = np.zeros(n_objects + 1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
-        return cls(tolerance, water_lo, water_hi, np.ascontiguousarray(object_bounds_m[:, 0] - tolerance),
-                   np.ascontiguousarray(object_bounds_m[:, 1] + tolerance), start, normal, offset)
+        return cls(tolerance, water_lo, water_hi, box_lo - tolerance, box_hi + tolerance, start, normal, offset)
 
 
 class EdgeLines(NamedTuple):
@@ -498,6 +504,6 @@ def element_visibility(context: SolveContext, prepared: PreparedScene, elements:
     return visible
 
 
-__all__ = ["BLOCKED", "CLEAR", "EdgeLines", "EmbreeQueries", "LegTargets", "MASK_BITS", "OTHERS_BIT",
+__all__ = ["BLOCKED", "CLEAR", "EdgeLines", "EmbreeQueries", "FLOAT32_EPS", "LegTargets", "MASK_BITS", "OTHERS_BIT",
            "ScreenGeometry", "TOLERANCE_ULPS", "UNDECIDED", "WALL_BIT", "element_visibility", "pair_masks",
            "scene_screen", "screen_element_legs", "screen_legs", "screen_tolerance", "triangle_mask"]

@@ -5,7 +5,8 @@ Modules, each opening with its Physics (equations and sources), Method and Accur
 * :mod:`.direct`: the direct path;
 * :mod:`.specular`: image-source chains on planar mirrors and specular points on curved
   surfaces (spheres, cylinders, smooth meshes), with geometric-optics amplitudes;
-* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral);
+* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge
+  formulas and the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`);
 * :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
 * :mod:`.floor`: the amplitude floor;
 * :mod:`.columns`: the derived columns and the solve's assembled rows.
