@@ -206,13 +206,7 @@ def discretise_edges(geometry: PairGeometry, grid: Discretisation) -> EdgeElemen
         As the reference.
     """
     check_discretisation(grid)
-    p = np.size(geometry.length_m)
-    geometry = PairGeometry(*(np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (p,)))
-                              for v in (geometry.length_m, geometry.r_s, geometry.z_s, geometry.r_r, geometry.z_r)),
-                            *(np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=bool), (p,)))
-                              for v in (geometry.open_start, geometry.open_end)))
-    grid = Discretisation(float(grid.path_step_m), float(grid.max_element_m), int(grid.coarsening_levels),
-                          int(grid.grading), float(grid.cap_growth), int(grid.onset_nodes), float(grid.max_elements))
+    geometry, grid = geometry.as_arrays(), grid.as_numbers()
     branch, bound = branch_ends(geometry, grid)
     if bound > grid.max_elements:
         raise ValueError(f"the edges need at least {bound:.3g} elements (limit {grid.max_elements:.0f})")

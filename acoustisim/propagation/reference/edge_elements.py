@@ -47,10 +47,10 @@ against a four times finer uniform reference in :mod:`.edges`.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 ONSET_FRACTION = 1.0 / 128.0
 """The first onset node's offset from a branch's start, as a fraction of the step."""
@@ -69,6 +69,20 @@ class PairGeometry(NamedTuple):
     z_r: NDArray[np.float64]
     open_start: NDArray[np.bool_]
     open_end: NDArray[np.bool_]
+
+    def as_arrays(self) -> "PairGeometry":
+        """The same pairs as C-contiguous float64 (bool) arrays of one shape (p,) (scalars and
+        sequences broadcast; arrays that are so already are kept)."""
+        p = np.size(self.length_m)
+
+        def column(value: ArrayLike, dtype: type) -> NDArray[Any]:
+            array = np.asarray(value, dtype=dtype)
+            if array.shape == (p,) and array.flags.c_contiguous:
+                return array
+            return np.ascontiguousarray(np.broadcast_to(array, (p,)))
+
+        return PairGeometry(*(column(v, float) for v in (self.length_m, self.r_s, self.z_s, self.r_r, self.z_r)),
+                            column(self.open_start, bool), column(self.open_end, bool))
 
 
 class Discretisation(NamedTuple):
@@ -99,6 +113,12 @@ class Discretisation(NamedTuple):
     cap_growth: float = 0.0
     onset_nodes: int = 1
     max_elements: float = math.inf
+
+    def as_numbers(self) -> "Discretisation":
+        """The same parameters as Python floats and ints."""
+        return Discretisation(float(self.path_step_m), float(self.max_element_m), int(self.coarsening_levels),
+                              int(self.grading), float(self.cap_growth), int(self.onset_nodes),
+                              float(self.max_elements))
 
 
 class EdgeElements(NamedTuple):
@@ -174,9 +194,8 @@ def spheroid_root(path_m: NDArray[np.float64], r_s: NDArray[np.float64], z_s: ND
 
 
 def branches(geometry: PairGeometry, grid: Discretisation) -> Branches:
-    """The branches of every pair (see :class:`Branches`)."""
-    length, rs, zs, rr, zr = (np.atleast_1d(np.asarray(v, dtype=float)) for v in
-                              (geometry.length_m, geometry.r_s, geometry.z_s, geometry.r_r, geometry.z_r))
+    """The branches of every pair (see :class:`Branches`; ``geometry`` as arrays)."""
+    length, rs, zs, rr, zr = geometry.length_m, geometry.r_s, geometry.z_s, geometry.r_r, geometry.z_r
     p = length.size
     pair = np.repeat(np.arange(p), 2)
     upper = np.tile(np.array([False, True]), p)
@@ -187,9 +206,8 @@ def branches(geometry: PairGeometry, grid: Discretisation) -> Branches:
     end_path = path_length(end, rs[pair], zs[pair], rr[pair], zr[pair])
     # a branch starts at a joint when its apex lies beyond the edge's end it starts from
     graded = grid.coarsening_levels > 0
-    open_start = np.broadcast_to(np.asarray(geometry.open_start, dtype=bool), (p,))
-    open_end = np.broadcast_to(np.asarray(geometry.open_end, dtype=bool), (p,))
-    joint_start = graded & np.where(upper, ((z_star < 0.0) & open_start)[pair], ((z_star > length) & open_end)[pair])
+    joint_start = graded & np.where(upper, ((z_star < 0.0) & geometry.open_start)[pair],
+                                    ((z_star > length) & geometry.open_end)[pair])
     apex_path = np.hypot(rs + rr, zr - zs)[pair]
     start_steps = np.where(joint_start, (start_path - apex_path) / grid.path_step_m, 0.0)
     return Branches(pair, upper, start, end, start_path, end_path, np.maximum(end_path - start_path, 0.0),
@@ -335,6 +353,7 @@ def discretise_edges(geometry: PairGeometry, grid: Discretisation) -> EdgeElemen
         elements (checked on a lower bound before anything is allocated).
     """
     check_discretisation(grid)
+    geometry, grid = geometry.as_arrays(), grid.as_numbers()
     branch = branches(geometry, grid)
     bound = element_count_bound(branch, grid)
     if bound > grid.max_elements:
