@@ -38,9 +38,9 @@ the wedge's solid angular range (behind both faces):
    pulse's band), lengths capped at ``config.edge_segment_m``; with ``config.edge_adaptive``
    (the default) the graded discretisation (one step near each branch's onset, refined to
    1/128 step, and ends; doubling every :data:`GRADING` elements up to 2^:data:`COARSENING_LEVELS`
-   steps, a quarter period: rows every 125 ns on average, above the Nyquist rate of the
-   pulse's band; the cap growing by :data:`CAP_GROWTH` of the distance from the apex), else the
-   fine one (one step everywhere);
+   steps, a quarter period, whose two rows lie at most 250 ns apart, denser than the Nyquist
+   spacing of the pulse's band (580 ns for its -20 dB edge at 860 kHz); the cap growing by
+   :data:`CAP_GROWTH` of the distance from the apex), else the fine one (one step everywhere);
 2. an element counts when its centre, moved
    :data:`~acoustisim.propagation.edge_extraction.VISIBILITY_OFFSET_M` into the water along the
    wedge's bisector, sees the transmitter and its receiver: one batched Embree query
