@@ -391,6 +391,6 @@ class DiffractingEdges:
         return cls(edges, edges.length_m, edges.nu, endpoint_partners(edges), VISIBILITY_OFFSET_M * bisector)
 
 
-__all__ = ["CHAIN_TURN_DEG", "DEFAULT_SHARP_ANGLE_DEG", "DiffractingEdges", "INTEGER_NU_TOLERANCE", "ON_PLANE_M",
+__all__ = ("CHAIN_TURN_DEG", "DEFAULT_SHARP_ANGLE_DEG", "DiffractingEdges", "INTEGER_NU_TOLERANCE", "ON_PLANE_M",
            "SharpEdges", "VISIBILITY_OFFSET_M", "endpoint_partners", "is_pressure_release", "select_diffracting",
-           "sharp_edges"]
+           "sharp_edges")

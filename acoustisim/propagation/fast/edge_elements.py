@@ -216,4 +216,4 @@ def discretise_edges(geometry: PairGeometry, grid: Discretisation) -> EdgeElemen
     return branch_elements(geometry, branch, intervals, onsets, wanted, grid)
 
 
-__all__ = ["branch_elements", "branch_ends", "discretise_edges"]
+__all__ = ("branch_elements", "branch_ends", "discretise_edges")

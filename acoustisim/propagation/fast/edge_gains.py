@@ -161,4 +161,4 @@ def element_gains(elements: EdgeElements, constants: PairConstants) -> NDArray[n
     return gains[:, 0]
 
 
-__all__ = ["TermArguments", "element_gains", "quadrature_points", "term_arguments", "term_sums"]
+__all__ = ("TermArguments", "element_gains", "quadrature_points", "term_arguments", "term_sums")

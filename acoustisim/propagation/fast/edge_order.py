@@ -70,4 +70,4 @@ def solver_order(keep: NDArray[np.int64], point_pair: NDArray[np.int64], path_le
     return keep[np.lexsort((path_length_m[keep] / float(sound_speed_m_s), pair_receiver[point_pair[keep]]))]
 
 
-__all__ = ["CHANNEL_SHIFT", "packed_keys", "solver_order"]
+__all__ = ("CHANNEL_SHIFT", "packed_keys", "solver_order")

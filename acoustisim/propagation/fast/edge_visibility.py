@@ -504,6 +504,6 @@ def element_visibility(context: SolveContext, prepared: PreparedScene, elements:
     return visible
 
 
-__all__ = ["BLOCKED", "CLEAR", "EdgeLines", "EmbreeQueries", "FLOAT32_EPS", "LegTargets", "MASK_BITS", "OTHERS_BIT",
+__all__ = ("BLOCKED", "CLEAR", "EdgeLines", "EmbreeQueries", "FLOAT32_EPS", "LegTargets", "MASK_BITS", "OTHERS_BIT",
            "ScreenGeometry", "TOLERANCE_ULPS", "UNDECIDED", "WALL_BIT", "element_visibility", "pair_masks",
-           "scene_screen", "screen_element_legs", "screen_legs", "screen_tolerance", "triangle_mask"]
+           "scene_screen", "screen_element_legs", "screen_legs", "screen_tolerance", "triangle_mask")

@@ -149,4 +149,4 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     return rows
 
 
-__all__ = ["EDGE_KIND", "edge_impulses", "edge_rows", "fill_rows"]
+__all__ = ("EDGE_KIND", "edge_impulses", "edge_rows", "fill_rows")

@@ -341,6 +341,6 @@ def quadrature_points(elements: EdgeElements, constants: PairConstants) -> Quadr
     return QuadraturePoints(gain, z, path_length)
 
 
-__all__ = ["GAUSS_W", "GAUSS_X", "PairConstants", "QuadraturePoints", "WedgePairs", "beta", "btm_signs",
+__all__ = ("GAUSS_W", "GAUSS_X", "PairConstants", "QuadraturePoints", "WedgePairs", "beta", "btm_signs",
            "cosh_eta_minus_one", "element_gains", "infinite_wedge_impulse_response", "least_time", "pair_constants",
-           "quadrature_points", "wedge_phis"]
+           "quadrature_points", "wedge_phis")

@@ -386,6 +386,6 @@ def discretise_edges(geometry: PairGeometry, grid: Discretisation) -> EdgeElemen
     return EdgeElements(pair[keep], np.minimum(z0, z1)[keep], np.maximum(z0, z1)[keep], (0.5 * (d0 + d1))[keep])
 
 
-__all__ = ["Branches", "Discretisation", "EdgeElements", "GradedIntervals", "ONSET_FRACTION", "PairGeometry",
+__all__ = ("Branches", "Discretisation", "EdgeElements", "GradedIntervals", "ONSET_FRACTION", "PairGeometry",
            "branch_nodes", "branches", "check_discretisation", "discretise_edges", "element_count_bound",
-           "graded_intervals", "onset_offsets", "path_length", "ragged_index", "spheroid_root"]
+           "graded_intervals", "onset_offsets", "path_length", "ragged_index", "spheroid_root")

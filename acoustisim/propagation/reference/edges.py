@@ -285,7 +285,7 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     return impulse_rows(context, scene_edges, pairs, EdgeImpulses(*(column[strong] for column in impulses)))
 
 
-__all__ = ["ANGLE_TOLERANCE_RAD", "CAP_GROWTH", "COARSENING_LEVELS", "DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR",
+__all__ = ("ANGLE_TOLERANCE_RAD", "CAP_GROWTH", "COARSENING_LEVELS", "DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR",
            "EdgeImpulses", "EdgePairs", "GRADING", "MAX_ELEMENTS", "MIN_DISTANCE_M", "ONSET_NODES", "discretisation",
            "edge_impulses", "edge_pairs", "edge_rows", "element_probes", "element_visibility", "impulse_rows",
-           "open_ends", "too_many_elements"]
+           "open_ends", "too_many_elements")
