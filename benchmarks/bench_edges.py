@@ -1,19 +1,18 @@
 """Benchmark of edge diffraction for one pose of the thesis tank (CPU-time medians).
 
-Prints, for the default pose: the CPU-time median of ``solve`` with the edge mechanism alone
-(graded edges, keep-all: the "edges only" figure of ``bench_propagation.py``), of
-:func:`~acoustisim.propagation.edges.edge_paths` itself, and of ``edge_paths`` with every
-visibility leg sent to Embree (``screen=False``: the same-run baseline of the visibility
-screen), with the number of legs the screen decides and leaves to Embree.
+Prints, for the default pose: how many element visibility legs the fast engine's screen
+decides and how many it leaves to Embree; the CPU-time medians of ``solve`` with the edge
+mechanism alone (graded edges, keep-all), of the fast engine's edge rows
+(:func:`acoustisim.propagation.fast.edges.edge_rows`) and of the reference engine's
+(:func:`acoustisim.propagation.reference.edges.edge_rows`).
 
-With ``--before REV``, the same figures for the edge modules of git revision REV
-(``acoustisim/propagation/edges.py``, ``edge_*.py`` and ``btm.py`` of REV, over a copy of the
-current package, so that only the edge code differs), measured in child processes that
-alternate with the current code's for ``--rounds`` rounds (the same load for both), and the
-ratios before / now (the median of each round's ratio).
+With ``--baseline DIR``, the first two figures also for the source tree in DIR (for instance
+``/work/wt/baseline``: its ``acoustisim`` and ``scenes`` on ``PYTHONPATH``; a tree from before
+the two engines, whose edge rows are ``edges.edge_paths(..., sort_rows=True)``), measured in
+child processes that alternate with the current tree's for ``--rounds`` rounds (the same load
+for both), and the ratios now / baseline (the median of each round's ratio).
 
-Run: ``python benchmarks/bench_edges.py [--repeats 21] [--before REV] [--rounds 3]``
-(``--repeats 9 --before b6e1281 --rounds 12``: about 2 min on the shared 2-core machine).
+Run: ``python benchmarks/bench_edges.py [--repeats 21] [--baseline /work/wt/baseline] [--rounds 5]``
 """
 
 from __future__ import annotations
@@ -21,155 +20,128 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-EDGE_FILES = ("edges.py", "btm.py")
-"""The edge modules besides ``edge_*.py`` (``acoustisim/propagation/``)."""
 
 
-def _median_cpu(function, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.process_time()
-        function()
-        times.append(time.process_time() - start)
-    return float(np.median(times))
+def _cpu_seconds(function: Callable[[], Any]) -> float:
+    start = time.process_time()
+    function()
+    return time.process_time() - start
 
 
-def measure(repeats: int) -> dict[str, float]:
-    """The figures of the current ``acoustisim`` (whichever ``import`` finds), in ms."""
-    import inspect
+def _edge_rows_of_this_tree(context: Any, config: Any, prepared: Any) -> Callable[[], Any]:
+    """The fast edge rows of whichever ``acoustisim`` is imported: the fast engine's, or, in a
+    tree from before the two engines, ``edge_paths`` sorted for the solver."""
+    try:
+        from acoustisim.propagation.fast.edges import edge_rows
+    except ImportError:
+        from acoustisim.propagation.edges import edge_paths
 
+        return lambda: edge_paths(context, config, prepared.diffracting_edges, sort_rows=True)
+    return lambda: edge_rows(context, config, prepared)
+
+
+def measure(repeats: int, reference: bool) -> dict[str, float]:
+    """The figures of the imported ``acoustisim`` (ms; ``rows`` a count): ``solve_edges_only``,
+    ``fast_edge_rows`` and, with ``reference``, ``reference_edge_rows``."""
     from acoustisim.propagation import SolverConfig, prepare, solve
     from acoustisim.propagation.context import SolveContext
-    from acoustisim.propagation.edges import edge_paths
     from scenes.builtin import builtin_scene
 
     prepared = prepare(builtin_scene("thesis-tank"))
     config = SolverConfig(max_order=3, mechanisms=("edge",), amplitude_floor_db=None)
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
-    edges = prepared.diffracting_edges
-    rows = solve(prepared, config=config)  # compile / warm up
-    figures = {"rows": float(len(rows))}
     cases = {"solve_edges_only": lambda: solve(prepared, config=config),
-             "edge_paths": lambda: edge_paths(context, config, edges, sort_rows=True)}
-    if "screen" in inspect.signature(edge_paths).parameters:
-        cases["edge_paths_embree_only"] = lambda: edge_paths(context, config, edges, sort_rows=True, screen=False)
+             "fast_edge_rows": _edge_rows_of_this_tree(context, config, prepared)}
+    figures = {"rows": float(len(cases["fast_edge_rows"]()))}  # (compiles, warms up)
     for function in cases.values():
         function()
     samples: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(repeats):  # interleaved, so all cases see the same load
         for name, function in cases.items():
-            samples[name].append(_median_cpu(function, 1))
+            samples[name].append(_cpu_seconds(function))
+    if reference:
+        from acoustisim.propagation.reference.edges import edge_rows
+
+        samples["reference_edge_rows"] = [_cpu_seconds(lambda: edge_rows(context, config, prepared))
+                                          for _ in range(max(3, repeats // 4))]
     for name, values in samples.items():
         figures[name] = float(np.median(values)) * 1e3
     return figures
 
 
-def _legs() -> tuple[int, int]:
-    """(legs decided by the screen, legs left to Embree) at the default pose."""
+def screened_legs() -> tuple[int, int]:
+    """(legs decided by the fast engine's screen, legs left to Embree) at the default pose."""
     from acoustisim.propagation import SolverConfig, prepare
-    from acoustisim.propagation import edge_visibility
-    from acoustisim.propagation import edges as edges_module
     from acoustisim.propagation.context import SolveContext
+    from acoustisim.propagation.fast.edge_elements import discretise_edges
+    from acoustisim.propagation.fast.edge_visibility import EdgeLines, LegTargets, scene_screen, screen_element_legs
+    from acoustisim.propagation.raycast import DEFAULT_EPS_M
+    from acoustisim.propagation.reference.edges import discretisation, edge_pairs
     from scenes.builtin import builtin_scene
 
     prepared = prepare(builtin_scene("thesis-tank"))
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
-    counts = {}
-    original = edges_module.screened_visibility_rays32
-
-    def spy(*args):
-        result = original(*args)
-        counts["embree"] = int(result[4].size)
-        # legs: every element's leg to the transmitter, and to its receiver where that is not
-        # the transmitter
-        pair, pair_rx, rx, tx = args[0], args[4], args[9], args[8]
-        own = ~np.all(rx == tx, axis=1)
-        counts["legs"] = int(pair.size + np.sum(own[pair_rx[pair]]))
-        return result
-
-    edges_module.screened_visibility_rays32 = spy
-    try:
-        edges_module.edge_paths(context, SolverConfig(), prepared.diffracting_edges)
-    finally:
-        edges_module.screened_visibility_rays32 = original
-    del edge_visibility
-    return counts["legs"] - counts["embree"], counts["embree"]
+    pairs = edge_pairs(context, prepared.diffracting_edges)
+    elements = discretise_edges(pairs.geometry, discretisation(SolverConfig(), context))
+    targets = LegTargets.of(context)
+    _, queries = screen_element_legs(elements, pairs.edge, pairs.receiver, EdgeLines.of(prepared.diffracting_edges),
+                                     targets, scene_screen(prepared), prepared.raycaster.shift_m, DEFAULT_EPS_M)
+    legs = elements.pair.size + int(np.sum(targets.own_leg[pairs.receiver[elements.pair]]))
+    return legs - int(queries.element.size), int(queries.element.size)
 
 
-def _before_tree(revision: str, directory: Path) -> Path:
-    """A copy of the current ``acoustisim`` and ``scenes`` packages with the edge modules of
-    ``revision``; returns the directory to put first on ``PYTHONPATH``."""
-    for package in ("acoustisim", "scenes"):
-        shutil.copytree(REPO / package, directory / package, ignore=shutil.ignore_patterns("__pycache__"))
-    propagation = directory / "acoustisim" / "propagation"
-    for path in propagation.glob("edge_*.py"):
-        path.unlink()
-    listing = subprocess.run(["git", "ls-tree", "--name-only", revision, "acoustisim/propagation/"], cwd=REPO,
-                             check=True, capture_output=True, text=True).stdout.split()
-    for name in listing:
-        base = name.rsplit("/", 1)[-1]
-        if base in EDGE_FILES or (base.startswith("edge_") and base.endswith(".py")):
-            text = subprocess.run(["git", "show", f"{revision}:{name}"], cwd=REPO, check=True, capture_output=True,
-                                  text=True).stdout
-            (propagation / base).write_text(text)
-    return directory
-
-
-def _child(path: Path | None, repeats: int) -> dict[str, float]:
+def _child(tree: Path, repeats: int) -> dict[str, float]:
     environment = dict(os.environ)
-    if path is not None:
-        environment["PYTHONPATH"] = str(path) + os.pathsep + environment.get("PYTHONPATH", "")
+    environment["PYTHONPATH"] = str(tree) + os.pathsep + environment.get("PYTHONPATH", "")
     output = subprocess.run([sys.executable, __file__, "--child", "--repeats", str(repeats)], env=environment,
-                            check=True, capture_output=True, text=True, cwd=path or REPO).stdout
+                            check=True, capture_output=True, text=True, cwd=tree).stdout
     return json.loads(output.strip().splitlines()[-1])
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeats", type=int, default=21)
-    parser.add_argument("--before", default=None, help="a git revision whose edge modules to time against")
-    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds with --before")
+    parser.add_argument("--baseline", type=Path, default=None, help="a source tree to time against")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds with --baseline")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        print(json.dumps(measure(args.repeats)))
+        print(json.dumps(measure(args.repeats, reference=False)))
         return
-    decided, embree = _legs()
+    decided, embree = screened_legs()
     print(f"thesis tank, default pose: {decided} visibility legs decided by the screen, {embree} left to Embree")
-    if args.before is None:
-        figures = measure(args.repeats)
-        print(f"  CPU medians over {args.repeats} ({int(figures['rows'])} rows): solve edges only "
-              f"{figures['solve_edges_only']:.2f} ms; edge_paths {figures['edge_paths']:.2f} ms; edge_paths with "
-              f"every leg to Embree {figures['edge_paths_embree_only']:.2f} ms")
+    figures = measure(args.repeats, reference=True)
+    print(f"  CPU medians over {args.repeats} ({int(figures['rows'])} rows): solve edges only "
+          f"{figures['solve_edges_only']:.2f} ms; fast edge rows {figures['fast_edge_rows']:.2f} ms; reference "
+          f"edge rows {figures['reference_edge_rows']:.2f} ms")
+    if args.baseline is None:
         return
-    with tempfile.TemporaryDirectory() as scratch:
-        before_path = _before_tree(args.before, Path(scratch))
-        _child(before_path, 1)  # compile the before tree's numba caches
-        results: dict[str, list[dict[str, float]]] = {"before": [], "now": []}
-        for _ in range(args.rounds):
-            results["before"].append(_child(before_path, args.repeats))
-            results["now"].append(_child(None, args.repeats))
-    print(f"  CPU medians over {args.repeats} repeats, {args.rounds} alternating rounds (median of the rounds):")
-    for name in ("solve_edges_only", "edge_paths"):
-        before = float(np.median([r[name] for r in results["before"]]))
+    _child(args.baseline, 1)  # compile the baseline tree's numba caches
+    results: dict[str, list[dict[str, float]]] = {"baseline": [], "now": []}
+    for _ in range(args.rounds):
+        results["baseline"].append(_child(args.baseline, args.repeats))
+        results["now"].append(_child(REPO, args.repeats))
+    print(f"  against {args.baseline}: CPU medians over {args.repeats} repeats, {args.rounds} alternating rounds:")
+    for name in ("solve_edges_only", "fast_edge_rows"):
+        baseline = float(np.median([r[name] for r in results["baseline"]]))
         now = float(np.median([r[name] for r in results["now"]]))
-        rounds = ", ".join(f"{b[name]:.2f}/{n[name]:.2f}" for b, n in zip(results["before"], results["now"]))
+        rounds = ", ".join(f"{b[name]:.2f}/{n[name]:.2f}" for b, n in zip(results["baseline"], results["now"]))
         # the ratio within each round (neighbouring child processes: the nearest in load) is
         # steadier on a shared machine than the ratio of the medians
-        ratio = float(np.median([b[name] / n[name] for b, n in zip(results["before"], results["now"])]))
-        print(f"    {name}: before ({args.before}) {before:.2f} ms, now {now:.2f} ms; median of the rounds' "
-              f"before / now = {ratio:.2f} (rounds before/now: {rounds})")
-    rows = {int(r["rows"]) for r in results["before"] + results["now"]}
+        ratio = float(np.median([n[name] / b[name] for b, n in zip(results["baseline"], results["now"])]))
+        print(f"    {name}: baseline {baseline:.2f} ms, now {now:.2f} ms; median of the rounds' now / baseline = "
+              f"{ratio:.3f} (rounds baseline/now: {rounds})")
+    rows = {int(r["rows"]) for r in results["baseline"] + results["now"]}
     print(f"    rows: {sorted(rows)}")
 
 

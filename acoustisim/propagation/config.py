@@ -42,8 +42,9 @@ class SolverConfig:
         Length of the elements of a discretised diffracting edge (m, > 0).
     edge_adaptive : bool
         True (default): edge elements are one delay step (1/16 period) long near each branch's
-        onset and ends and grow away from them (:data:`acoustisim.propagation.edges.COARSENING_LEVELS`);
-        False: every element is one delay step (the fine reference discretisation).
+        onset and ends and grow away from them
+        (:data:`acoustisim.propagation.reference.edges.COARSENING_LEVELS`); False: every
+        element is one delay step (the fine reference discretisation).
     amplitude_floor_db : float or None
         Arrivals weaker than this (dB, <= 0) relative to the strongest non-direct arrival are
         dropped; None keeps every path.

@@ -1,4 +1,4 @@
-"""Sharp edges of a scene's meshes: the wedges that diffract.
+"""The scene geometry of edge diffraction: sharp edges, and the edges that diffract.
 
 An edge shared by two triangles of one surface is *sharp* when the angle between the two face
 normals exceeds a threshold (default 30 degrees). A finely tessellated cylinder's side turns by
@@ -10,19 +10,30 @@ surface (non-manifold) and edges of degenerate triangles are ignored.
 
 The tank's six boundary rectangles are treated as one surface (their shared corners are
 found by merging coincident vertices); each object is its own surface, so objects touching each
-other or a boundary are not joined.
+other or a boundary are not joined. Sharp edges meeting end to end with a small turn form a
+*chain* (a polygonal rim): one physical diffracted arrival.
 
-Wedge frame of an edge (the one :mod:`acoustisim.propagation.btm` uses): ``face_dir`` is the
-unit vector perpendicular to the edge, lying in face 1 and pointing into it; ``face_normal`` is
-face 1's unit normal (into the water); the edge direction is ``face_dir x face_normal``, so a
-point's angle ``atan2((p - start) . face_normal, (p - start) . face_dir)`` in [0, 2 pi) runs
-from face 1 through the water to face 2 at ``wedge_angle``.
+Wedge frame of an edge (the one :mod:`acoustisim.propagation.reference.btm` uses):
+``face_dir`` is the unit vector perpendicular to the edge, lying in face 1 and pointing into
+it; ``face_normal`` is face 1's unit normal (into the water); the edge direction is
+``face_dir x face_normal``, so a point's angle ``atan2((p - start) . face_normal,
+(p - start) . face_dir)`` in [0, 2 pi) runs from face 1 through the water to face 2 at
+``wedge_angle``.
+
+Of the sharp edges, those that diffract (:class:`DiffractingEdges`, built once per prepared
+scene and shared by both propagation engines) leave out, each for a physical reason:
+
+* wedges whose index nu = pi / theta_w is an integer (the tank's 90-degree corners, nu = 2):
+  the BTM angular factor vanishes identically there (its four terms cancel in pairs), the
+  image-source field being exact;
+* object edges lying in a tank boundary plane (a prism's or a post's rim standing on the floor
+  or touching the free surface): they are not wedges in the water.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -298,4 +309,88 @@ def _chains(
     return labels.astype(np.int64)
 
 
-__all__ = ["CHAIN_TURN_DEG", "DEFAULT_SHARP_ANGLE_DEG", "SharpEdges", "is_pressure_release", "sharp_edges"]
+
+
+ON_PLANE_M = 1e-6
+"""An object edge with both ends within this of a tank boundary plane lies in it (m)."""
+
+INTEGER_NU_TOLERANCE = 1e-9
+"""A wedge index within this of an integer is one (the wedge does not diffract)."""
+
+VISIBILITY_OFFSET_M = 2e-4
+"""Visibility probes sit this far from the edge along the wedge's bisector, in the water, so that
+the wedge's own faces never block a leg (float32 Embree rounding is about 5e-7 m in the tank;
+an element's occlusion is that of its probe, 2e-4 m from the edge, within an element length)."""
+
+
+def select_diffracting(edges: SharpEdges, scene: Scene) -> SharpEdges:
+    """The edges of ``edges`` that diffract (see the module docstring for what is left out)."""
+    nu = edges.nu
+    integer_nu = np.abs(nu - np.round(nu)) < INTEGER_NU_TOLERANCE
+    embedded = np.zeros(len(edges), dtype=bool)
+    n_boundaries = len(scene.boundaries)
+    for boundary in scene.boundaries:  # the six tank planes
+        p = np.asarray(boundary.plane.point_m, dtype=float)
+        n = np.asarray(boundary.plane.normal, dtype=float)
+        on = (np.abs((edges.start_m - p) @ n) < ON_PLANE_M) & (np.abs((edges.end_m - p) @ n) < ON_PLANE_M)
+        embedded |= on & (edges.surface >= n_boundaries)
+    return edges.select(~integer_nu & ~embedded & (edges.length_m > 0.0))
+
+
+def endpoint_partners(edges: SharpEdges) -> NDArray[np.int64]:
+    """For each endpoint of ``edges`` ([starts; ends], shape (2 n,)), the other edge of its
+    chain ending at that exact point (shared vertices are bit-identical), or -1."""
+    n = len(edges)
+    points = np.concatenate([edges.start_m, edges.end_m])
+    keys = np.concatenate([np.tile(edges.chain, 2)[:, None].astype(float), points], axis=1)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    order = np.argsort(inverse, kind="stable")
+    partner = np.full(2 * n, -1, dtype=np.int64)
+    shared = counts[inverse[order]] == 2
+    # the two endpoints of a shared point are consecutive in ``order``: pair them up
+    first = order[shared][0::2]
+    second = order[shared][1::2]
+    partner[first], partner[second] = second % n, first % n
+    return partner
+
+
+@dataclass(frozen=True, eq=False)
+class DiffractingEdges:
+    """The per-scene part of edge diffraction, built once per prepared scene
+    (:attr:`~acoustisim.propagation.prepared.PreparedScene.diffracting_edges`) and reused by
+    every pose and both engines.
+
+    Attributes
+    ----------
+    edges : SharpEdges
+        The edges that diffract (:func:`select_diffracting`), n of them.
+    length_m : ndarray, shape (n,)
+        Their lengths (m).
+    nu : ndarray, shape (n,)
+        Their wedge indices pi / theta_w.
+    partner : ndarray of int64, shape (2 n,)
+        :func:`endpoint_partners`: the chains' joints.
+    probe_offset_m : ndarray, shape (n, 3)
+        :data:`VISIBILITY_OFFSET_M` along each wedge's bisector (m): the visibility probes'
+        offset from the edge into the water.
+    """
+
+    edges: SharpEdges
+    length_m: NDArray[np.float64] = field(repr=False)
+    nu: NDArray[np.float64] = field(repr=False)
+    partner: NDArray[np.int64] = field(repr=False)
+    probe_offset_m: NDArray[np.float64] = field(repr=False)
+
+    @classmethod
+    def build(cls, sharp: SharpEdges, scene: Scene) -> "DiffractingEdges":
+        """From a scene's sharp edges (:func:`sharp_edges`)."""
+        edges = select_diffracting(sharp, scene)
+        half = 0.5 * edges.wedge_angle_rad
+        bisector = np.cos(half)[:, None] * edges.face_dir + np.sin(half)[:, None] * edges.face_normal
+        return cls(edges, edges.length_m, edges.nu, endpoint_partners(edges), VISIBILITY_OFFSET_M * bisector)
+
+
+__all__ = ("CHAIN_TURN_DEG", "DEFAULT_SHARP_ANGLE_DEG", "DiffractingEdges", "INTEGER_NU_TOLERANCE", "ON_PLANE_M",
+           "SharpEdges", "VISIBILITY_OFFSET_M", "endpoint_partners", "is_pressure_release", "select_diffracting",
+           "sharp_edges")

@@ -24,8 +24,7 @@ from acoustisim.propagation.raycast import RayCaster
 from acoustisim.propagation.smooth_mesh import SmoothMesh
 
 if TYPE_CHECKING:
-    from acoustisim.propagation.edge_extraction import SharpEdges
-    from acoustisim.propagation.edges import DiffractingEdges
+    from acoustisim.propagation.edge_extraction import DiffractingEdges, SharpEdges
 from acoustisim.scene import Scene, SceneObject
 
 MIN_FACE_AREA_FRACTION = 1e-14
@@ -110,8 +109,8 @@ class PreparedScene:
     def diffracting_edges(self) -> "DiffractingEdges":
         """The per-scene part of edge diffraction (the edges that diffract, their lengths,
         wedge indices, chain joints and visibility-probe offsets), built once per prepared
-        scene on first use and reused by every pose."""
-        from acoustisim.propagation.edges import DiffractingEdges
+        scene on first use and reused by every pose and both engines."""
+        from acoustisim.propagation.edge_extraction import DiffractingEdges
 
         return DiffractingEdges.build(self.sharp_edges, self.scene)
 

@@ -1,11 +1,12 @@
-"""The packed-key ordering of the edge rows against ``np.lexsort``, the stable sort it replaces."""
+"""The fast engine's packed-key ordering of the edge rows against ``np.lexsort``, the stable sort
+by (channel, delay) the reference assembly applies."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from acoustisim.propagation.edge_order import solver_order
+from acoustisim.propagation.fast.edge_order import solver_order
 
 C = 1482.38
 

@@ -1,10 +1,11 @@
-"""The edge elements' visibility screen (:mod:`acoustisim.propagation.edge_visibility`) against
-Embree, the independent method it replaces where it decides.
+"""The fast engine's element visibility (:mod:`acoustisim.propagation.fast.edge_visibility`)
+against Embree, the independent method its screen replaces where it decides, and against the
+reference engine's visibility (every leg to Embree).
 
 Every leg the screen decides must get Embree's answer (its margin covers Embree's float32
-rounding), and the rows of ``edge_paths`` must be byte for byte those of the Embree-only
-visibility. Poses are drawn over the whole thesis tank so that the posts, the prism and the
-pipe hide some legs (the tests assert that they do: a screen that never blocks would fail).
+rounding), and the visibility of every element must be the reference engine's. Poses are drawn
+over the whole thesis tank so that the posts, the prism and the pipe hide some legs (the tests
+assert that they do: a screen that never blocks would fail).
 """
 
 from __future__ import annotations
@@ -16,17 +17,25 @@ import pytest
 
 from acoustisim.medium import Medium
 from acoustisim.propagation import SolverConfig, prepare
-from acoustisim.propagation import edges as edges_module
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.edge_visibility import (
+from acoustisim.propagation.edge_extraction import VISIBILITY_OFFSET_M
+from acoustisim.propagation.fast import edge_visibility as fast_visibility
+from acoustisim.propagation.fast.edge_visibility import (
     BLOCKED,
     CLEAR,
+    MASK_BITS,
+    OTHERS_BIT,
     UNDECIDED,
-    VisibilityScreen,
+    ScreenGeometry,
+    WALL_BIT,
+    scene_screen,
     screen_legs,
     screen_tolerance,
+    triangle_mask,
 )
 from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
+from acoustisim.propagation.reference import edges as reference_edges
+from acoustisim.propagation.reference.edge_elements import discretise_edges
 from acoustisim.propagation.solver import check_sonar
 from acoustisim.scene import Scene, Tank
 from acoustisim.sonar import SonarHead
@@ -34,19 +43,19 @@ from scenes.builders import plate, sphere
 from scenes.builtin import builtin_scene
 
 
-def _decisions(screen: VisibilityScreen, planes, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def _decisions(screen, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """The screen's decision for legs origin -> target shrunk by Embree's eps at both ends."""
     leg = targets - origins
     length = np.linalg.norm(leg, axis=1, keepdims=True)
     unit = leg / length
     p0, p1 = origins + DEFAULT_EPS_M * unit, origins + (length - DEFAULT_EPS_M) * unit
-    return _decide(p0, p1, screen, planes)
+    return _decide(p0, p1, screen)
 
 
-def _decide(p0, p1, screen, planes):
+def _decide(p0, p1, screen):
     """screen_legs of the segments p0[i] -> p1[i] (shapes (n, 3)), testing everything."""
     p0, p1 = np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(p1, dtype=float)
-    return screen_legs(p0, p1, np.full(p0.shape[0], -1, dtype=np.int64), *screen.kernel_arguments(planes))
+    return screen_legs(p0, p1, np.full(p0.shape[0], -1, dtype=np.int64), screen)
 
 
 @pytest.fixture(scope="module")
@@ -69,43 +78,36 @@ def _poses(prepared, count, seed):
     return poses
 
 
-def _element_legs(prepared, sonar):
-    """Every element's legs probe -> transmitter and probe -> side receiver of one pose, as
-    edge_paths makes them: (origins, targets) in float64."""
-    captured = {}
-    original = edges_module.element_visibility
-
-    def spy(context, scene_part, elements, pair_edge, pair_rx, **kwargs):
-        captured.update(scene_part=scene_part, elements=elements, pair_edge=pair_edge, pair_rx=pair_rx)
-        return original(context, scene_part, elements, pair_edge, pair_rx, **kwargs)
-
+def _elements(prepared, sonar, config=SolverConfig()):
+    """A pose's context, edge pairs and elements, as the engines make them."""
     context = SolveContext.build(prepared.scene, sonar, prepared.raycaster)
-    edges_module.element_visibility = spy
-    try:
-        edges_module.edge_paths(context, SolverConfig(), prepared.diffracting_edges)
-    finally:
-        edges_module.element_visibility = original
-    part, elements = captured["scene_part"], captured["elements"]
-    edge = captured["pair_edge"][elements.pair]
-    channel = captured["pair_rx"][elements.pair]
-    probes = (part.edges.start_m[edge] + elements.z_mid_m[:, None] * part.edges.direction[edge]
-              + part.probe_offset_m[edge])
+    pairs = reference_edges.edge_pairs(context, prepared.diffracting_edges)
+    elements = discretise_edges(pairs.geometry, reference_edges.discretisation(config, context))
+    return context, pairs, elements
+
+
+def _element_legs(prepared, sonar):
+    """Every element's legs probe -> transmitter and probe -> side receiver of one pose:
+    (origins, targets) in float64."""
+    context, pairs, elements = _elements(prepared, sonar)
+    probes = reference_edges.element_probes(prepared.diffracting_edges, elements, pairs)
+    channel = pairs.receiver[elements.pair]
     tx = np.asarray(context.transmitter_m, dtype=float)
     rx = np.asarray(context.receivers_m, dtype=float)
     side = ~np.all(rx[channel] == tx, axis=1)
     origins = np.concatenate([probes, probes[side]])
     targets = np.concatenate([np.broadcast_to(tx, probes.shape), rx[channel[side]]])
-    return context, origins, targets
+    return origins, targets
 
 
 def _screen_against_embree(tank, poses):
     """Counts of the screen's decisions over the legs of these poses, each decided leg checked
     against Embree's answer."""
-    screen, planes = VisibilityScreen.create(tank.scene), tank.raycaster.convex_planes
+    screen = scene_screen(tank)
     counts = {CLEAR: 0, BLOCKED: 0, UNDECIDED: 0}
     for sonar in poses:
-        context, origins, targets = _element_legs(tank, sonar)
-        decided = _decisions(screen, planes, origins, targets)
+        origins, targets = _element_legs(tank, sonar)
+        decided = _decisions(screen, origins, targets)
         embree = tank.raycaster.occluded(origins, targets)
         for value in counts:
             counts[value] += int(np.sum(decided == value))
@@ -127,22 +129,23 @@ def test_screen_decisions_equal_embree_over_many_poses(tank):
     assert counts[BLOCKED] > 10_000 and counts[UNDECIDED] < 1e-3 * (counts[CLEAR] + counts[BLOCKED])
 
 
-def test_rows_equal_the_embree_only_visibility(tank):
+def test_visibility_equals_the_reference_engines(tank):
+    """The fast engine's visibility (screen, then Embree for the rest) is the reference's (every
+    leg to Embree), element for element, over poses and both discretisations."""
     hidden = 0
     for sonar in [tank.scene.sonar] + _poses(tank, 9, seed=5):
-        context = SolveContext.build(tank.scene, sonar, tank.raycaster)
         for config in (SolverConfig(), SolverConfig(edge_adaptive=False)):
-            screened = edges_module.edge_paths(context, config, tank.diffracting_edges, sort_rows=True)
-            reference = edges_module.edge_paths(context, config, tank.diffracting_edges, sort_rows=True,
-                                                screen=False)
-            assert screened.size > 1000 and screened.tobytes() == reference.tobytes()
-        _, origins, targets = _element_legs(tank, sonar)
-        hidden += int(np.sum(tank.raycaster.occluded(origins, targets)))
+            context, pairs, elements = _elements(tank, sonar, config)
+            want = reference_edges.element_visibility(context, tank, elements, pairs)
+            got = fast_visibility.element_visibility(context, tank, elements, pairs)
+            assert elements.pair.size > 1000
+            np.testing.assert_array_equal(got, want)
+            hidden += int(np.sum(~want))
     assert hidden > 100  # some elements are hidden in these poses
 
 
 def test_tolerance_covers_float32_and_stays_below_the_probe_offset(tank):
-    tolerance = VisibilityScreen.create(tank.scene).tolerance
+    tolerance = scene_screen(tank).tolerance
     vertices = tank.raycaster.vertices  # the triangles' bounds: the tolerance's box
     assert tolerance == screen_tolerance(np.array([vertices.min(axis=0), vertices.max(axis=0)]))
     # 20 float32 ulps of the 9.54 m diagonal: 40 ulps of the largest shifted coordinate (4.5 m)
@@ -150,7 +153,7 @@ def test_tolerance_covers_float32_and_stays_below_the_probe_offset(tank):
     assert 30 * ulp < tolerance < 60 * ulp
     # a probe lies VISIBILITY_OFFSET_M along the bisector of a convex wedge (exterior angle up to
     # 270 degrees on the tank's objects): sin(135 deg) times that from its faces
-    assert tolerance < edges_module.VISIBILITY_OFFSET_M * np.sin(np.radians(135.0)) / 5
+    assert tolerance < VISIBILITY_OFFSET_M * np.sin(np.radians(135.0)) / 5
 
 
 def _box_scene(objects):
@@ -159,8 +162,7 @@ def _box_scene(objects):
 
 def test_convex_decisions_of_single_legs():
     cube = plate("cube", (4.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.2, 0.2, 0.2, "steel")  # a 0.2 m cube
-    scene = _box_scene([cube])
-    screen, planes = VisibilityScreen.create(scene), RayCaster.from_scene(scene).convex_planes
+    screen = scene_screen(prepare(_box_scene([cube])))
     tol = screen.tolerance
     x_face = 4.1  # the cube's +x face
     legs = {
@@ -179,7 +181,7 @@ def test_convex_decisions_of_single_legs():
     # the segments Embree would be asked about (already shrunk)
     p0 = np.array([a for a, _, _ in legs.values()])
     p1 = np.array([b for _, b, _ in legs.values()])
-    got = _decide(p0, p1, screen, planes)
+    got = _decide(p0, p1, screen)
     want = np.array([w for _, _, w in legs.values()])
     assert dict(zip(legs, got.tolist())) == dict(zip(legs, want.tolist()))
 
@@ -191,31 +193,29 @@ def test_non_convex_object_is_left_to_embree_unless_a_convex_one_blocks():
     mesh.update_faces(np.arange(len(mesh.faces)) != 0)  # open: no planes
     open_ball = replace(ball, name="open", mesh=mesh, primitive=None)
     wall = plate("wall", (6.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.02, 1.0, 0.5, "steel")
-    scene = _box_scene([open_ball, wall])
+    scene = _box_scene([open_ball, wall])  # (prepare refuses the open mesh: the screen of its parts)
     raycaster = RayCaster.from_scene(scene)
-    screen, planes = VisibilityScreen.create(scene), raycaster.convex_planes
-    assert planes.start[1] == planes.start[0]  # the open ball has no planes
+    screen = ScreenGeometry.create(np.array([obj.bounds_m for obj in scene.objects]),
+                                   np.asarray(scene.tank.bounds_m, dtype=float), raycaster.convex_planes)
+    assert screen.plane_start[1] == screen.plane_start[0]  # the open ball has no planes
     origins = np.array([(3.0, 1.5, 0.5), (3.0, 1.5, 0.5), (3.0, 2.5, 0.5)])
     targets = np.array([(5.0, 1.5, 0.5), (7.0, 1.5, 0.5), (5.0, 2.5, 0.5)])
-    got = _decisions(screen, planes, origins, targets)
+    got = _decisions(screen, origins, targets)
     # crossing the open ball's box only: Embree; through the wall as well: blocked; clear of both
     assert got.tolist() == [UNDECIDED, BLOCKED, CLEAR]
     assert raycaster.occluded(origins, targets).tolist() == [True, True, False]
 
 
 def test_pair_pre_screen_masks():
-    from acoustisim.propagation.edge_visibility import WALL_BIT, _triangle_screen
-
     cube = plate("cube", (4.0, 1.5, 0.5), (1.0, 0.0, 0.0), 0.2, 0.2, 0.2, "steel")
     diamond = plate("diamond", (6.0, 1.5, 0.5), (1.0, 1.0, 0.0), 0.2, 0.2, 0.2, "steel")  # turned 45 degrees
-    scene = _box_scene([cube, diamond])
-    screen, planes = VisibilityScreen.create(scene), RayCaster.from_scene(scene).convex_planes
-    assert np.all(planes.convex)
-    args = screen.kernel_arguments(planes)
+    prepared = prepare(_box_scene([cube, diamond]))
+    assert np.all(prepared.raycaster.convex_planes.convex)
+    screen = scene_screen(prepared)
     tol = screen.tolerance
 
     def mask(a, b, t):
-        return _triangle_screen(np.array(a, dtype=float), np.array(b, dtype=float), np.array(t, dtype=float), *args)
+        return triangle_mask(np.array(a, dtype=float), np.array(b, dtype=float), np.array(t, dtype=float), screen)
 
     # far from everything: nothing to test
     assert mask((1.0, 0.5, 0.5), (1.0, 0.6, 0.5), (2.0, 0.5, 0.5)) == 0
@@ -231,20 +231,17 @@ def test_pair_pre_screen_masks():
 
 
 def test_objects_beyond_the_mask_bits_are_always_tested():
-    from acoustisim.propagation.edge_visibility import MASK_BITS, OTHERS_BIT, _triangle_screen
-
     # MASK_BITS + 3 small cubes along a row at y = 0.5; the last one, beyond the mask's bits,
     # stands on the leg
     cubes = [plate(f"cube-{k}", (0.2 + 0.12 * k, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05, 0.05, 0.05, "steel")
              for k in range(MASK_BITS + 3)]
-    scene = _box_scene(cubes)
-    raycaster = RayCaster.from_scene(scene)
-    screen, planes = VisibilityScreen.create(scene), raycaster.convex_planes
-    args = screen.kernel_arguments(planes)
+    prepared = prepare(_box_scene(cubes))
+    raycaster = prepared.raycaster
+    screen = scene_screen(prepared)
     last = np.asarray(cubes[-1].mesh.bounds).mean(axis=0)
     a, b, t = last + (0.0, -0.3, -0.01), last + (0.0, -0.3, 0.01), last + (0.0, 0.3, 0.0)
-    mask = _triangle_screen(a, b, t, *args)
+    mask = triangle_mask(a, b, t, screen)
     assert mask == np.int64(1) << OTHERS_BIT  # no masked object near, but not skippable
     p0, p1 = np.array([last + (0.0, -0.3, 0.0)]), np.array([last + (0.0, 0.3, 0.0)])
-    assert screen_legs(p0, p1, np.array([mask]), *args).tolist() == [BLOCKED]
+    assert screen_legs(p0, p1, np.array([mask]), screen).tolist() == [BLOCKED]
     assert raycaster.occluded(p0, p1).tolist() == [True]

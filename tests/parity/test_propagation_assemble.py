@@ -8,7 +8,7 @@ import pytest
 
 from acoustisim.propagation import SolverConfig, prepare
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.edges import edge_paths
+from acoustisim.propagation.reference.edges import edge_rows as reference_edge_rows
 from acoustisim.propagation.fast import FastEngine, assemble
 from acoustisim.propagation.fast.assemble import (SortKeys, assemble_rows, compact_records, is_sorted,
                                                   merge_destinations, permute_records, scatter_records,
@@ -135,7 +135,7 @@ def test_sorted_edge_rows_are_the_default_rows_in_solve_order(sorted_parts):
     context, (_, specular, edge) = sorted_parts
     prepared = prepare(builtin_scene("thesis-tank"))
     first = int(specular["path_id"].max()) + 1
-    default = edge_paths(context.with_first_path_id(first), SolverConfig(max_order=3), prepared.diffracting_edges)
+    default = reference_edge_rows(context.with_first_path_id(first), SolverConfig(max_order=3), prepared)
     delay = default["path_length_m"] / context.sound_speed_m_s
     assert edge.tobytes() == default[np.lexsort((delay, default["channel"]))].tobytes()
 

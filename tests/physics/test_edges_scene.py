@@ -1,4 +1,5 @@
-"""Edge diffraction rows of whole scenes: level, onset, visibility, grouping."""
+"""Edge diffraction rows of whole scenes, on both engines: level, onset, occlusion, grouping,
+reciprocity, range law."""
 
 from __future__ import annotations
 
@@ -7,24 +8,29 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from acoustisim.propagation import btm
-from acoustisim.propagation.fast.columns import complete_columns
+from acoustisim.propagation import prepare
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.edges import edge_paths
 from acoustisim.propagation.paths import PathKind, Paths
-from acoustisim.propagation.raycast import RayCaster
+from acoustisim.propagation.reference import btm
+from acoustisim.propagation.reference.columns import complete_columns
 from acoustisim.scene import Scene
 from scenes.builders import plate
 from scenes.builtin import builtin_scene
+from support.edge_engines import edge_engine
 
 FS = 200e6  # fine time grid for the convolutions (5 ns: 0.9 degrees of phase at 500 kHz)
 
 
-def edge_rows(scene, position=None, config=None):
-    sonar = scene.sonar if position is None else scene.sonar.with_pose(position)
-    context = SolveContext.build(scene, sonar, RayCaster.from_scene(scene), first_path_id=100)
-    return complete_columns(edge_paths(context, config or SolverConfig()), context), context
+def edge_rows(backend, scene, position=None, config=None, context=None):
+    """The engine's edge rows of a pose of ``scene`` (a Scene or PreparedScene; path ids from
+    100, or ``context``'s), derived columns filled."""
+    prepared = prepare(scene)
+    if context is None:
+        sonar = prepared.scene.sonar if position is None else prepared.scene.sonar.with_pose(position)
+        context = SolveContext.build(prepared.scene, sonar, prepared.raycaster, first_path_id=100)
+    rows = edge_engine(backend).edge_rows(context, config or SolverConfig(), prepared)
+    return complete_columns(rows, context), context
 
 
 def envelope_peak(impulses, times, pulse):
@@ -39,10 +45,10 @@ def envelope_peak(impulses, times, pulse):
     return float(np.abs(hilbert(fftconvolve(grid, kernel))).max())
 
 
-def test_prism_edge_echo_level_and_onset():
+def test_prism_edge_echo_level_and_onset(backend):
     """60-degree steel prism seen along its bisector at 2 m (physics.md section 4)."""
     scene = builtin_scene("free-edge")  # edge at (1, 0), 1 m tall, facing the sonar
-    rows, context = edge_rows(scene, position=(-1.0, 0.0, 0.0))
+    rows, context = edge_rows(backend, scene, position=(-1.0, 0.0, 0.0))
     names = np.asarray(scene.surface_names)
     centre = rows[(rows["channel"] == 1) & (names[rows["object_ids"][:, 0]] == "edge")]
     r = 2.0
@@ -82,11 +88,11 @@ def test_prism_edge_echo_level_and_onset():
     assert level_db == pytest.approx(-49.0, abs=0.5)
 
 
-def test_half_occluded_edge_keeps_only_visible_elements():
+def test_half_occluded_edge_keeps_only_visible_elements(backend):
     base = builtin_scene("free-edge")
     blocker = plate("blocker", (0.0, 0.0, -0.5), (1.0, 0.0, 0.0), 0.5, 1.0, 0.01, "steel")
     scene = replace(base, objects=base.objects + (blocker,))
-    rows, _ = edge_rows(scene, position=(-1.0, 0.0, 0.0))
+    rows, _ = edge_rows(backend, scene, position=(-1.0, 0.0, 0.0))
     names = np.asarray(scene.surface_names)
     prism = rows[(rows["channel"] == 1) & (names[rows["object_ids"][:, 0]] == "edge")]
     front = prism[np.all(np.abs(prism["points_m"][:, 0, :2] - [1.0, 0.0]) < 1e-9, axis=1)]
@@ -94,23 +100,23 @@ def test_half_occluded_edge_keeps_only_visible_elements():
     # the plate's top (z = 0) at x = 0, half-way to the edge, hides every element with z < 0;
     # the 5 mm half-thickness and the element length (0.5 mm) blur the cut by < 1 cm
     assert z.min() > -0.01 and z.max() > 0.49
-    unblocked, _ = edge_rows(base, position=(-1.0, 0.0, 0.0))
+    unblocked, _ = edge_rows(backend, base, position=(-1.0, 0.0, 0.0))
     assert unblocked[unblocked["channel"] == 1]["points_m"][:, 0, 2].min() < -0.49
 
 
-def test_fully_occluded_prism_gives_no_rows():
+def test_fully_occluded_prism_gives_no_rows(backend):
     base = builtin_scene("free-edge")
     blocker = plate("blocker", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 0.5, 2.0, 0.01, "steel")
     scene = replace(base, objects=base.objects + (blocker,))
-    rows, _ = edge_rows(scene, position=(-1.0, 0.0, 0.0))
+    rows, _ = edge_rows(backend, scene, position=(-1.0, 0.0, 0.0))
     names = np.asarray(scene.surface_names)
     assert rows.size > 0  # the plate's own edges diffract
     assert not np.any(names[rows["object_ids"][:, 0]] == "edge")
 
 
-def test_thesis_tank_rows():
-    scene = builtin_scene("thesis-tank")
-    rows, _ = edge_rows(scene)
+def test_thesis_tank_rows(backend, thesis_tank):
+    scene = thesis_tank
+    rows, _ = edge_rows(backend, scene)
     names = np.asarray(scene.surface_names)[rows["object_ids"][:, 0]]
     # tank corners (nu = 2) and rims standing on the floor or touching the surface (the posts
     # have no other edges; the prism keeps its vertical edges only): no rows
@@ -130,17 +136,17 @@ def test_thesis_tank_rows():
     assert arrivals.size == np.unique(rows["path_id"]).size
 
 
-def test_reciprocity_of_an_edge():
+def test_reciprocity_of_an_edge(backend):
     """Swapping transmitter and receiver leaves the element sums (the response) unchanged."""
-    scene = builtin_scene("free-edge")
+    prepared = prepare(builtin_scene("free-edge"))
+    scene = prepared.scene
     sonar = scene.sonar.with_pose((-1.0, 0.3, 0.2), yaw_deg=-10.0)
-    raycaster = RayCaster.from_scene(scene)
-    context = SolveContext.build(scene, sonar, raycaster)
+    context = SolveContext.build(scene, sonar, prepared.raycaster)
     tx, rx = context.transmitter_m, context.receivers_m[2]
     forward = replace(context, receivers_m=np.array([rx]))
     backward = replace(context, transmitter_m=rx, receivers_m=np.array([tx]))
-    a = complete_columns(edge_paths(forward, SolverConfig()), forward)
-    b = complete_columns(edge_paths(backward, SolverConfig()), backward)
+    a, _ = edge_rows(backend, prepared, context=forward)
+    b, _ = edge_rows(backend, prepared, context=backward)
     names = np.asarray(scene.surface_names)
     for rows in (a, b):
         assert rows.size > 0
@@ -153,16 +159,16 @@ def test_reciprocity_of_an_edge():
     assert ga[ta < t0 + 2e-6].sum() == pytest.approx(gb[tb < t0 + 2e-6].sum(), rel=1e-3)
 
 
-def test_no_edges_no_rows():
+def test_no_edges_no_rows(backend):
     scene = Scene(name="s", tank=None, objects=builtin_scene("free-sphere").objects)
-    rows, _ = edge_rows(scene)
+    rows, _ = edge_rows(backend, scene)
     assert rows.size == 0 and rows.dtype.names is not None
 
 
-def test_solve_runs_the_edge_and_diffuse_mechanisms():
+def test_solve_runs_the_edge_and_diffuse_mechanisms(thesis_tank):
     from acoustisim.propagation import solve
 
-    scene = builtin_scene("thesis-tank")
+    scene = thesis_tank
     config = SolverConfig(mechanisms=("edge", "diffuse"), diffuse_rays=2000, amplitude_floor_db=None)
     paths = solve(scene, config=config)
     kinds = set(np.unique(paths.rows["kind"]).tolist())
@@ -178,21 +184,21 @@ def test_solve_runs_the_edge_and_diffuse_mechanisms():
     assert any(row["objects"] == ["edge-1"] and row["kind"] == "edge" for row in table)
 
 
-def test_absurd_element_length_is_refused_not_allocated():
+def test_absurd_element_length_is_refused_not_allocated(backend):
     from acoustisim.errors import InputError
 
     scene = builtin_scene("free-edge")
     with pytest.raises(InputError, match="solver.edge_segment_m = 1e-09"):
-        edge_rows(scene, config=SolverConfig(edge_segment_m=1e-9))
+        edge_rows(backend, scene, config=SolverConfig(edge_segment_m=1e-9))
 
 
-def test_sharp_edge_echo_falls_as_range_to_the_minus_three_halves():
+def test_sharp_edge_echo_falls_as_range_to_the_minus_three_halves(backend):
     """A long sharp edge is a point target in 2-D: cylindrical spreading out and back, r^-3/2
     in pressure (physics.md section 4), against r^-1 for a plane."""
     scene = builtin_scene("free-edge")
     peaks = []
     for r in (1.0, 2.0):
-        rows, context = edge_rows(scene, position=(1.0 - r, 0.0, 0.0))
+        rows, context = edge_rows(backend, scene, position=(1.0 - r, 0.0, 0.0))
         names = np.asarray(scene.surface_names)
         centre = rows[(rows["channel"] == 1) & (names[rows["object_ids"][:, 0]] == "edge")]
         front = centre[centre["delay_s"] < 2 * r / context.sound_speed_m_s + 20e-6]

@@ -7,21 +7,19 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from acoustisim.propagation import PathKind, solve
+from acoustisim.propagation import PathKind, SolverConfig, solve
 from acoustisim.synthesis import PingSynthesiser, ReceiverChain
 
 FS = 20e6
 
 
-@pytest.fixture(scope="module")
-def edge_echo():
+@pytest.fixture
+def edge_echo(backend, builtin_scenes):
     """The first edge arrival of the built-in free-edge scene on the centre channel (Pa at 1 m
-    units: volts divided by sensitivity and gain), its onset, and the scene."""
-    from scenes.builtin import builtin_scene
-
-    scene = builtin_scene("free-edge")
+    units: volts divided by sensitivity and gain), its onset, and the scene, from each engine."""
+    scene = builtin_scenes("free-edge")
     sonar = replace(scene.sonar, record_length_s=2e-3)
-    rows = solve(scene, sonar).rows
+    rows = solve(scene, sonar, SolverConfig(mechanisms=("edge",), backend=backend)).rows
     edges = rows[rows["kind"] == PathKind.EDGE]
     first = edges["path_id"][np.argmin(edges["delay_s"])]
     echo_rows = rows[(rows["path_id"] == first) & (rows["channel"] == 1)]

@@ -41,9 +41,9 @@ class FastEngine:
         return specular_rows(context, prepared, max_order)
 
     def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-        from acoustisim.propagation.edges import edge_paths
+        from acoustisim.propagation.fast.edges import edge_rows
 
-        return edge_paths(context, config, prepared.diffracting_edges, sort_rows=True)
+        return edge_rows(context, config, prepared)
 
     def diffuse_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
         from acoustisim.propagation.diffuse import diffuse_paths

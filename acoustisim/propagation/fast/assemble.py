@@ -13,7 +13,7 @@ work in place where they can:
    order a stable sort of the joined parts gives). Up to :data:`IN_PLACE_MAX_BYTES` of rows
    (a deterministic pose), the largest part's buffer is grown (realloc) and the rows put in
    order there: when that part is sorted already (the edge rows, which
-   :func:`~acoustisim.propagation.edges.edge_paths` writes in this order for the solver), the
+   :func:`~acoustisim.propagation.fast.edges.edge_rows` writes in this order for the solver), the
    other rows are sorted and merged in (:func:`merge_destinations`), its own rows moved once,
    backwards, to make room, their derived columns filled as they move
    (:func:`~acoustisim.propagation.fast.columns.fill_columns`; the host's sort keys are read

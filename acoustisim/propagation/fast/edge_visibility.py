@@ -1,11 +1,10 @@
-"""Visibility of edge elements: which legs probe -> transmitter / receiver are blocked.
+"""The reference's element visibility, with most legs decided exactly without Embree.
 
-:func:`~acoustisim.propagation.edges.edge_paths` keeps an edge element when the leg from its
-probe (its centre moved :data:`~acoustisim.propagation.edges.VISIBILITY_OFFSET_M` into the
-water) to the transmitter, and the one to its receiver, cross no triangle of the scene: the
-answer of Embree's float32 occlusion query on the segment shrunk by ``eps`` at both ends
-(:func:`~acoustisim.propagation.edge_kernels.visibility_rays32`). On the thesis tank that is
-some 13 000 queries per pose, most of which can be decided exactly without Embree:
+:func:`element_visibility` answers what
+:func:`acoustisim.propagation.reference.edges.element_visibility` answers: whether each
+element's probe sees the transmitter and its receiver, as Embree's float32 occlusion query of
+the leg shrunk by ``eps`` at both ends says. On the thesis tank that is some 13 000 legs per
+pose, nearly all of which a geometric screen decides without Embree:
 
 * the tank's boundaries enclose a convex box, so a leg whose two ends lie inside the water
   at least ``tolerance`` from every boundary passes at least that far from every wall;
@@ -30,24 +29,28 @@ involved. A leg decided with the margin ``tolerance`` (:func:`screen_tolerance`,
 :data:`TOLERANCE_ULPS` float32 ulps of the scene's diagonal: 2.3e-5 m in the tank, 40 times
 that rounding, and below the probes' 1.4e-4 m from their own faces) therefore gets Embree's
 answer; every other leg (ends near a wall, grazing an object within ``tolerance``, crossing
-the box of a non-convex object) goes to Embree, as before, in one batch. The only leg where
-the two could differ is one Embree itself lets through a solid, across the shared edge of two
-triangles within its float32 rounding (its intersection test is not watertight), at both of
-the leg's crossings of the solid. ``tests/parity/test_edges_visibility.py`` compares every decided
-leg with Embree's answer over many poses.
+the box of a non-convex object) goes to Embree in one batch, as the same float32 query the
+reference makes. The only leg where the two could differ is one Embree itself lets through a
+solid, across the shared edge of two triangles within its float32 rounding (its intersection
+test is not watertight), at both of the leg's crossings of the solid.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.convex_occlusion import ConvexPlanes
+from acoustisim.propagation.edge_extraction import DiffractingEdges
+from acoustisim.propagation.prepared import PreparedScene
+from acoustisim.propagation.raycast import DEFAULT_EPS_M
+from acoustisim.propagation.reference.edge_elements import EdgeElements
+from acoustisim.propagation.reference.edges import EdgePairs
 
 TOLERANCE_ULPS = 20.0
 """The screen's margin, in float32 ulps (2^-23) of the scene's bounding-box diagonal."""
@@ -57,7 +60,7 @@ CLEAR, BLOCKED, UNDECIDED = 0, 1, 2
 
 MASK_BITS = 62
 """Objects with an index below this are pre-screened once per (edge, receiver) pair and leg
-(:func:`_pair_screens`); further ones are tested on every leg."""
+(:func:`pair_masks`); further ones are tested on every leg."""
 
 WALL_BIT = 62
 """The bit of a pre-screen mask saying the walls must be tested."""
@@ -67,28 +70,34 @@ OTHERS_BIT = 63
 (tested on every leg), so that the mask is never zero (a zero mask skips the leg)."""
 
 
+FLOAT32_EPS = 2.0**-23
+"""One float32 ulp at 1 (``np.finfo(np.float32).eps``)."""
+
+
 def screen_tolerance(bounds_m: NDArray[np.float64]) -> float:
-    """The screen's margin (m) for a scene within the box ``bounds_m`` (2, 3) (its triangles'
-    bounds: the tank's and the objects'): :data:`TOLERANCE_ULPS` float32 ulps of the box's
-    diagonal (2.3e-5 m in the thesis tank)."""
-    diagonal = float(np.linalg.norm(bounds_m[1] - bounds_m[0]))
-    return TOLERANCE_ULPS * float(np.finfo(np.float32).eps) * diagonal
+    """The screen's margin (m) for a scene within the box ``bounds_m`` (2, 3):
+    :data:`TOLERANCE_ULPS` float32 ulps of the box's diagonal (2.3e-5 m in the thesis tank)."""
+    diagonal = bounds_m[1] - bounds_m[0]
+    return TOLERANCE_ULPS * FLOAT32_EPS * math.sqrt(float(diagonal @ diagonal))
 
 
-@dataclass(frozen=True, eq=False)
-class VisibilityScreen:
-    """What decides a leg without Embree: the per-scene part (the margin and the boxes), built
-    once per scene (:class:`~acoustisim.propagation.edges.DiffractingEdges`); the convex
-    objects' face planes come from the ray caster with each pose (:meth:`kernel_arguments`).
+class ScreenGeometry(NamedTuple):
+    """What decides a leg without Embree.
 
     Attributes
     ----------
     tolerance : float
-        The margin (m), :func:`screen_tolerance`.
+        The margin (m), :func:`screen_tolerance` of the scene's box.
     water_lo, water_hi : ndarray, shape (3,)
         The tank's water box shrunk by ``tolerance`` (m); infinite in free field (no walls).
     box_lo, box_hi : ndarray, shape (k, 3)
         Each object's axis-aligned box grown by ``tolerance`` (m).
+    plane_start : ndarray of int64, shape (k + 1,)
+        Object j's face planes are rows ``plane_start[j]:plane_start[j + 1]`` of the next two;
+        none for a non-convex object (its legs crossing its box go to Embree).
+    plane_normal : ndarray, shape (m, 3)
+    plane_offset : ndarray, shape (m,)
+        The planes ``normal . x = offset``, inside below (m).
     """
 
     tolerance: float
@@ -96,42 +105,81 @@ class VisibilityScreen:
     water_hi: NDArray[np.float64]
     box_lo: NDArray[np.float64]
     box_hi: NDArray[np.float64]
+    plane_start: NDArray[np.int64]
+    plane_normal: NDArray[np.float64]
+    plane_offset: NDArray[np.float64]
 
     @classmethod
-    def create(cls, scene: Any) -> "VisibilityScreen":
-        """The screen of ``scene`` (a :class:`~acoustisim.scene.Scene`)."""
-        n_objects = len(scene.objects)
-        boxes = np.array([obj.bounds_m for obj in scene.objects], dtype=float).reshape(n_objects, 2, 3)
-        if scene.tank is not None:
-            boxes = np.concatenate([boxes, scene.tank.bounds_m[None]])
-        if boxes.shape[0] == 0:
-            tolerance = 0.0
-        else:
-            tolerance = screen_tolerance(np.array([boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)]))
-        if scene.tank is None:
+    def create(cls, object_bounds_m: NDArray[np.float64], tank_bounds_m: NDArray[np.float64] | None,
+               planes: ConvexPlanes | None) -> "ScreenGeometry":
+        """The screen of a scene: its objects' boxes (k, 2, 3), its tank's box (2, 3) (None:
+        free field) and its convex objects' face planes
+        (:attr:`~acoustisim.propagation.raycast.RayCaster.convex_planes`; None: every leg
+        crossing an object's box goes to Embree)."""
+        n_objects = object_bounds_m.shape[0]
+        box_lo, box_hi = object_bounds_m[:, 0], object_bounds_m[:, 1]
+        if tank_bounds_m is None:
             water_lo, water_hi = np.full(3, -np.inf), np.full(3, np.inf)
+            scene_box = np.array([box_lo.min(axis=0), box_hi.max(axis=0)]) if n_objects else None
+        elif n_objects:
+            scene_box = np.array([np.minimum(box_lo.min(axis=0), tank_bounds_m[0]),
+                                  np.maximum(box_hi.max(axis=0), tank_bounds_m[1])])
         else:
-            water_lo, water_hi = boxes[-1, 0] + tolerance, boxes[-1, 1] - tolerance
-        box_lo = np.ascontiguousarray(boxes[:n_objects, 0] - tolerance)
-        box_hi = np.ascontiguousarray(boxes[:n_objects, 1] + tolerance)
-        return cls(tolerance, water_lo, water_hi, box_lo, box_hi)
-
-    def kernel_arguments(self, planes: ConvexPlanes | None) -> tuple[Any, ...]:
-        """(tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset) for
-        :func:`screen_legs`.
-
-        ``planes``: the objects' face planes
-        (:attr:`~acoustisim.propagation.raycast.RayCaster.convex_planes`: object j's are rows
-        ``plane_start[j]:plane_start[j + 1]``, none for a non-convex object, whose legs
-        crossing its box go to Embree); None: every leg crossing an object's box goes to
-        Embree.
-        """
-        n_objects = self.box_lo.shape[0]
+            scene_box = tank_bounds_m
+        tolerance = 0.0 if scene_box is None else screen_tolerance(scene_box)
+        if tank_bounds_m is not None:
+            water_lo, water_hi = tank_bounds_m[0] + tolerance, tank_bounds_m[1] - tolerance
         if planes is not None and planes.start.size == n_objects + 1 and planes.normal.shape[0]:
             start, normal, offset = planes.start, planes.normal, planes.offset
         else:
             start, normal, offset = np.zeros(n_objects + 1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
-        return (self.tolerance, self.water_lo, self.water_hi, self.box_lo, self.box_hi, start, normal, offset)
+        return cls(tolerance, water_lo, water_hi, box_lo - tolerance, box_hi + tolerance, start, normal, offset)
+
+
+class EdgeLines(NamedTuple):
+    """Per diffracting edge: its ``start`` (m), unit ``direction``, the probes' offset from it
+    ``probe_offset`` (m), each shape (e, 3); its ``chain`` and ``surface`` (index into the
+    scene's surface names), shape (e,)."""
+
+    start: NDArray[np.float64]
+    direction: NDArray[np.float64]
+    probe_offset: NDArray[np.float64]
+    chain: NDArray[np.int64]
+    surface: NDArray[np.int64]
+
+    @classmethod
+    def of(cls, scene_edges: DiffractingEdges) -> "EdgeLines":
+        """The lines of a scene's diffracting edges."""
+        edges = scene_edges.edges
+        return cls(edges.start_m, edges.direction, scene_edges.probe_offset_m, edges.chain, edges.surface)
+
+
+class LegTargets(NamedTuple):
+    """Where the legs go: the ``transmitter`` (3,) and the ``receivers`` (n_rx, 3) (m), and
+    ``own_leg`` (n_rx,): whether a receiver is not the transmitter (has a leg of its own)."""
+
+    transmitter: NDArray[np.float64]
+    receivers: NDArray[np.float64]
+    own_leg: NDArray[np.bool_]
+
+    @classmethod
+    def of(cls, context: SolveContext) -> "LegTargets":
+        """The transducers of a pose."""
+        tx = np.asarray(context.transmitter_m, dtype=float)
+        rx = np.asarray(context.receivers_m, dtype=float)
+        return cls(tx, rx, ~np.all(rx == tx, axis=1))
+
+
+class EmbreeQueries(NamedTuple):
+    """Float32 occlusion queries for
+    :meth:`~acoustisim.propagation.raycast.RayCaster.occluded_segments32`: ``starts32``
+    (q, 3) (shifted by the ray caster's ``shift_m``), ``directions32`` (q, 3), ``lengths32``
+    (q,); ``element`` (q,): the element each query belongs to."""
+
+    starts32: NDArray[np.float32]
+    directions32: NDArray[np.float32]
+    lengths32: NDArray[np.float32]
+    element: NDArray[np.int64]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -193,25 +241,22 @@ def _convex_decision(p0: tuple[float, float, float], p1: tuple[float, float, flo
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def screen_legs(p0: NDArray[np.float64], p1: NDArray[np.float64], mask: NDArray[np.int64], tolerance: float,
-                water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
-                box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
-                offset: NDArray[np.float64]) -> NDArray[np.int8]:
+def screen_legs(p0: NDArray[np.float64], p1: NDArray[np.float64], mask: NDArray[np.int64],
+                screen: ScreenGeometry) -> NDArray[np.int8]:
     """CLEAR, BLOCKED or UNDECIDED (left to Embree) for each segment p0 -> p1.
 
     One loop over the segments with every test written out (a call per segment passing the
-    arrays cost more than the tests themselves).
+    arrays would cost more than the tests themselves).
 
     Parameters
     ----------
     p0, p1 : ndarray, shape (n, 3)
         The segments' ends (m): the legs shrunk by Embree's ``eps`` at both ends.
     mask : ndarray of int64, shape (n,)
-        What to test per segment (:func:`_triangle_screen`): the walls when bit
+        What to test per segment (:func:`triangle_mask`): the walls when bit
         :data:`WALL_BIT` is set, object j < :data:`MASK_BITS` when bit j is (-1: everything;
         objects from :data:`MASK_BITS` on are always tested).
-    tolerance, water_lo, water_hi, box_lo, box_hi, plane_start, normal, offset
-        :meth:`VisibilityScreen.kernel_arguments`.
+    screen : ScreenGeometry
 
     Returns
     -------
@@ -219,6 +264,10 @@ def screen_legs(p0: NDArray[np.float64], p1: NDArray[np.float64], mask: NDArray[
     """
     n = p0.shape[0]
     decisions = np.empty(n, dtype=np.int8)
+    tolerance = screen.tolerance
+    water_lo, water_hi = screen.water_lo, screen.water_hi
+    box_lo, box_hi = screen.box_lo, screen.box_hi
+    normal, offset = screen.plane_normal, screen.plane_offset
     n_boxes = box_lo.shape[0]
     hint = np.full(n_boxes, -1, dtype=np.int64)  # per object, the plane that last separated a segment
     for s in range(n):
@@ -244,7 +293,7 @@ def screen_legs(p0: NDArray[np.float64], p1: NDArray[np.float64], mask: NDArray[
             enter, leave = _slab(enter, leave, a[2], inv2, box_lo[j, 2], box_hi[j, 2])
             if enter > leave:
                 continue
-            first, last = plane_start[j], plane_start[j + 1]
+            first, last = screen.plane_start[j], screen.plane_start[j + 1]
             if first == last:  # not convex: Embree decides, unless another object blocks
                 decision = UNDECIDED
                 continue
@@ -265,10 +314,8 @@ def screen_legs(p0: NDArray[np.float64], p1: NDArray[np.float64], mask: NDArray[
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[np.float64], tolerance: float,
-                     water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
-                     box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], normal: NDArray[np.float64],
-                     offset: NDArray[np.float64]) -> int:
+def triangle_mask(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[np.float64],
+                  screen: ScreenGeometry) -> int:
     """What a segment within the triangle a, b, t (each shape (3,), m) must still be tested
     against, as a bit mask for :func:`screen_legs`: bit j (j < :data:`MASK_BITS`) for object j
     unless the triangle keeps at least ``tolerance`` from it (the triangle's box grown by
@@ -276,6 +323,10 @@ def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[
     the three corners more than twice ``tolerance`` outside), bit :data:`WALL_BIT` unless
     the three corners lie in the shrunk water box, and bit :data:`OTHERS_BIT` when there are
     objects from :data:`MASK_BITS` on (always tested)."""
+    water_lo, water_hi = screen.water_lo, screen.water_hi
+    box_lo, box_hi = screen.box_lo, screen.box_hi
+    normal, offset = screen.plane_normal, screen.plane_offset
+    tolerance = screen.tolerance
     mask = np.int64(0)
     for c in range(3):
         if not ((water_lo[c] <= a[c]) & (a[c] <= water_hi[c]) & (water_lo[c] <= b[c]) & (b[c] <= water_hi[c])
@@ -296,7 +347,7 @@ def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[
         if apart:
             continue
         separated = False
-        for i in range(plane_start[j], plane_start[j + 1]):
+        for i in range(screen.plane_start[j], screen.plane_start[j + 1]):
             ha = (normal[i, 0] * a[0] + normal[i, 1] * a[1] + normal[i, 2] * a[2]) - offset[i]
             hb = (normal[i, 0] * b[0] + normal[i, 1] * b[1] + normal[i, 2] * b[2]) - offset[i]
             ht = (normal[i, 0] * t[0] + normal[i, 1] * t[1] + normal[i, 2] * t[2]) - offset[i]
@@ -309,28 +360,22 @@ def _triangle_screen(a: NDArray[np.float64], b: NDArray[np.float64], t: NDArray[
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _pair_screens(
-    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
-    pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], start: NDArray[np.float64],
-    direction: NDArray[np.float64], offset: NDArray[np.float64], tx: NDArray[np.float64],
-    rx: NDArray[np.float64], tolerance: float, water_lo: NDArray[np.float64], water_hi: NDArray[np.float64],
-    box_lo: NDArray[np.float64], box_hi: NDArray[np.float64], plane_start: NDArray[np.int64],
-    plane_normal: NDArray[np.float64], plane_offset: NDArray[np.float64],
-) -> NDArray[np.int64]:
-    """Per pair and leg (0: to the transmitter, 1: to its receiver), what every such leg of the
-    pair's elements must be tested against (:func:`_triangle_screen`'s mask), decided once for
-    the pair: the legs run from probes on the segment between the pair's first and last
-    probes (along its edge) to one target, so they lie in the triangle of those three points
-    (up to the probes' round-off, 1e-16 m, far inside the margins)."""
+def pair_masks(elements: EdgeElements, pair_edge: NDArray[np.int64], pair_receiver: NDArray[np.int64],
+               lines: EdgeLines, targets: LegTargets, screen: ScreenGeometry) -> NDArray[np.int64]:
+    """Per pair and leg (0: to the transmitter, 1: to its receiver), shape (p, 2), what every
+    such leg of the pair's elements must be tested against (:func:`triangle_mask`), decided
+    once for the pair: the legs run from probes on the segment between the pair's first and
+    last probes (along its edge) to one target, so they lie in the triangle of those three
+    points (up to the probes' round-off, 1e-16 m, far inside the margins)."""
     n_pairs = pair_edge.size
     z_lo = np.full(n_pairs, np.inf)
     z_hi = np.full(n_pairs, -np.inf)
-    for i in range(pair.size):
-        z = 0.5 * (z_start[i] + z_end[i])
-        p = pair[i]
+    for i in range(elements.pair.size):
+        z = 0.5 * (elements.z_start_m[i] + elements.z_end_m[i])
+        p = elements.pair[i]
         z_lo[p] = min(z_lo[p], z)
         z_hi[p] = max(z_hi[p], z)
-    screens = np.zeros((n_pairs, 2), dtype=np.int64)
+    masks = np.zeros((n_pairs, 2), dtype=np.int64)
     a = np.empty(3)
     b = np.empty(3)
     t = np.empty(3)
@@ -339,50 +384,40 @@ def _pair_screens(
             continue
         e = pair_edge[p]
         for c in range(3):
-            a[c] = start[e, c] + z_lo[p] * direction[e, c] + offset[e, c]
-            b[c] = start[e, c] + z_hi[p] * direction[e, c] + offset[e, c]
+            a[c] = lines.start[e, c] + z_lo[p] * lines.direction[e, c] + lines.probe_offset[e, c]
+            b[c] = lines.start[e, c] + z_hi[p] * lines.direction[e, c] + lines.probe_offset[e, c]
         for leg in range(2):
             for c in range(3):
-                t[c] = tx[c] if leg == 0 else rx[pair_rx[p], c]
-            screens[p, leg] = _triangle_screen(a, b, t, tolerance, water_lo, water_hi, box_lo, box_hi, plane_start,
-                                               plane_normal, plane_offset)
-    return screens
+                t[c] = targets.transmitter[c] if leg == 0 else targets.receivers[pair_receiver[p], c]
+            masks[p, leg] = triangle_mask(a, b, t, screen)
+    return masks
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def screened_visibility_rays32(
-    pair: NDArray[np.int64], z_start: NDArray[np.float64], z_end: NDArray[np.float64],
-    pair_edge: NDArray[np.int64], pair_rx: NDArray[np.int64], start: NDArray[np.float64],
-    direction: NDArray[np.float64], offset: NDArray[np.float64], tx: NDArray[np.float64],
-    rx: NDArray[np.float64], own_leg_rx: NDArray[np.bool_], shift: NDArray[np.float64], eps: float,
-    tolerance: float, water_lo: NDArray[np.float64], water_hi: NDArray[np.float64], box_lo: NDArray[np.float64],
-    box_hi: NDArray[np.float64], plane_start: NDArray[np.int64], plane_normal: NDArray[np.float64],
-    plane_offset: NDArray[np.float64],
-) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.int64]]:
-    """Every element's legs screened (:func:`screen_legs`), and Embree's float32 queries of the
+def screen_element_legs(elements: EdgeElements, pair_edge: NDArray[np.int64], pair_receiver: NDArray[np.int64],
+                        lines: EdgeLines, targets: LegTargets, screen: ScreenGeometry, shift_m: NDArray[np.float64],
+                        eps_m: float) -> tuple[NDArray[np.bool_], EmbreeQueries]:
+    """Every element's legs screened (:func:`screen_legs`), and Embree's queries of the
     undecided ones.
 
-    The legs, probes and queries are those of
-    :func:`~acoustisim.propagation.edge_kernels.visibility_rays32` (same arguments up to
-    ``eps``; the screen's arrays after it): the leg probe -> transmitter of every element,
-    and probe -> receiver where the receiver is not the transmitter; a leg not longer than
-    2 ``eps`` is never blocked.
+    The legs are the reference's: from each element's probe (its centre plus its edge's probe
+    offset) to the transmitter, and to its receiver where that has a leg of its own; a leg not
+    longer than 2 ``eps_m`` is never blocked. An undecided leg's query is the one
+    :meth:`~acoustisim.propagation.raycast.RayCaster.occluded` makes of it, with the same
+    operations in the same order (the same float32 buffers): length L = sqrt((s0^2 + s1^2) +
+    s2^2) of s = target - probe, unit direction d = s / L, start eps d + probe, shifted by
+    ``shift_m`` and rounded once to float32, length L - 2 eps.
 
     Returns
     -------
     visible : ndarray of bool, shape (n,)
-        Whether each element's decided legs are all clear (its undecided legs still to be
-        asked).
-    starts32, directions32 : ndarray of float32, shape (q, 3)
-    lengths32 : ndarray of float32, shape (q,)
-        The undecided legs' queries, byte for byte those of ``visibility_rays32``.
-    element : ndarray of int64, shape (q,)
-        The element of each query: it is visible iff ``visible[element]`` and no query of it
-        is blocked.
+        Whether each element's decided legs are all clear (its undecided ones still to be asked).
+    queries : EmbreeQueries
+        The undecided legs of the elements no leg blocks: an element is visible iff
+        ``visible[element]`` and none of its queries is blocked.
     """
-    n = pair.size
-    screens = _pair_screens(pair, z_start, z_end, pair_edge, pair_rx, start, direction, offset, tx, rx, tolerance,
-                            water_lo, water_hi, box_lo, box_hi, plane_start, plane_normal, plane_offset)
+    n = elements.pair.size
+    masks = pair_masks(elements, pair_edge, pair_receiver, lines, targets, screen)
     # the legs to test (at most two per element): the segment Embree would be asked about, in
     # float64, its direction and length, and what to test it against
     leg_element = np.empty(2 * n, dtype=np.int64)
@@ -391,23 +426,23 @@ def screened_visibility_rays32(
     unit = np.empty((2 * n, 3))
     length = np.empty(2 * n)
     mask = np.empty(2 * n, dtype=np.int64)
-    two_eps = 2.0 * eps
+    two_eps = 2.0 * eps_m
     k = 0
     for i in range(n):
-        p = pair[i]
+        p = elements.pair[i]
         e = pair_edge[p]
-        ch = pair_rx[p]
-        z = 0.5 * (z_start[i] + z_end[i])
-        o0 = start[e, 0] + z * direction[e, 0] + offset[e, 0]
-        o1 = start[e, 1] + z * direction[e, 1] + offset[e, 1]
-        o2 = start[e, 2] + z * direction[e, 2] + offset[e, 2]
+        ch = pair_receiver[p]
+        z = 0.5 * (elements.z_start_m[i] + elements.z_end_m[i])
+        o0 = lines.start[e, 0] + z * lines.direction[e, 0] + lines.probe_offset[e, 0]
+        o1 = lines.start[e, 1] + z * lines.direction[e, 1] + lines.probe_offset[e, 1]
+        o2 = lines.start[e, 2] + z * lines.direction[e, 2] + lines.probe_offset[e, 2]
         for leg in range(2):
-            if screens[p, leg] == 0:  # clear of everything (a receiver at the transmitter has no own leg anyway)
+            if masks[p, leg] == 0:  # clear of everything
                 continue
             if leg == 0:
-                t0, t1, t2 = tx[0], tx[1], tx[2]
-            elif own_leg_rx[ch]:
-                t0, t1, t2 = rx[ch, 0], rx[ch, 1], rx[ch, 2]
+                t0, t1, t2 = targets.transmitter[0], targets.transmitter[1], targets.transmitter[2]
+            elif targets.own_leg[ch]:
+                t0, t1, t2 = targets.receivers[ch, 0], targets.receivers[ch, 1], targets.receivers[ch, 2]
             else:
                 break
             s0, s1, s2 = t0 - o0, t1 - o1, t2 - o2
@@ -415,21 +450,19 @@ def screened_visibility_rays32(
             if not norm > two_eps:  # never blocked
                 continue
             d0, d1, d2 = s0 / norm, s1 / norm, s2 / norm
-            far = norm - eps
+            far = norm - eps_m
             leg_element[k] = i
-            p0[k, 0], p0[k, 1], p0[k, 2] = eps * d0 + o0, eps * d1 + o1, eps * d2 + o2
+            p0[k, 0], p0[k, 1], p0[k, 2] = eps_m * d0 + o0, eps_m * d1 + o1, eps_m * d2 + o2
             p1[k, 0], p1[k, 1], p1[k, 2] = o0 + far * d0, o1 + far * d1, o2 + far * d2
             unit[k, 0], unit[k, 1], unit[k, 2] = d0, d1, d2
             length[k] = norm
-            mask[k] = screens[p, leg]
+            mask[k] = masks[p, leg]
             k += 1
-    decisions = screen_legs(p0[:k], p1[:k], mask[:k], tolerance, water_lo, water_hi, box_lo, box_hi, plane_start,
-                            plane_normal, plane_offset)
+    decisions = screen_legs(p0[:k], p1[:k], mask[:k], screen)
     visible = np.ones(n, dtype=np.bool_)
     for s in range(k):
         if decisions[s] == BLOCKED:
             visible[leg_element[s]] = False
-    # the undecided legs of the elements no leg blocks: Embree's queries
     q = 0
     for s in range(k):
         if (decisions[s] == UNDECIDED) & visible[leg_element[s]]:
@@ -442,13 +475,35 @@ def screened_visibility_rays32(
     for s in range(k):
         if (decisions[s] == UNDECIDED) & visible[leg_element[s]]:
             for c in range(3):
-                starts32[q, c] = np.float32(p0[s, c] - shift[c])
+                starts32[q, c] = np.float32(p0[s, c] - shift_m[c])
                 directions32[q, c] = np.float32(unit[s, c])
             lengths32[q] = np.float32(length[s] - two_eps)
             element[q] = leg_element[s]
             q += 1
-    return visible, starts32, directions32, lengths32, element
+    return visible, EmbreeQueries(starts32, directions32, lengths32, element)
 
 
-__all__ = ["BLOCKED", "CLEAR", "MASK_BITS", "OTHERS_BIT", "TOLERANCE_ULPS", "UNDECIDED", "VisibilityScreen", "WALL_BIT",
-           "screen_legs", "screen_tolerance", "screened_visibility_rays32"]
+def scene_screen(prepared: PreparedScene) -> ScreenGeometry:
+    """The screen of a prepared scene."""
+    tank = prepared.scene.tank
+    return ScreenGeometry.create(prepared.object_bounds, None if tank is None else np.asarray(tank.bounds_m, float),
+                                 prepared.raycaster.convex_planes)
+
+
+def element_visibility(context: SolveContext, prepared: PreparedScene, elements: EdgeElements,
+                       pairs: EdgePairs) -> NDArray[np.bool_]:
+    """The reference's :func:`~acoustisim.propagation.reference.edges.element_visibility`:
+    the legs the screen decides, the others asked of Embree in one batch."""
+    raycaster = context.raycaster
+    lines = EdgeLines.of(prepared.diffracting_edges)
+    visible, queries = screen_element_legs(elements, pairs.edge, pairs.receiver, lines, LegTargets.of(context),
+                                           scene_screen(prepared), raycaster.shift_m, DEFAULT_EPS_M)
+    if queries.element.size:
+        blocked = raycaster.occluded_segments32(queries.starts32, queries.directions32, queries.lengths32)
+        visible[queries.element[blocked]] = False
+    return visible
+
+
+__all__ = ("BLOCKED", "CLEAR", "EdgeLines", "EmbreeQueries", "FLOAT32_EPS", "LegTargets", "MASK_BITS", "OTHERS_BIT",
+           "ScreenGeometry", "TOLERANCE_ULPS", "UNDECIDED", "WALL_BIT", "element_visibility", "pair_masks",
+           "scene_screen", "screen_element_legs", "screen_legs", "screen_tolerance", "triangle_mask")

@@ -1,0 +1,152 @@
+"""The reference's edge-diffraction rows, computed with compiled kernels and a visibility screen.
+
+:func:`edge_rows` follows :func:`acoustisim.propagation.reference.edges.edge_rows` step for
+step, sharing its per-pair set-up (a few hundred pairs: the pairs, their wedge coordinates and
+chain joints, the discretisation's parameters and the quadrature's per-pair constants) and
+replacing its per-element steps:
+
+1. the discretisation: :mod:`.edge_elements`;
+2. the visibility: :mod:`.edge_visibility` decides nearly every leg without Embree and asks
+   Embree about the rest in one batch;
+3. the quadrature: :mod:`.edge_gains`;
+4. the rows: the element floor, then the kept impulses ordered as the assembly orders rows
+   (:mod:`.edge_order`), so that the assembly need not move them, and written by one compiled
+   loop (:func:`fill_rows`) into an uninitialised buffer (every field written once).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from acoustisim.propagation.config import SolverConfig
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.fast.edge_elements import discretise_edges
+from acoustisim.propagation.fast.edge_gains import element_gains, quadrature_points
+from acoustisim.propagation.fast.edge_order import solver_order
+from acoustisim.propagation.fast.edge_visibility import EdgeLines, LegTargets, element_visibility
+from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
+from acoustisim.propagation.prepared import PreparedScene
+from acoustisim.propagation.reference.btm import PairConstants, pair_constants
+from acoustisim.propagation.reference.edge_elements import EdgeElements
+from acoustisim.propagation.reference.edges import (
+    ELEMENT_FLOOR,
+    EdgeImpulses,
+    discretisation,
+    edge_pairs,
+    too_many_elements,
+)
+
+EDGE_KIND = int(PathKind.EDGE)
+"""``PathKind.EDGE`` as the compiled loop writes it."""
+
+
+def edge_impulses(elements: EdgeElements, constants: PairConstants, adaptive: bool) -> EdgeImpulses:
+    """The reference's :func:`~acoustisim.propagation.reference.edges.edge_impulses`."""
+    if adaptive:
+        points = quadrature_points(elements, constants)
+        return EdgeImpulses(np.repeat(elements.pair, points.gain.shape[1]), points.gain.reshape(-1),
+                            points.z_m.reshape(-1), points.path_length_m.reshape(-1))
+    return EdgeImpulses(elements.pair, element_gains(elements, constants),
+                        0.5 * (elements.z_start_m + elements.z_end_m), elements.path_length_m)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulses, pair_edge: NDArray[np.int64],
+              pair_receiver: NDArray[np.int64], lines: EdgeLines, targets: LegTargets, first_path_id: int) -> None:
+    """Write the rows of the impulses ``keep`` (shape (k,), in the rows' order) into ``rows``
+    (PATH_DTYPE, shape (k,), uninitialised): the reference's ``impulse_rows``, every field
+    written (the derived ones 0, the padding -1 and NaN)."""
+    k = keep.size
+    n_receivers = targets.receivers.shape[0]
+    # path ids: the dense rank of each kept impulse's (chain, receiver) key
+    max_key = 0
+    for r in range(k):
+        p = impulses.pair[keep[r]]
+        max_key = max(max_key, lines.chain[pair_edge[p]] * n_receivers + pair_receiver[p])
+    rank = np.zeros(max_key + 1, dtype=np.int64)
+    for r in range(k):
+        p = impulses.pair[keep[r]]
+        rank[lines.chain[pair_edge[p]] * n_receivers + pair_receiver[p]] = 1
+    count = 0
+    for key in range(max_key + 1):
+        count += rank[key]
+        rank[key] = count - 1
+    tx = targets.transmitter
+    for r in range(k):
+        i = keep[r]
+        p = impulses.pair[i]
+        e = pair_edge[p]
+        ch = pair_receiver[p]
+        row = rows[r]
+        row.path_id = first_path_id + rank[lines.chain[e] * n_receivers + ch]
+        row.channel = ch
+        row.kind = EDGE_KIND
+        row.order = 1
+        row.delay_s = 0.0
+        row.path_length_m = impulses.path_length_m[i]
+        row.geometric_gain = impulses.gain[i]
+        row.phase_rad = 0.0
+        row.angle_tx_rad = 0.0
+        row.angle_rx_rad = 0.0
+        row.directivity_tx = 0.0
+        row.directivity_rx = 0.0
+        row.absorption_db = 0.0
+        row.amplitude = 0.0
+        z = impulses.z_m[i]
+        x0 = lines.start[e, 0] + z * lines.direction[e, 0]
+        x1 = lines.start[e, 1] + z * lines.direction[e, 1]
+        x2 = lines.start[e, 2] + z * lines.direction[e, 2]
+        l0, l1, l2 = x0 - tx[0], x1 - tx[1], x2 - tx[2]
+        norm = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+        row.departure_dir[0], row.departure_dir[1], row.departure_dir[2] = l0 / norm, l1 / norm, l2 / norm
+        m0, m1, m2 = targets.receivers[ch, 0] - x0, targets.receivers[ch, 1] - x1, targets.receivers[ch, 2] - x2
+        norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        row.arrival_dir[0], row.arrival_dir[1], row.arrival_dir[2] = m0 / norm, m1 / norm, m2 / norm
+        row.object_ids[0] = lines.surface[e]
+        row.points_m[0, 0], row.points_m[0, 1], row.points_m[0, 2] = x0, x1, x2
+        for j in range(1, row.object_ids.shape[0]):
+            row.object_ids[j] = -1
+            row.points_m[j, 0] = np.nan
+            row.points_m[j, 1] = np.nan
+            row.points_m[j, 2] = np.nan
+
+
+def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
+    """The reference's :func:`~acoustisim.propagation.reference.edges.edge_rows`, in the order
+    the assembly gives rows (channel, then delay ``path_length_m / c``, ties in the reference's
+    row order).
+
+    Raises
+    ------
+    InputError
+        As the reference.
+    """
+    scene_edges = prepared.diffracting_edges
+    pairs = edge_pairs(context, scene_edges)
+    if pairs.edge.size == 0:
+        return empty_paths_array(0)
+    try:
+        elements = discretise_edges(pairs.geometry, discretisation(config, context))
+    except ValueError as error:
+        raise too_many_elements(config, error) from None
+    visible = element_visibility(context, prepared, elements, pairs)
+    if not np.all(visible):
+        elements = elements.select(visible)
+    impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
+    if impulses.gain.size == 0:
+        return empty_paths_array(0)
+    keep = np.flatnonzero(np.abs(impulses.gain) > ELEMENT_FLOOR * np.max(np.abs(impulses.gain)))
+    keep = solver_order(keep, impulses.pair, impulses.path_length_m, pairs.receiver, context.sound_speed_m_s,
+                        context.receivers_m.shape[0])
+    rows = np.empty(keep.size, dtype=PATH_DTYPE)
+    fill_rows(rows, keep, impulses, pairs.edge, pairs.receiver, EdgeLines.of(scene_edges), LegTargets.of(context),
+              int(context.first_path_id))
+    return rows
+
+
+__all__ = ("EDGE_KIND", "edge_impulses", "edge_rows", "fill_rows")
