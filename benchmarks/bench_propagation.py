@@ -120,7 +120,7 @@ def _floor_and_columns(prepared, args) -> None:
     from acoustisim.propagation import SolverConfig, solve
     from acoustisim.propagation.columns import complete_columns
     from acoustisim.propagation.context import SolveContext
-    from acoustisim.propagation.diffuse import diffuse_paths
+    from acoustisim.propagation.fast.diffuse import diffuse_rows as diffuse_paths
     from acoustisim.propagation.floor import floor_mask
 from acoustisim.propagation.reference.floor import band_levels, floor_frequencies
 

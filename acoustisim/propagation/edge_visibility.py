@@ -16,7 +16,7 @@ some 13 000 queries per pose, most of which can be decided exactly without Embre
   with a face plane the triangle lies outside of, is skipped for all of them, as are the walls
   when the triangle lies in the shrunk water box;
 * a leg crossing the box of a convex object (a closed mesh with every vertex inside every face
-  plane, :mod:`~acoustisim.propagation.convex_occlusion`) is clipped against the object's face
+  plane, :mod:`~acoustisim.propagation.convex_planes`) is clipped against the object's face
   planes moved ``tolerance`` outwards (P+) and inwards (P-) (Cyrus and Beck 1978): a segment
   missing P+ passes more than ``tolerance`` from the solid (every point within ``tolerance``
   of a convex solid lies in P+), and a segment whose ends lie outside P+ and which meets P-
@@ -47,7 +47,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from acoustisim.propagation.convex_occlusion import ConvexPlanes
+from acoustisim.propagation.convex_planes import ConvexPlanes
 
 TOLERANCE_ULPS = 20.0
 """The screen's margin, in float32 ulps (2^-23) of the scene's bounding-box diagonal."""

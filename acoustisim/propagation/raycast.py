@@ -19,14 +19,13 @@ that the round-off is about 5e-7 m in a 9 m tank. Every query is one batched cal
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.convex_occlusion import ConvexPlanes, convex_object_planes
+from acoustisim.propagation.convex_planes import ConvexPlanes, convex_object_planes
 from acoustisim.scene import Scene
 
 DEFAULT_EPS_M = 1e-4
@@ -123,8 +122,8 @@ class RayCaster:
     plane_offset : ndarray, shape (n_triangles,)
         ``face_normals . v0`` of each triangle (m): its plane is ``{x : n . x = plane_offset}``.
     convex_planes : ConvexPlanes
-        The unique face planes of each convex object (none for the others), for exact
-        occlusion tests without Embree (:mod:`~acoustisim.propagation.convex_occlusion`).
+        The unique face planes of each convex object (none for the others), for the fast
+        engine's exact geometric tests (:mod:`~acoustisim.propagation.convex_planes`).
     """
 
     vertices: NDArray[np.float64] = field(repr=False)
@@ -138,8 +137,7 @@ class RayCaster:
     _shift: NDArray[np.float64] = field(repr=False)
     _embree: Any = field(repr=False)
     _buffers: tuple[Any, ...] = field(repr=False)
-    convex_planes: ConvexPlanes = field(repr=False, default_factory=lambda: ConvexPlanes(
-        np.zeros(1, dtype=np.int64), np.zeros((0, 3)), np.zeros(0)))
+    convex_planes: ConvexPlanes = field(repr=False, default_factory=ConvexPlanes.none)
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "RayCaster":
@@ -233,14 +231,6 @@ class RayCaster:
     def triangle_count(self) -> int:
         """Number of triangles in the Embree scene."""
         return int(self.faces.shape[0])
-
-    @cached_property
-    def box_tank_hits(self) -> Any:
-        """:class:`~acoustisim.propagation.diffuse_hits.BoxTankHits` of this scene (built on first
-        use, once per ray caster), or None when its boundaries are not the faces of a box."""
-        from acoustisim.propagation.diffuse_hits import BoxTankHits
-
-        return BoxTankHits.create(self)
 
     @property
     def shift_m(self) -> NDArray[np.float64]:

@@ -18,7 +18,7 @@ from acoustisim.propagation.assemble import (
 )
 from acoustisim.propagation.columns import column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.diffuse import diffuse_paths
+from acoustisim.propagation.fast.diffuse import diffuse_rows as diffuse_paths
 from acoustisim.propagation.edges import edge_paths
 from acoustisim.propagation.floor import floor_mask
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind
@@ -35,7 +35,7 @@ def parts() -> tuple[SolveContext, list[np.ndarray]]:
     out = []
     next_id = 0
     for make in (lambda c: direct_rows(c), lambda c: specular_rows(c, prepared, 2),
-                 lambda c: edge_paths(c, config, prepared.sharp_edges), lambda c: diffuse_paths(c, config, threads=1)):
+                 lambda c: edge_paths(c, config, prepared.sharp_edges), lambda c: diffuse_paths(c, config)):
         rows = make(context.with_first_path_id(next_id))
         out.append(rows)
         next_id = int(rows["path_id"].max()) + 1

@@ -8,7 +8,7 @@ import pytest
 from acoustisim.propagation import PathKind, SolverConfig, prepare, solve
 from acoustisim.propagation.columns import complete_columns
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.diffuse import diffuse_paths
+from acoustisim.propagation.fast.diffuse import diffuse_rows as diffuse_paths
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation.paths import empty_paths_array
 from scenes.builtin import builtin_scene
