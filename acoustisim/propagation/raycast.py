@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
 from acoustisim.propagation.convex_planes import ConvexPlanes, convex_object_planes
+from acoustisim.propagation.tank_box import TankBox, object_boxes, tank_box
 from acoustisim.scene import Scene
 
 DEFAULT_EPS_M = 1e-4
@@ -124,6 +125,11 @@ class RayCaster:
     convex_planes : ConvexPlanes
         The unique face planes of each convex object (none for the others), for the fast
         engine's exact geometric tests (:mod:`~acoustisim.propagation.convex_planes`).
+    tank_box : TankBox or None
+        The boundaries as the faces of an axis-aligned box (:mod:`~acoustisim.propagation.tank_box`),
+        or None when they are not.
+    object_boxes : ndarray, shape (n_objects, 2, 3)
+        The axis-aligned box (lo, hi) of each object's triangles (m).
     """
 
     vertices: NDArray[np.float64] = field(repr=False)
@@ -138,6 +144,8 @@ class RayCaster:
     _embree: Any = field(repr=False)
     _buffers: tuple[Any, ...] = field(repr=False)
     convex_planes: ConvexPlanes = field(repr=False, default_factory=ConvexPlanes.none)
+    tank_box: TankBox | None = field(repr=False, default=None)
+    object_boxes: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros((0, 2, 3)))
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "RayCaster":
@@ -211,6 +219,7 @@ class RayCaster:
         surface_index = stack(surface_blocks, (0,), np.int64)
         plane_offset = np.einsum("ij,ij->i", face_normals, vertices[faces[:, 0]]) if not empty else np.zeros(0)
         n_boundaries = len(scene.boundaries)
+        objects = range(n_boundaries, n_boundaries + len(scene.objects))
         return cls(
             vertices=vertices,
             faces=faces,
@@ -223,8 +232,9 @@ class RayCaster:
             _shift=shift,
             _embree=embree,
             _buffers=(vertices32, faces32),
-            convex_planes=convex_object_planes(vertices, faces, face_normals, plane_offset, surface_index,
-                                               range(n_boundaries, n_boundaries + len(scene.objects))),
+            convex_planes=convex_object_planes(vertices, faces, face_normals, plane_offset, surface_index, objects),
+            tank_box=tank_box(vertices, faces, face_normals, surface_index < n_boundaries),
+            object_boxes=object_boxes(vertices, faces, surface_index, objects),
         )
 
     @property

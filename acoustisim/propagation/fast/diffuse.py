@@ -55,6 +55,7 @@ from acoustisim.propagation.fast.diffuse_sampling import (
     draw_lambert_directions,
     draw_transmit_directions,
     lobe_table,
+    stream_key,
 )
 from acoustisim.propagation.fast.diffuse_screen import LegScreen, leg_screen
 from acoustisim.propagation.fast.ray_threads import resolve_threads, run_in_order
@@ -68,7 +69,6 @@ from acoustisim.propagation.reference.diffuse import (
     chunk_sizes,
     ray_counts,
     seed_hash,
-    stream_key,
     tested_receivers,
     transmitter_frame,
     triangle_mu,
@@ -165,7 +165,6 @@ class Tracer:
         The transmitter in Embree's frame, repeated: the origins of a chunk's first rays.
     frame : ndarray, shape (3, 3)
         Rows e1, e2, axis of the transmitter's frame.
-    seed : int
     n_rays, bounces : int
     buffers : threading.local
         Each thread's :class:`ThreadBuffers` (attribute ``buffers``).
@@ -183,7 +182,6 @@ class Tracer:
     transmitter: NDArray[np.float64]
     origins32: NDArray[np.float32]
     frame: NDArray[np.float64]
-    seed: int
     n_rays: int
     bounces: int
     buffers: threading.local
@@ -219,7 +217,6 @@ class Tracer:
             transmitter=np.ascontiguousarray(tx[:, None]),
             origins32=_float32_rows(tx[:, None], raycaster.shift_m, min(n_rays, CHUNK_RAYS)),
             frame=np.array(transmitter_frame(context.boresight)),
-            seed=int(config.seed),
             n_rays=n_rays,
             bounces=int(config.diffuse_bounces),
             buffers=threading.local(),
@@ -273,7 +270,7 @@ def _trace_chunk(tracer: Tracer, chunk: int) -> tuple[int, int, int]:
     ``tracer.placement``; return the legs it sent to Embree, the legs the convex objects' planes
     decided, and the rays whose first hit Embree found."""
     n = min(CHUNK_RAYS, tracer.n_rays - chunk * CHUNK_RAYS)
-    key = stream_key(tracer.seed, chunk)
+    key = stream_key(tracer.lattice.seed_hash, chunk)
     drawn = 2 * n  # numbers of the chunk's stream used so far
     raycaster = tracer.raycaster
     n_rx = tracer.receivers.position.shape[0]

@@ -21,9 +21,10 @@ exactly in float64, without a ray-tracing query:
 
 A ray the rules above cannot decide is left *pending*, for an Embree query: its origin outside
 the box or inside an object, an object without face planes (not convex) on its way, an exit
-point in no triangle of its face (a hole, or a face tiled by more than
-:data:`MAX_FACE_TRIANGLES` triangles). The answers equal Embree's but for rays grazing an edge
-within Embree's float32 rounding (about 1e-6 m in a 9 m tank).
+point in no triangle of its face (a hole). A tank whose boundaries are not such a box (or whose
+faces are tiled too finely, :mod:`acoustisim.propagation.tank_box`) leaves every ray to Embree.
+The answers equal Embree's but for rays grazing an edge within Embree's float32 rounding (about
+1e-6 m in a 9 m tank).
 """
 
 from __future__ import annotations
@@ -35,13 +36,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from acoustisim.propagation.convex_planes import ConvexPlanes
 from acoustisim.propagation.fast.convex_occlusion import PlaneSet, plane_set
 from acoustisim.propagation.raycast import RayCaster
-
-MAX_FACE_TRIANGLES = 64
-"""Most triangles tiling one face of the tank box searched per ray; a finer face sends the
-first hits back to Embree (its BVH is faster than a linear search there)."""
 
 FACE_TOLERANCE_M = 1e-9
 """How far outside a face triangle (m) an exit point still counts as in it: a million times
@@ -58,17 +54,8 @@ class BoxTank(NamedTuple):
 
     Attributes
     ----------
-    bounds : ndarray, shape (2, 3)
-        The tank box (lo, hi) (m).
-    face_start : ndarray of int64, shape (7,)
-        Face ``f = 2 axis + side`` (side 0 at lo, 1 at hi) has the triangles
-        ``face_triangle[face_start[f]:face_start[f + 1]]``.
-    face_triangle : ndarray of int64, shape (k,)
-        Global triangle indices.
-    face_edges : ndarray, shape (k, 3, 3)
-        Per triangle, its three edges as ``(a, b, c)`` with ``a u + b v + c`` the signed
-        distance (m) of the point (u, v) from the edge, positive inside; (u, v) are the
-        coordinates ``((axis + 1) % 3, (axis + 2) % 3)`` of the face.
+    bounds, face_start, face_triangle, face_edges
+        As in :class:`~acoustisim.propagation.tank_box.TankBox`.
     boxes : ndarray, shape (n_objects, 2, 3)
         Object boxes (lo, hi) grown by :data:`BOX_MARGIN_M` (m).
     planes : PlaneSet
@@ -87,67 +74,18 @@ class BoxTank(NamedTuple):
 
 
 def box_tank(raycaster: RayCaster) -> BoxTank | None:
-    """The description of ``raycaster``'s scene, or None when its boundaries are not the faces
-    of an axis-aligned box with normals into the water (or it has none).
-
-    The objects are the surfaces after the boundaries, one per row of
-    ``raycaster.convex_planes``.
-    """
-    planes: ConvexPlanes = raycaster.convex_planes
-    n_objects = planes.start.size - 1
-    n_boundaries = len(raycaster.surface_names) - n_objects
-    surface = raycaster.surface_index
-    boundary = surface < n_boundaries
-    if n_boundaries <= 0 or not np.any(boundary):
+    """The description of ``raycaster``'s scene (its
+    :attr:`~acoustisim.propagation.raycast.RayCaster.tank_box`, object boxes and convex planes),
+    or None when its boundaries are not the faces of an axis-aligned box."""
+    box = raycaster.tank_box
+    if box is None:
         return None
-    faces = raycaster.faces[boundary]
-    corners = raycaster.vertices[faces]  # (k, 3, 3)
-    lo, hi = corners.reshape(-1, 3).min(axis=0), corners.reshape(-1, 3).max(axis=0)
-    if not np.all(hi > lo):
-        return None
-    normal = raycaster.face_normals[boundary]
-    axis = np.argmax(np.abs(normal), axis=1)
-    rows = np.arange(faces.shape[0])
-    along = normal[rows, axis]
-    # each triangle in a face of the box, its normal exactly the face's inward axis
-    if not np.all(np.abs(along) == 1.0) or not np.all(np.count_nonzero(normal, axis=1) == 1):
-        return None
-    side = (along < 0).astype(np.int64)  # +axis normal: the lo face (0); -axis: the hi face (1)
-    level = np.where(side == 0, lo[axis], hi[axis])
-    if not np.all(corners[rows, :, axis] == level[:, None]):
-        return None
-    u_axis, v_axis = (axis + 1) % 3, (axis + 2) % 3
-    u = corners[rows[:, None], np.arange(3)[None, :], u_axis[:, None]]  # (k, 3)
-    v = corners[rows[:, None], np.arange(3)[None, :], v_axis[:, None]]
-    # edge i from corner i to corner i + 1; the third corner on its positive side
-    du, dv = np.roll(u, -1, axis=1) - u, np.roll(v, -1, axis=1) - v
-    length = np.hypot(du, dv)
-    good = np.all(length > 0.0, axis=1)
-    a, b = np.zeros_like(du), np.zeros_like(dv)
-    a[good], b[good] = -dv[good] / length[good], du[good] / length[good]
-    c = -(a * u + b * v)
-    opposite = np.roll(u, -2, axis=1) * a + np.roll(v, -2, axis=1) * b + c
-    sign = np.where(np.sum(opposite, axis=1) < 0, -1.0, 1.0)[:, None]
-    good &= np.all(np.abs(opposite) > 0.0, axis=1)  # degenerate (zero-area) triangles are skipped
-    edges = np.stack([a * sign, b * sign, c * sign], axis=-1)  # (k, 3 edges, 3)
-    face = 2 * axis + side
-    keep = np.flatnonzero(good)
-    order = keep[np.argsort(face[keep], kind="stable")]
-    counts = np.bincount(face[order], minlength=6)
-    if counts.max() > MAX_FACE_TRIANGLES:
-        return None
-    face_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    boxes = np.zeros((n_objects, 2, 3))
-    if n_objects:
-        objects = np.flatnonzero(~boundary)
-        points = raycaster.vertices[raycaster.faces[objects]]  # (t, 3, 3)
-        owner = surface[objects] - n_boundaries  # non-decreasing: each object's triangles are one block
-        starts = np.searchsorted(owner, np.arange(n_objects))
-        boxes[:, 0] = np.minimum.reduceat(points.min(axis=1), starts, axis=0) - BOX_MARGIN_M
-        boxes[:, 1] = np.maximum.reduceat(points.max(axis=1), starts, axis=0) + BOX_MARGIN_M
+    planes = raycaster.convex_planes
+    boxes = raycaster.object_boxes.copy()
+    boxes[:, 0] -= BOX_MARGIN_M
+    boxes[:, 1] += BOX_MARGIN_M
     plane_triangle = planes.triangle if planes.triangle.size else np.zeros(1, dtype=np.int64)
-    return BoxTank(np.stack([lo, hi]), face_start, np.ascontiguousarray(np.flatnonzero(boundary)[order]),
-                   np.ascontiguousarray(edges[order]), boxes, plane_set(planes),
+    return BoxTank(box.bounds, box.face_start, box.face_triangle, box.face_edges, boxes, plane_set(planes),
                    np.ascontiguousarray(plane_triangle, dtype=np.int64))
 
 
@@ -176,27 +114,6 @@ def _in_box(ox: float, oy: float, oz: float, ix: float, iy: float, iz: float, sx
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _box_cones(boxes: NDArray[np.float64], ox: float, oy: float, oz: float) -> NDArray[np.float64]:
-    """Per box (n, 4): the cone of directions from the origin o of the box's bounding sphere, as
-    its unit axis and the cosine of its half angle (-2: o inside the sphere, every direction).
-    A ray outside the cone misses the box: one dot product instead of the slab test."""
-    cone = np.empty((boxes.shape[0], 4))
-    cone[:, :3], cone[:, 3] = 0.0, -2.0
-    for b in range(boxes.shape[0]):
-        wx = 0.5 * (boxes[b, 0, 0] + boxes[b, 1, 0]) - ox
-        wy = 0.5 * (boxes[b, 0, 1] + boxes[b, 1, 1]) - oy
-        wz = 0.5 * (boxes[b, 0, 2] + boxes[b, 1, 2]) - oz
-        radius = 0.5 * math.sqrt((boxes[b, 1, 0] - boxes[b, 0, 0]) ** 2 + (boxes[b, 1, 1] - boxes[b, 0, 1]) ** 2
-                                 + (boxes[b, 1, 2] - boxes[b, 0, 2]) ** 2)
-        distance = math.sqrt(wx * wx + wy * wy + wz * wz)
-        if distance > 1.001 * radius:
-            cone[b, 0], cone[b, 1], cone[b, 2] = wx / distance, wy / distance, wz / distance
-            # the half angle's cosine, lowered by 1e-9 for the rounding of these few operations
-            cone[b, 3] = math.sqrt(1.0 - (radius / distance) ** 2) - 1e-9
-    return cone
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], tank: BoxTank,
                triangle: NDArray[np.int32], pending: NDArray[np.int64]) -> int:
     """The first-hit triangle of each ray (see the module docstring), or the rays left pending.
@@ -220,16 +137,39 @@ def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], ta
         The number of pending rays.
     """
     one_origin = origins.shape[1] == 1
-    bounds, boxes, planes = tank.bounds, tank.boxes, tank.planes
-    lo, hi = bounds[0], bounds[1]
+    # local copies of the small tables (the compiler then knows the output writes leave them be)
+    bounds = np.empty((2, 3))
+    bounds[:] = tank.bounds
+    boxes = np.empty(tank.boxes.shape)
+    boxes[:] = tank.boxes
+    plane_start, plane_normal, plane_offset = tank.planes.start, tank.planes.normal, tank.planes.offset
+    plane_triangle, face_start, face_triangle, face_edges = (tank.plane_triangle, tank.face_start, tank.face_triangle,
+                                                             tank.face_edges)
+    lo_x, lo_y, lo_z = bounds[0, 0], bounds[0, 1], bounds[0, 2]
+    hi_x, hi_y, hi_z = bounds[1, 0], bounds[1, 1], bounds[1, 2]
     n_objects = boxes.shape[0]
-    cone = _box_cones(boxes, origins[0, 0], origins[1, 0], origins[2, 0])  # used with one origin only
+    # with one origin, each box's cone of directions from it (the cone of the box's bounding
+    # sphere: axis and cosine of the half angle, -2 when the origin is inside the sphere): a
+    # ray outside the cone misses the box, at one dot product instead of the slab test
+    cone = np.empty((n_objects, 4))
+    cone[:, :3], cone[:, 3] = 0.0, -2.0
+    for b in range(n_objects if one_origin else 0):
+        wx = 0.5 * (boxes[b, 0, 0] + boxes[b, 1, 0]) - origins[0, 0]
+        wy = 0.5 * (boxes[b, 0, 1] + boxes[b, 1, 1]) - origins[1, 0]
+        wz = 0.5 * (boxes[b, 0, 2] + boxes[b, 1, 2]) - origins[2, 0]
+        radius = 0.5 * math.sqrt((boxes[b, 1, 0] - boxes[b, 0, 0]) ** 2 + (boxes[b, 1, 1] - boxes[b, 0, 1]) ** 2
+                                 + (boxes[b, 1, 2] - boxes[b, 0, 2]) ** 2)
+        distance = math.sqrt(wx * wx + wy * wy + wz * wz)
+        if distance > 1.001 * radius:
+            cone[b, 0], cone[b, 1], cone[b, 2] = wx / distance, wy / distance, wz / distance
+            # the half angle's cosine, lowered by 1e-9 for the rounding of these few operations
+            cone[b, 3] = math.sqrt(1.0 - (radius / distance) ** 2) - 1e-9
     n_pending = 0
     for ray in range(directions.shape[1]):
         o = 0 if one_origin else ray
         ox, oy, oz = origins[0, o], origins[1, o], origins[2, o]
         dx, dy, dz = directions[0, ray], directions[1, ray], directions[2, ray]
-        if not (lo[0] < ox < hi[0] and lo[1] < oy < hi[1] and lo[2] < oz < hi[2]) or (
+        if not (lo_x < ox < hi_x and lo_y < oy < hi_y and lo_z < oz < hi_z) or (
                 dx == 0.0 and dy == 0.0 and dz == 0.0):
             pending[n_pending] = ray
             n_pending += 1
@@ -250,20 +190,20 @@ def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], ta
         undecided = False
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
         for b in range(n_objects):
-            if one_origin and cone[b, 0] * dx + cone[b, 1] * dy + cone[b, 2] * dz < cone[b, 3] * length:
+            if cone[b, 0] * dx + cone[b, 1] * dy + cone[b, 2] * dz < cone[b, 3] * length:
                 continue  # outside the box's cone
             if not _in_box(ox, oy, oz, ix, iy, iz, sx, sy, sz, boxes, b, best):
                 continue
-            first, last = planes.start[b], planes.start[b + 1]
+            first, last = plane_start[b], plane_start[b + 1]
             if first == last:  # not convex: Embree decides
                 undecided = True
                 break
             enter, leave, entry = -math.inf, math.inf, -1
             missed = False
             for i in range(first, last):
-                nx, ny, nz = planes.normal[i, 0], planes.normal[i, 1], planes.normal[i, 2]
+                nx, ny, nz = plane_normal[i, 0], plane_normal[i, 1], plane_normal[i, 2]
                 along = nx * dx + ny * dy + nz * dz
-                room = planes.offset[i] - (nx * ox + ny * oy + nz * oz)  # >= 0: o inside this plane
+                room = plane_offset[i] - (nx * ox + ny * oy + nz * oz)  # >= 0: o inside this plane
                 if along < 0.0:
                     t = room / along
                     if t > enter:
@@ -284,7 +224,7 @@ def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], ta
             if not enter > 0.0:  # the origin inside (or on) the object
                 undecided = True
                 break
-            best, hit = enter, tank.plane_triangle[entry]
+            best, hit = enter, plane_triangle[entry]
         if not undecided and hit == -2:
             # the exit point's coordinates (u, v) = ((axis + 1) % 3, (axis + 2) % 3) in the face
             axis = face // 2
@@ -297,17 +237,16 @@ def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], ta
             # the triangle the point lies deepest in (the largest of the least edge
             # distances: no data-dependent branch), if it lies in it within the tolerance
             deepest, chosen = -math.inf, -1
-            edges = tank.face_edges
-            for s in range(tank.face_start[face], tank.face_start[face + 1]):
-                e0 = edges[s, 0, 0] * pu + edges[s, 0, 1] * pv + edges[s, 0, 2]
-                e1 = edges[s, 1, 0] * pu + edges[s, 1, 1] * pv + edges[s, 1, 2]
-                e2 = edges[s, 2, 0] * pu + edges[s, 2, 1] * pv + edges[s, 2, 2]
+            for s in range(face_start[face], face_start[face + 1]):
+                e0 = face_edges[s, 0, 0] * pu + face_edges[s, 0, 1] * pv + face_edges[s, 0, 2]
+                e1 = face_edges[s, 1, 0] * pu + face_edges[s, 1, 1] * pv + face_edges[s, 1, 2]
+                e2 = face_edges[s, 2, 0] * pu + face_edges[s, 2, 1] * pv + face_edges[s, 2, 2]
                 least = e0 if e0 < e1 else e1
                 least = least if least < e2 else e2
                 chosen = s if least > deepest else chosen
                 deepest = least if least > deepest else deepest
             if deepest >= -FACE_TOLERANCE_M:
-                hit = tank.face_triangle[chosen]
+                hit = face_triangle[chosen]
             undecided = hit == -2
         if undecided:
             pending[n_pending] = ray
@@ -317,4 +256,4 @@ def first_hits(origins: NDArray[np.float64], directions: NDArray[np.float64], ta
     return n_pending
 
 
-__all__ = ("BOX_MARGIN_M", "FACE_TOLERANCE_M", "MAX_FACE_TRIANGLES", "BoxTank", "box_tank", "first_hits")
+__all__ = ("BOX_MARGIN_M", "FACE_TOLERANCE_M", "BoxTank", "box_tank", "first_hits")

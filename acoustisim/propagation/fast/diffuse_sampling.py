@@ -88,6 +88,12 @@ def splitmix64(x: np.uint64) -> np.uint64:
     return z ^ (z >> _S31)
 
 
+def stream_key(seed_hash: np.uint64, chunk: int) -> np.uint64:
+    """The key of chunk ``chunk``'s stream, splitmix64(seed_hash ^ splitmix64(chunk)) (as
+    :func:`~acoustisim.propagation.reference.diffuse.stream_key`, here from compiled scalars)."""
+    return np.uint64(splitmix64(np.uint64(seed_hash) ^ np.uint64(splitmix64(np.uint64(chunk)))))
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def stream_uniform(key: np.uint64, k: int) -> float:
     """Number ``k`` of the stream ``key``, uniform in [0, 1) (53 random bits)."""
@@ -189,4 +195,4 @@ def draw_lambert_directions(key: np.uint64, start: int, normal: NDArray[np.float
 
 
 __all__ = ("LobeTable", "draw_lambert_directions", "draw_transmit_directions", "guide_table", "lobe_table",
-           "speckle_of", "splitmix64", "stream_uniform", "unit_azimuth")
+           "speckle_of", "splitmix64", "stream_key", "stream_uniform", "unit_azimuth")
