@@ -48,14 +48,14 @@ reflection is the image-source solver's business.
 **Sampling density.** Rays follow the mixture (``physics.md`` section 5: rays serve diffuse
 energy and visibility, so the main lobe must be dense but the back and the side lobes covered)
 
-    p(w) = a / (4 pi) + (1 - a) p_lobe(w),    p_lobe proportional to D(theta)^2, theta < 90 deg,
+    p(w) = s / (4 pi) + (1 - s) p_lobe(w),    p_lobe proportional to D(theta)^2, theta < 90 deg,
 
-a = :data:`UNIFORM_FRACTION`, D = 2 J1(x) / x (x = k a sin(theta)) the transmit directivity at
+s = :data:`UNIFORM_FRACTION`, D = 2 J1(x) / x (x = k a sin(theta), a the piston radius) the transmit directivity at
 the centre frequency. p_lobe is tabulated: D^2 at the centres of :data:`COS_CELLS` cells of
 equal width in cos(theta), quantised to :data:`GUIDE_BINS` equiprobable bins (bin i goes to
 the cell holding the quantile (i + 1/2) / GUIDE_BINS of the cumulative D^2), so that a cell's
 probability is exactly its bins' share and each ray's pdf is known exactly. The two shares are
-drawn in fixed numbers per chunk of rays (the first ``round(a n)`` uniformly), and each ray's
+drawn in fixed numbers per chunk of rays (the first ``round(s n)`` uniformly), and each ray's
 solid angle is the balance heuristic of multiple importance sampling (Veach 1997, eq. 9.13),
 
     dOmega = 1 / (N_u / (4 pi) + N_l p_lobe(w)),
@@ -101,12 +101,15 @@ first (:data:`~acoustisim.propagation.paths.MAX_INTERACTIONS` at most).
 
 Accuracy
 --------
-Monte Carlo noise: with speckle (|X|^2 exponential doubles the variance of each hit's
-contribution), the relative standard deviation of a channel's total diffuse energy is about
-0.9 % at 100,000 rays on a 4 m x 4 m Lambert plate 1 m ahead (``tests/physics/test_diffuse.py``)
-and falls as N^-1/2: about 2 % at the default 20,000 rays; the energy in a 1 cm range bin
-(13 us) holds a few hundred hits at the default and scatters by 5-10 %. Between rays the noise
-is independent (counter-based streams), so averaging pings with different seeds reduces it.
+Monte Carlo noise: speckle (|X|^2 exponential) doubles the variance of each hit's contribution;
+rays are independent, so the relative standard deviation falls as N^-1/2. Measured: a channel's
+total diffuse energy scatters by 0.9 % at 100,000 rays on a 4 m x 4 m Lambert plate 1 m ahead,
+and by 2.2 % at the default 20,000 rays in the thesis tank (24 seeds). Binned in delay, the
+estimate is much noisier: at 20,000 rays, between 2 and 8 ms, the centre channel's energy in a
+13 us bin (1 cm of range, the pulse's length) holds about 3 hits and scatters by 115 %; in 0.1
+ms bins, 22 hits and 41 %; in 1 ms bins, 280 hits and 14 %. The reverberation of one ping is
+one realisation of a random field, so this is speckle of the kind a real tank shows, not an
+error of the mean; averaging pings with different seeds reduces it.
 
 Neglected: coherent scattering from facets (the Kirchhoff term; specular reflection is the
 image-source solver's), the frequency and angle dependence of mu beyond Lambert's sin sin law,
@@ -115,14 +118,12 @@ the speckle's correlation length (fixed at 1 mm, a third of a wavelength at 500 
 following the roughness spectrum), and bounces beyond ``diffuse_bounces``.
 
 Agreement with the fast engine (:mod:`acoustisim.propagation.fast.diffuse`): the same random
-numbers, sampling tables, frames and float64 plane solves, so the rows agree to rounding (the
-parity suite holds delays to 1 ps and gains to 1e-9 relative). Two differences remain, both far
-below the tolerances except on sets of measure zero: the fast engine takes cos and sin of the
-azimuth from a 1024-entry table and a Taylor rotation (within 1e-15 of the trigonometry used
-here: points move by ~1e-14 m, which flips a speckle cube or a facing test with probability
-~1e-11 per hit), and it finds first hits and convex-object occlusion in float64 without Embree
-in a box tank, where Embree works in float32: the two may name different triangles for a ray
-or leg passing within ~1e-6 m of an edge (about one ray in 10^5 to 10^6 in the thesis tank).
+numbers, sampling tables, frames and azimuth rotation (:func:`azimuth_cos_sin`) and the same
+float64 steps to every hit point, so the hit points agree to the bit and the gains to rounding
+(the parity suite holds delays to 1 ps and gains to 1e-9 relative). The one possible difference:
+the fast engine finds first hits and convex-object occlusion in float64 without Embree in a box
+tank, where this module asks Embree, which works in float32; the two may disagree for a ray or
+leg passing within ~1e-6 m of an edge (no such ray in the parity suite's thesis-tank poses).
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ CHUNK_RAYS = 1 << 14
 so the rows do not depend on how (or on how many threads) the chunks are traced."""
 
 UNIFORM_FRACTION = 0.5
-"""Share a of each chunk's rays drawn uniformly over the sphere; the rest follow D^2."""
+"""Share s of each chunk's rays drawn uniformly over the sphere; the rest follow D^2."""
 
 COS_CELLS = 1 << 13
 """Cells of the tabulated lobe density, equal in cos(theta): 2.4e-4 wide, 1.3 degrees at the
@@ -534,7 +535,7 @@ def receive(hits: Hits, first_event: int, receivers: NDArray[np.float64], tested
     sin_gs = along_normal / r2
     blocked = np.zeros(facing.shape, dtype=bool)
     hit_index, channel = np.nonzero(facing & tested[None, :])
-    blocked[hit_index, channel] = raycaster.occluded(hits.point[hit_index], receivers[channel],
+    blocked[hit_index, channel] = raycaster.occluded(hits.point[hit_index], receivers[channel], eps=DEFAULT_EPS_M,
                                                      exclude_patches=hits.patch[hit_index])
     if shared:
         blocked = np.broadcast_to(np.any(blocked, axis=1, keepdims=True), blocked.shape)
