@@ -96,15 +96,21 @@ def test_rows_do_not_depend_on_the_thread_count(tank):
 
 
 def test_the_events_pack_into_the_rows(tank):
-    # the receptions' path lengths and arrival directions derived from their events, as the row
-    # packing derives them
+    # each row is its reception's event and receiver: the path to the point plus the leg to the
+    # receiver, the leg's direction, the event's speckle phase and departure
     config = SolverConfig(diffuse_rays=3000, diffuse_bounces=2, seed=2, threads=1)
-    traced = fast.trace_diffuse(tank, config)
+    events = fast.trace_diffuse(tank, config).events
     rows = fast.diffuse_rows(tank, config)
-    assert np.array_equal(rows["path_id"], 3 + traced.events.event)
-    np.testing.assert_array_equal(rows["path_length_m"], traced.path_length_m)
-    np.testing.assert_array_equal(rows["arrival_dir"], traced.arrival_dir)
-    np.testing.assert_array_equal(rows["geometric_gain"], traced.events.gain)
+    assert np.array_equal(rows["path_id"], 3 + events.event)
+    assert np.array_equal(rows["channel"], events.channel)
+    np.testing.assert_array_equal(rows["geometric_gain"], events.gain)
+    leg = tank.receivers_m[events.channel] - events.point[events.event]
+    r2 = np.linalg.norm(leg, axis=1)
+    np.testing.assert_allclose(rows["path_length_m"], events.travelled[events.event] + r2, rtol=1e-15)
+    np.testing.assert_allclose(rows["arrival_dir"], leg / r2[:, None], atol=1e-15)
+    np.testing.assert_array_equal(rows["phase_rad"], events.phase[events.event])
+    np.testing.assert_array_equal(rows["departure_dir"], events.departure[events.event])
+    np.testing.assert_array_equal(rows["order"], events.bounce[events.event])
 
 
 def test_receiver_wedges_hold_every_leg_crossing_a_box():

@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -45,7 +44,6 @@ from acoustisim.propagation.fast.diffuse_kernels import (
     TriangleSet,
     clear_blocked,
     pack_rows,
-    reception_columns,
     scatter_and_pair,
     write_receptions,
 )
@@ -79,7 +77,7 @@ PACK_ROWS = 1 << 15
 """Rows packed per task by :func:`diffuse_rows`."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class DiffuseEvents:
     """The fast tracer's scattering events and receptions, before row packing.
 
@@ -104,22 +102,6 @@ class DiffuseEvents:
     embree_legs: int = 0
     convex_legs: int = 0
     embree_rays: int = 0
-
-    @cached_property
-    def path_length_m(self) -> NDArray[np.float64]:
-        """Transmitter -> ... -> hit -> receiver of each reception, shape (n,) (m)."""
-        return self._columns()[0]
-
-    @cached_property
-    def arrival_dir(self) -> NDArray[np.float64]:
-        """Unit direction hit -> receiver of each reception, shape (n, 3)."""
-        return self._columns()[1]
-
-    def _columns(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        n = self.events.event.size
-        length, arrival = np.empty(n), np.empty((n, 3))
-        reception_columns(self.events, self.receivers_m, length, arrival)
-        return length, arrival
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,8 +14,8 @@ tracer's output arrays directly:
 * :func:`clear_blocked` and :func:`write_receptions`: Embree's answers applied, and the pairs in
   view written as receptions;
 * :func:`copy_chunk`: a chunk written into a scratch block moved to its final place;
-* :func:`reception_columns` and :func:`pack_rows`: the receptions' path lengths, phases and
-  arrival directions, and the rows of the arrivals table.
+* :func:`pack_rows`: the receptions as rows of the arrivals table (path length, arrival
+  direction and the chain of hits derived from the event and the receiver).
 
 Every loop runs in order over its inputs (the output is deterministic); ``nogil=True`` lets the
 tracer's threads run them in parallel; ``error_model="numpy"`` drops the per-division zero
@@ -418,19 +418,6 @@ def _leg(px: float, py: float, pz: float, qx: float, qy: float, qz: float) -> tu
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def reception_columns(events: EventArrays, receivers: NDArray[np.float64], length: NDArray[np.float64],
-                      arrival: NDArray[np.float64]) -> None:
-    """Per reception (n,): the path length travelled + r2 (m) and the unit arrival direction
-    (n, 3) point -> receiver, from the events and the receivers (n_rx, 3)."""
-    for k in range(events.event.size):
-        e, j = events.event[k], events.channel[k]
-        r, ax, ay, az = _leg(events.point[e, 0], events.point[e, 1], events.point[e, 2], receivers[j, 0],
-                             receivers[j, 1], receivers[j, 2])
-        length[k] = events.travelled[e] + r
-        arrival[k, 0], arrival[k, 1], arrival[k, 2] = ax, ay, az
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def pack_rows(events: EventArrays, receivers: NDArray[np.float64], first_path_id: int, kind: int, start: int,
               stop: int, rows: NDArray) -> None:
     """Write receptions ``start:stop`` of ``events`` as rows of the arrivals table
@@ -482,5 +469,5 @@ def pack_rows(events: EventArrays, receivers: NDArray[np.float64], first_path_id
 
 
 __all__ = ("BounceCounts", "BounceCursor", "Continuation", "EventArrays", "PairBuffers", "RayBatch", "ReceiverSet",
-           "SpeckleLattice", "TriangleSet", "clear_blocked", "copy_chunk", "pack_rows", "reception_columns",
-           "scatter_and_pair", "write_receptions")
+           "SpeckleLattice", "TriangleSet", "clear_blocked", "copy_chunk", "pack_rows", "scatter_and_pair",
+           "write_receptions")
