@@ -19,14 +19,14 @@ that the round-off is about 5e-7 m in a 9 m tank. Every query is one batched cal
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
-from acoustisim.propagation.convex_occlusion import ConvexPlanes, convex_object_planes
+from acoustisim.propagation.convex_planes import ConvexPlanes, convex_object_planes
+from acoustisim.propagation.tank_box import TankBox, object_boxes, tank_box
 from acoustisim.scene import Scene
 
 DEFAULT_EPS_M = 1e-4
@@ -123,8 +123,13 @@ class RayCaster:
     plane_offset : ndarray, shape (n_triangles,)
         ``face_normals . v0`` of each triangle (m): its plane is ``{x : n . x = plane_offset}``.
     convex_planes : ConvexPlanes
-        The unique face planes of each convex object (none for the others), for exact
-        occlusion tests without Embree (:mod:`~acoustisim.propagation.convex_occlusion`).
+        The unique face planes of each convex object (none for the others), for the fast
+        engine's exact geometric tests (:mod:`~acoustisim.propagation.convex_planes`).
+    tank_box : TankBox or None
+        The boundaries as the faces of an axis-aligned box (:mod:`~acoustisim.propagation.tank_box`),
+        or None when they are not.
+    object_boxes : ndarray, shape (n_objects, 2, 3)
+        The axis-aligned box (lo, hi) of each object's triangles (m).
     """
 
     vertices: NDArray[np.float64] = field(repr=False)
@@ -138,8 +143,9 @@ class RayCaster:
     _shift: NDArray[np.float64] = field(repr=False)
     _embree: Any = field(repr=False)
     _buffers: tuple[Any, ...] = field(repr=False)
-    convex_planes: ConvexPlanes = field(repr=False, default_factory=lambda: ConvexPlanes(
-        np.zeros(1, dtype=np.int64), np.zeros((0, 3)), np.zeros(0)))
+    convex_planes: ConvexPlanes = field(repr=False, default_factory=ConvexPlanes.none)
+    tank_box: TankBox | None = field(repr=False, default=None)
+    object_boxes: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros((0, 2, 3)))
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "RayCaster":
@@ -213,6 +219,7 @@ class RayCaster:
         surface_index = stack(surface_blocks, (0,), np.int64)
         plane_offset = np.einsum("ij,ij->i", face_normals, vertices[faces[:, 0]]) if not empty else np.zeros(0)
         n_boundaries = len(scene.boundaries)
+        objects = range(n_boundaries, n_boundaries + len(scene.objects))
         return cls(
             vertices=vertices,
             faces=faces,
@@ -225,22 +232,15 @@ class RayCaster:
             _shift=shift,
             _embree=embree,
             _buffers=(vertices32, faces32),
-            convex_planes=convex_object_planes(vertices, faces, face_normals, plane_offset, surface_index,
-                                               range(n_boundaries, n_boundaries + len(scene.objects))),
+            convex_planes=convex_object_planes(vertices, faces, face_normals, plane_offset, surface_index, objects),
+            tank_box=tank_box(vertices, faces, face_normals, surface_index < n_boundaries),
+            object_boxes=object_boxes(vertices, faces, surface_index, objects),
         )
 
     @property
     def triangle_count(self) -> int:
         """Number of triangles in the Embree scene."""
         return int(self.faces.shape[0])
-
-    @cached_property
-    def box_tank_hits(self) -> Any:
-        """:class:`~acoustisim.propagation.diffuse_hits.BoxTankHits` of this scene (built on first
-        use, once per ray caster), or None when its boundaries are not the faces of a box."""
-        from acoustisim.propagation.diffuse_hits import BoxTankHits
-
-        return BoxTankHits.create(self)
 
     @property
     def shift_m(self) -> NDArray[np.float64]:

@@ -1,4 +1,5 @@
-"""Exact occlusion by convex objects (face-plane clipping) against Embree's occlusion query."""
+"""Convex objects' face planes, and the fast engine's exact occlusion by them (face-plane
+clipping), against Embree's occlusion query and against the reference tracer."""
 
 from __future__ import annotations
 
@@ -11,9 +12,12 @@ import trimesh
 from acoustisim.materials import get_material
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.convex_occlusion import mesh_planes, segments_cross_convex
-from acoustisim.propagation.diffuse import trace_diffuse
+from acoustisim.propagation.convex_planes import mesh_planes
+from acoustisim.propagation.fast.convex_occlusion import plane_set, segment_crosses_convex
+from acoustisim.propagation.fast.diffuse import diffuse_rows, trace_diffuse
 from acoustisim.propagation.raycast import DEFAULT_EPS_M, RayCaster
+from acoustisim.propagation.reference import diffuse as reference
+from support.parity import assert_rows_match
 from acoustisim.scene import SceneObject
 from scenes.builtin import builtin_scene
 
@@ -56,16 +60,17 @@ def _depth(start, unit, t0, t1, normal, offset):
     return float(np.max(np.min(a[None, :] - candidates[:, None] * b[None, :], axis=1)))
 
 
-def _compare(raycaster, surface, first, last, starts, ends):
+def _compare(raycaster, surface, row, starts, ends):
     """The plane test and Embree's OCCLUDED on the legs (shrunk by eps at both ends, as the
-    diffuse tracer queries them) against one object: (kernel, embree, depth of disagreements)."""
+    diffuse tracer queries them) against object ``row``: (kernel, embree, depth of disagreements)."""
     seg = ends - starts
     length = np.linalg.norm(seg, axis=1)
     unit = seg / length[:, None]
     planes = raycaster.convex_planes
-    kernel = np.empty(length.size, dtype=bool)
-    segments_cross_convex(starts, unit, np.full(length.size, DEFAULT_EPS_M), length - DEFAULT_EPS_M, planes.normal,
-                          planes.offset, first, last, kernel)
+    compiled = plane_set(planes)
+    kernel = np.array([segment_crosses_convex(tuple(p), tuple(u), DEFAULT_EPS_M, t - DEFAULT_EPS_M, compiled, row)
+                       for p, u, t in zip(starts.tolist(), unit.tolist(), length.tolist())])
+    first, last = int(planes.start[row]), int(planes.start[row + 1])
     embree = _object_embree(raycaster, surface)
     start32 = np.ascontiguousarray(starts + DEFAULT_EPS_M * unit - raycaster.shift_m, dtype=np.float32)
     hits = embree.run(start32, np.ascontiguousarray(unit, dtype=np.float32),
@@ -90,23 +95,6 @@ def _surface_points(raycaster, surface, n, rng):
 
 
 
-def _receptions(events) -> set[tuple[int, int]]:
-    """The tracer's (event, channel) receptions."""
-    return set(zip(events.event.tolist(), events.channel.tolist()))
-
-
-def _brute_force_receptions(raycaster, context, events) -> set[tuple[int, int]]:
-    """(event, channel) of every first-bounce hit that faces a receiver and whose leg to it
-    Embree finds clear: the brute-force answer the tracer's receptions must equal."""
-    points = events.points_m
-    hits = raycaster.intersect(np.broadcast_to(context.transmitter_m, points.shape), events.departure_dir)
-    expected = set()
-    for j, receiver in enumerate(context.receivers_m):  # three receivers, each one batched query
-        facing = np.einsum("ij,ij->i", receiver - points, hits.normal) > 0
-        clear = ~raycaster.occluded(points, np.broadcast_to(receiver, points.shape))
-        expected |= {(int(e), j) for e in np.flatnonzero(facing & clear)}
-    return expected
-
 def test_thesis_objects_are_convex_with_their_face_planes(tank):
     scene, raycaster = tank
     planes = raycaster.convex_planes
@@ -122,6 +110,11 @@ def test_thesis_objects_are_convex_with_their_face_planes(tank):
         height = vertices @ planes.normal[planes.start[k]:planes.start[k + 1]].T - planes.offset[
             planes.start[k]:planes.start[k + 1]]
         assert height.max() < 1e-12 and np.all(np.abs(height).min(axis=0) < 1e-12)
+    # each plane is its source triangle's, bit for bit (the fast first hits name that triangle)
+    np.testing.assert_array_equal(planes.normal, raycaster.face_normals[planes.triangle])
+    np.testing.assert_array_equal(planes.offset, raycaster.plane_offset[planes.triangle])
+    assert np.all(raycaster.surface_index[planes.triangle] == len(scene.boundaries)
+                  + np.repeat(np.arange(len(scene.objects)), counts))
 
 
 def test_non_convex_open_and_inverted_meshes_get_no_planes():
@@ -134,7 +127,7 @@ def test_non_convex_open_and_inverted_meshes_get_no_planes():
         return mesh_planes(v, f, n, np.einsum("ij,ij->i", n, v[f[:, 0]]))
 
     assert planes(ring) is None  # not convex (the hole)
-    assert planes(box) is not None and planes(box)[1].size == 6
+    assert planes(box) is not None and planes(box).size == 6
     open_box = box.copy()
     open_box.update_faces(np.arange(len(box.faces)) != 0)
     assert planes(open_box) is None  # one triangle missing: Embree sees through the hole
@@ -155,13 +148,12 @@ def test_plane_test_equals_embree_occlusion_on_random_legs(tank):
     total = 0
     for k, obj in enumerate(scene.objects):
         surface = n_boundaries + k
-        first, last = int(planes.start[k]), int(planes.start[k + 1])
         lo, hi = obj.bounds_m
         centre, half = 0.5 * (lo + hi), (hi - lo)
-        n = 20_000
+        n = 10_000
         starts = rng.uniform(centre - half, centre + half, (n, 3))
         ends = rng.uniform(centre - half, centre + half, (n, 3))
-        kernel, embree, depth = _compare(raycaster, surface, first, last, starts, ends)
+        kernel, embree, depth = _compare(raycaster, surface, k, starts, ends)
         assert 0.1 < kernel.mean() < 0.9  # both outcomes common
         assert np.all(np.abs(depth) < GRAZING_M), (obj.name, depth)
         assert depth.size <= 5, (obj.name, depth.size)
@@ -170,7 +162,7 @@ def test_plane_test_equals_embree_occlusion_on_random_legs(tank):
         directions = rng.normal(size=(5_000, 3))
         directions /= np.linalg.norm(directions, axis=1, keepdims=True)
         ends = points + rng.uniform(0.01, 0.5, (5_000, 1)) * directions
-        kernel, embree, depth = _compare(raycaster, surface, first, last, points, ends)
+        kernel, embree, depth = _compare(raycaster, surface, k, points, ends)
         outwards = np.einsum("ij,ij->i", directions, normals) > 0
         # outwards legs leave a convex body for good; an inward leg crosses it (or ends in it
         # when it is short: then no triangle is met, as in Embree)
@@ -184,8 +176,8 @@ def test_plane_test_equals_embree_occlusion_on_random_legs(tank):
 
 def test_a_non_convex_object_falls_back_to_embree():
     # The pipe replaced by a thick ring (non-convex: legs through its hole are clear): its legs
-    # go to Embree, the convex objects' legs are decided by their planes, and the receptions
-    # are exactly those of a brute-force Embree occlusion test of every leg.
+    # go to Embree, the convex objects' legs are decided by their planes, and the rows are the
+    # reference tracer's, which tests every leg with Embree.
     scene = builtin_scene("thesis-tank")
     ring = trimesh.creation.annulus(r_min=0.06, r_max=0.12, height=0.6, sections=24)
     ring.apply_translation((3.6, 1.5, 0.5))
@@ -194,35 +186,10 @@ def test_a_non_convex_object_falls_back_to_embree():
     raycaster = RayCaster.from_scene(scene)
     assert raycaster.convex_planes.convex.tolist() == [True] * 4 + [False]
     context = SolveContext.build(scene, scene.sonar, raycaster)
-    events = trace_diffuse(context, SolverConfig(diffuse_rays=20_000, seed=3), threads=2)
-    assert events.embree_legs > 100 and events.convex_legs > 100
-    assert _receptions(events) == _brute_force_receptions(raycaster, context, events)
-    # the ring hides some legs and its hole lets some through
-    on_ring = events.surface[events.event] == len(scene.boundaries) + 4
-    assert on_ring.any()
-
-
-@pytest.mark.slow
-def test_receptions_equal_brute_force_embree_over_random_poses():
-    # Sonar poses among the posts and the prism, turned every way: the first-bounce receptions
-    # (the plane test for the convex objects, Embree for nothing else) equal a brute-force
-    # Embree occlusion test of every leg, pose after pose (a disagreement could only come
-    # from a leg grazing a face within float32 rounding: none is expected in 12 x 20k rays).
-    scene = builtin_scene("thesis-tank")
-    raycaster = RayCaster.from_scene(scene)
-    rng = np.random.default_rng(21)
-    tested = 0
-    for pose in range(12):
-        position = (rng.uniform(1.5, 6.0), rng.uniform(0.5, 2.5), rng.uniform(0.2, 0.8))
-        sonar = replace(scene.sonar, position_m=position, yaw_deg=float(rng.uniform(-180.0, 180.0)),
-                        pitch_deg=float(rng.uniform(-20.0, 20.0)))
-        context = SolveContext.build(scene, sonar, raycaster)
-        if not np.all(scene.tank.contains(context.receivers_m)) or np.any(
-                [np.all((obj.bounds_m[0] - 0.02 < context.receivers_m) & (context.receivers_m < obj.bounds_m[1] + 0.02))
-                 for obj in scene.objects]):
-            continue  # a transducer inside or touching an object
-        events = trace_diffuse(context, SolverConfig(diffuse_rays=20_000, seed=pose), threads=2)
-        assert _receptions(events) == _brute_force_receptions(raycaster, context, events), pose
-        assert events.convex_legs > 0 and events.embree_legs == 0
-        tested += 1
-    assert tested >= 10
+    config = SolverConfig(diffuse_rays=20_000, seed=3)
+    traced = trace_diffuse(context, config)
+    assert traced.embree_legs > 100 and traced.convex_legs > 100
+    rows = diffuse_rows(context, config)
+    assert_rows_match(rows, reference.diffuse_rows(context, config), label="ring")
+    # the ring scatters to the receivers
+    assert np.any(rows["object_ids"][:, 0] == len(scene.boundaries) + 4)

@@ -1,4 +1,5 @@
-"""First hits in a box tank with convex objects, without Embree, against Embree's INTERSECT."""
+"""The fast engine's first hits in a box tank with convex objects, found without Embree, against
+Embree's INTERSECT and against the reference tracer (which asks Embree for every hit)."""
 
 from __future__ import annotations
 
@@ -9,11 +10,13 @@ import pytest
 import trimesh
 
 from acoustisim.materials import get_material
-from acoustisim.propagation import diffuse
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.diffuse_hits import BoxTankHits, first_hits
+from acoustisim.propagation.fast.diffuse import diffuse_rows, trace_diffuse
+from acoustisim.propagation.fast.diffuse_hits import BoxTank, box_tank, first_hits
 from acoustisim.propagation.raycast import RayCaster
+from acoustisim.propagation.reference import diffuse as reference
+from support.parity import assert_rows_match
 from acoustisim.scene import SceneObject, Tank
 from scenes.builtin import builtin_scene
 
@@ -37,14 +40,13 @@ def tank():
     return scene, RayCaster.from_scene(scene)
 
 
-def _run(hits: BoxTankHits, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _run(hits: BoxTank, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """first_hits of rows (n, 3) (origins (n, 3), or (3,): one shared, as the tracer's first
     bounce passes the transmitter): the triangles (-9 where pending) and the pending rays."""
     n = directions.shape[0]
     triangle, pending = np.full(n, -9, dtype=np.int32), np.empty(n, dtype=np.int64)
     columns = np.asarray(origins, dtype=float).reshape(-1, 3).T
-    k = first_hits(np.ascontiguousarray(columns), np.ascontiguousarray(directions.T), *hits.kernel_arguments(),
-                   triangle, pending)
+    k = first_hits(np.ascontiguousarray(columns), np.ascontiguousarray(directions.T), hits, triangle, pending)
     return triangle, pending[:k]
 
 
@@ -76,7 +78,7 @@ def test_first_hits_equal_embree_but_for_grazing_rays(tank, origin):
     # planes differ, Embree's float32 hit lies within GRAZING_M of an edge. The rays left
     # pending are those starting inside an object (the random origins only).
     scene, raycaster = tank
-    hits = raycaster.box_tank_hits
+    hits = box_tank(raycaster)
     assert hits is not None
     rng = np.random.default_rng(4)
     n = 50_000
@@ -115,7 +117,7 @@ def test_rays_it_cannot_decide_are_pending(tank):
     # (the floor's triangles removed from the description): pending, for Embree; a ray from the
     # water to an intact face is decided.
     scene, raycaster = tank
-    hits = raycaster.box_tank_hits
+    hits = box_tank(raycaster)
     prism = raycaster.vertices[raycaster.faces[raycaster.surface_index == 6]].reshape(-1, 3).mean(axis=0)
     origins = np.array([[-0.5, 1.5, 0.5], prism, [1.0, 1.5, 0.5], [1.0, 1.5, 0.5]])
     directions = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
@@ -127,7 +129,7 @@ def test_rays_it_cannot_decide_are_pending(tank):
     start = hits.face_start.copy()
     start[floor + 1:] -= start[floor + 1] - start[floor]
     keep = np.r_[0:hits.face_start[floor], hits.face_start[floor + 1]:hits.face_triangle.size]
-    holed = replace(hits, face_start=start, face_triangle=hits.face_triangle[keep], face_edges=hits.face_edges[keep])
+    holed = hits._replace(face_start=start, face_triangle=hits.face_triangle[keep], face_edges=hits.face_edges[keep])
     intact = triangle[3]
     triangle, pending = _run(holed, origins[2:], directions[2:])
     assert pending.tolist() == [0] and triangle[1] == intact
@@ -137,49 +139,32 @@ def test_a_tank_that_is_not_a_box_is_left_to_embree(tank):
     # A free field (one plane, no box) gets no description, so the tracer asks Embree for
     # every first hit; the thesis tank's box is its boundaries' bounds, every face tiled.
     free_scene = builtin_scene("free-plane")
-    assert RayCaster.from_scene(free_scene).box_tank_hits is None
-    hits = tank[1].box_tank_hits
-    np.testing.assert_array_equal(hits.lo, [0.0, 0.0, 0.0])
-    np.testing.assert_array_equal(hits.hi, [9.0, 3.0, 1.0])
-    assert np.all(np.diff(hits.face_start) == 2) and np.all(np.diff(hits.plane_start) > 0)
+    assert box_tank(RayCaster.from_scene(free_scene)) is None
+    hits = box_tank(tank[1])
+    np.testing.assert_array_equal(hits.bounds, [[0.0, 0.0, 0.0], [9.0, 3.0, 1.0]])
+    assert np.all(np.diff(hits.face_start) == 2) and np.all(np.diff(hits.planes.start) > 0)
 
 
 @pytest.mark.parametrize("top", ["closed", "open"])
-def test_tracer_events_equal_the_embree_path(tank, top):
-    # The tracer with its first hits found here and with Embree's (the description removed):
-    # the same events, points, surfaces and receptions, over two bounces, but for rays grazing
-    # an edge (none expected in 20k x 2: the assertion allows 3). Without the free surface
-    # (an open top: a face without triangles), the rays leaving through the top are pending and
-    # Embree finds they hit nothing.
+def test_tracer_rows_equal_the_reference_rows(tank, top):
+    # The fast tracer with its first hits found here, against the reference tracer, which asks
+    # Embree for every hit: the same rows over two bounces (a ray grazing an edge within float32
+    # rounding could differ: none in 20k x 2). Without the free surface (an open top: a face
+    # without triangles), the rays leaving through the top are pending and Embree finds they
+    # hit nothing.
     scene, raycaster = tank
     if top == "open":
         scene = replace(scene, tank=_OpenTank())
         raycaster = RayCaster.from_scene(scene)
     context = SolveContext.build(scene, scene.sonar, raycaster)
     config = SolverConfig(diffuse_rays=20_000, diffuse_bounces=2, seed=5)
-
-    def trace(with_hits: bool) -> diffuse.DiffuseEvents:
-        tracer = diffuse._setup(context, config, 1, "exact")
-        if not with_hits:
-            tracer = replace(tracer, hits=None)
-        counts = [diffuse._trace_chunk(tracer, c) for c in range(-(-config.diffuse_rays // diffuse.CHUNK_RAYS))]
-        return tracer.output.result(tracer.receivers, tuple(sum(c) for c in zip(*counts)))
-
-    fast, embree = trace(True), trace(False)
-    assert embree.embree_rays > 30_000
+    assert_rows_match(diffuse_rows(context, config), reference.diffuse_rows(context, config), label=top)
+    traced = trace_diffuse(context, config)
     if top == "closed":
-        assert fast.embree_rays == 0
+        assert traced.embree_rays == 0
     else:  # the rays through the top: about a third of the first bounce's (the upper hemisphere,
         # less the beam), fewer of the second's (which the floor and walls send up)
-        assert 2_000 < fast.embree_rays < 15_000
-    assert fast.points_m.shape == embree.points_m.shape
-    close = np.all(np.abs(fast.points_m - embree.points_m) < 1e-12, axis=1)
-    assert np.count_nonzero(~close) <= 3
-    np.testing.assert_array_equal(fast.surface[close], embree.surface[close])
-    if close.all():
-        np.testing.assert_array_equal(fast.event, embree.event)
-        np.testing.assert_array_equal(fast.channel, embree.channel)
-        np.testing.assert_allclose(fast.gain, embree.gain, rtol=1e-12)
+        assert 2_000 < traced.embree_rays < 15_000
 
 
 def test_a_non_convex_object_sends_only_the_rays_near_it_to_embree():
@@ -190,8 +175,8 @@ def test_a_non_convex_object_sends_only_the_rays_near_it_to_embree():
     ring.apply_translation((3.6, 1.5, 0.5))
     scene = replace(scene, objects=scene.objects[:-1] + (SceneObject("ring-1", "mesh", get_material("pvc"), ring),))
     raycaster = RayCaster.from_scene(scene)
-    hits = raycaster.box_tank_hits
-    assert hits.plane_start[-1] == hits.plane_start[-2]  # the ring: no planes
+    hits = box_tank(raycaster)
+    assert hits.planes.start[-1] == hits.planes.start[-2]  # the ring: no planes
     rng = np.random.default_rng(8)
     origins = np.broadcast_to(np.asarray(scene.sonar.position_m, dtype=float), (20_000, 3))
     directions = rng.normal(size=(20_000, 3))
@@ -199,7 +184,7 @@ def test_a_non_convex_object_sends_only_the_rays_near_it_to_embree():
     triangle, pending = _run(hits, origins[0], directions)
     embree = raycaster.intersect(origins, directions)
     assert 0 < pending.size < 2_000
-    ring_box = (hits.box_lo[-1], hits.box_hi[-1])
+    ring_box = (hits.boxes[-1, 0], hits.boxes[-1, 1])
     t = (np.stack(ring_box)[:, None, :] - origins[0]) / directions  # (2, n, 3)
     crossing = np.max(np.minimum(t[0], t[1]), axis=1) <= np.min(np.maximum(t[0], t[1]), axis=1)
     assert np.all(crossing[pending])
@@ -215,11 +200,11 @@ def test_rays_aimed_at_every_object_are_decided_as_embree_decides(tank):
     # and to random points of each object's box: the answers are Embree's planes but for
     # grazing rays.
     scene, raycaster = tank
-    hits = raycaster.box_tank_hits
+    hits = box_tank(raycaster)
     origin = np.asarray(scene.sonar.position_m, dtype=float)
     rng = np.random.default_rng(12)
     targets = []
-    for k, (lo, hi) in enumerate(zip(hits.box_lo, hits.box_hi)):
+    for k, (lo, hi) in enumerate(hits.boxes):
         rows = raycaster.surface_index == len(scene.boundaries) + k
         vertices = raycaster.vertices[np.unique(raycaster.faces[rows])]
         inward = vertices.mean(axis=0) - vertices
@@ -237,21 +222,3 @@ def test_rays_aimed_at_every_object_are_decided_as_embree_decides(tank):
     assert other.size <= 5
     hit_points = origins[other] + embree.distance_m[other, None] * directions[other]
     assert np.all(_edge_distance(raycaster, embree.triangle[other], hit_points) < GRAZING_M)
-
-
-def test_first_hits_mode_embree_gives_the_embree_path_and_bad_modes_are_refused(tank):
-    # trace_diffuse(first_hits="embree") is the general-mesh path the benchmark compares with:
-    # every first hit from Embree (embree_rays = every ray that hits), the same events as "auto"
-    # on the thesis tank but for grazing rays (as above); an unknown mode is an InputError.
-    from acoustisim.errors import InputError
-
-    scene, raycaster = tank
-    context = SolveContext.build(scene, scene.sonar, raycaster)
-    config = SolverConfig(diffuse_rays=8_000, diffuse_bounces=1, seed=3)
-    fast = diffuse.trace_diffuse(context, config, threads=1)
-    embree = diffuse.trace_diffuse(context, config, threads=1, first_hits="embree")
-    assert fast.embree_rays == 0 and embree.embree_rays > 7_000
-    assert fast.points_m.shape == embree.points_m.shape
-    assert np.count_nonzero(np.any(np.abs(fast.points_m - embree.points_m) >= 1e-12, axis=1)) <= 3
-    with pytest.raises(InputError, match="first_hits"):
-        diffuse.trace_diffuse(context, config, first_hits="fast")

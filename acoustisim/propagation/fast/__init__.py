@@ -46,9 +46,9 @@ class FastEngine:
         return edge_rows(context, config, prepared)
 
     def diffuse_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-        from acoustisim.propagation.diffuse import diffuse_paths
+        from acoustisim.propagation.fast.diffuse import diffuse_rows
 
-        return diffuse_paths(context, config, threads=config.threads, visibility=config.diffuse_visibility)
+        return diffuse_rows(context, config)
 
     def assemble_rows(self, parts: Sequence[NDArray[Any]], context: SolveContext, config: SolverConfig
                       ) -> NDArray[Any]:

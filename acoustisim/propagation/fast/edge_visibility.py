@@ -15,7 +15,7 @@ pose, nearly all of which a geometric screen decides without Embree:
   with a face plane the triangle lies outside of, is skipped for all of them, as are the walls
   when the triangle lies in the shrunk water box;
 * a leg crossing the box of a convex object (a closed mesh with every vertex inside every face
-  plane, :mod:`~acoustisim.propagation.convex_occlusion`) is clipped against the object's face
+  plane, :mod:`~acoustisim.propagation.convex_planes`) is clipped against the object's face
   planes moved ``tolerance`` outwards (P+) and inwards (P-) (Cyrus and Beck 1978): a segment
   missing P+ passes more than ``tolerance`` from the solid (every point within ``tolerance``
   of a convex solid lies in P+), and a segment whose ends lie outside P+ and which meets P-
@@ -45,7 +45,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.convex_occlusion import ConvexPlanes
+from acoustisim.propagation.convex_planes import ConvexPlanes
 from acoustisim.propagation.edge_extraction import DiffractingEdges
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.raycast import DEFAULT_EPS_M
