@@ -29,7 +29,7 @@ import stat
 import sys
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, Callable, Iterator
+from typing import IO, Any, Iterator
 
 from binsonar.errors import InputError, InputTypeError
 
@@ -294,14 +294,13 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
-def prepare_output_folder(path: Any, option: str = "--out", *, create: bool = True,
-                          announce: Callable[[str], None] | None = None) -> Path:
+def prepare_output_folder(path: Any, option: str = "--out", *, create: bool = True, prog: str = "binsonar") -> Path:
     """Check (and by default create) an output folder before any work.
 
     An existing path must be a folder (a symbolic link to one is followed) that takes new
     files. A missing folder is created with its missing parents when ``create``, and the
-    creation is said through ``announce`` (default: a line on stderr); with ``create=False``
-    only its nearest existing ancestor is checked (the caller's writer creates it).
+    creation is said on stderr ("PROG: note: created folder DIR"); with ``create=False`` only
+    its nearest existing ancestor is checked (the caller's writer creates it).
 
     Returns
     -------
@@ -339,13 +338,8 @@ def prepare_output_folder(path: Any, option: str = "--out", *, create: bool = Tr
     except OSError as exc:
         raise InputError(f"{_label(option, p)}: cannot create the folder: {_os_reason(exc)}") from None
     _probe_folder(p, option, p)
-    (announce or _to_stderr)(f"created folder {p}")
+    print(f"{prog}: note: created folder {p}", file=sys.stderr)
     return p
-
-
-def _to_stderr(message: str) -> None:
-    prog = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "binsonar"
-    print(f"{prog}: note: {message}", file=sys.stderr)
 
 
 def _create_temporary(folder: Path, stem: str, suffix: str) -> Path:

@@ -13,8 +13,6 @@ import json
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from acoustisim.demo import DemoConfig, format_table, run_demo
     from acoustisim.errors import InputError
     from binsonar.detection import METHODS
@@ -25,9 +23,9 @@ def _run(args: argparse.Namespace) -> int:
         raise InputError(f"--pings must be >= 1, got {args.pings}")
     if args.seed < 0:
         raise InputError(f"--seed must be >= 0, got {args.seed}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
+    from binsonar.files import prepare_output_folder
+
+    out = prepare_output_folder(args.out, "--out", prog="acoustisim")
     demo = run_demo(DemoConfig(scene=args.scene, seed=args.seed, n_pings=args.pings, method=args.method,
                                record_length_s=args.record_length, backend=args.backend), out)
     if args.json:
