@@ -7,14 +7,15 @@ regular files only (a FIFO, device, socket or folder is refused: a FIFO would bl
 size limit. Libraries that open a file by name (h5py, soundfile, scipy.io) get the path after
 ``check_input_file``.
 
-Outputs (``check_output_file``, ``prepare_output_folder``, ``atomic_output``,
+Outputs (``check_output_file``, ``check_output_folder``, ``atomic_output``,
 ``write_bytes_atomic``): the destination is checked before the work starts (a regular file or
 nothing; never a symbolic link, device or other special file, which would be replaced by a
 regular file; its folder must exist and be writable), the data go to a hidden temporary file
 in the same folder, created with mode 0666 filtered by the process umask (what ``open`` gives any
 new file), and renamed onto the destination only once complete. Errors name the user's path,
-never the temporary file. Output folders (``--out DIR``) are created with their missing parents,
-and the creation is said on stderr; a missing folder of an output file is refused.
+never the temporary file. A missing folder of an output file is refused. Output folders
+(``--out DIR``, ``check_output_folder``) may be missing: the writer creates them with their
+parents, and the command says so on stderr once it has succeeded (``note_created_folder``).
 
 Every refusal is an :class:`binsonar.errors.InputError` (one line, exit 2 from the command
 lines); a path of the wrong type is an :class:`binsonar.errors.InputTypeError`.
@@ -294,13 +295,13 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
-def prepare_output_folder(path: Any, option: str = "--out", *, create: bool = True, prog: str = "binsonar") -> Path:
-    """Check (and by default create) an output folder before any work.
+def check_output_folder(path: Any, option: str = "--out") -> Path:
+    """Check, before any work, that an output folder can be used or made at ``path``.
 
     An existing path must be a folder (a symbolic link to one is followed) that takes new
-    files. A missing folder is created with its missing parents when ``create``, and the
-    creation is said on stderr ("PROG: note: created folder DIR"); with ``create=False`` only
-    its nearest existing ancestor is checked (the caller's writer creates it).
+    files; for a missing one, its nearest existing ancestor must be a folder that takes new
+    files (the writer creates the missing folders; ``note_created_folder`` then says so).
+    Nothing is created here.
 
     Returns
     -------
@@ -309,12 +310,12 @@ def prepare_output_folder(path: Any, option: str = "--out", *, create: bool = Tr
     Raises
     ------
     InputError
-        Not a folder, not writable, or cannot be created (naming the option and path).
+        Not a folder, or no writable ancestor (naming the option and path).
     """
     p = as_path(path, option)
     try:
         info = os.stat(p)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         info = None
     except OSError as exc:
         raise InputError(f"{_label(option, p)}: cannot use this path: {_os_reason(exc)}") from None
@@ -323,23 +324,20 @@ def prepare_output_folder(path: Any, option: str = "--out", *, create: bool = Tr
             raise InputError(f"{_label(option, p)}: exists and is {_kind(info.st_mode)}, not a folder")
         _probe_folder(p, option, p)
         return p
-    if not create:
-        ancestor = p.parent
-        while not ancestor.exists() and ancestor != ancestor.parent:
-            ancestor = ancestor.parent
-        if not ancestor.is_dir():
-            raise InputError(f"{_label(option, p)}: {ancestor} is not a folder")
-        _probe_folder(ancestor, option, p)
-        return p
-    try:
-        p.mkdir(parents=True)
-    except FileExistsError:
-        raise InputError(f"{_label(option, p)}: a part of this path exists and is not a folder") from None
-    except OSError as exc:
-        raise InputError(f"{_label(option, p)}: cannot create the folder: {_os_reason(exc)}") from None
-    _probe_folder(p, option, p)
-    print(f"{prog}: note: created folder {p}", file=sys.stderr)
+    ancestor = p.absolute().parent
+    while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise InputError(f"{_label(option, p)}: {ancestor} is not a folder")
+    _probe_folder(ancestor, option, p)
     return p
+
+
+def note_created_folder(path: Path, existed: bool, prog: str) -> None:
+    """Say on stderr that an output folder was created ("PROG: note: created folder DIR") when it
+    did not exist before the work and does now."""
+    if not existed and os.path.isdir(path):
+        print(f"{prog}: note: created folder {path}", file=sys.stderr)
 
 
 def _create_temporary(folder: Path, stem: str, suffix: str) -> Path:
@@ -420,8 +418,9 @@ __all__ = (
     "atomic_output",
     "check_input_file",
     "check_output_file",
+    "check_output_folder",
+    "note_created_folder",
     "open_input_file",
-    "prepare_output_folder",
     "read_input_bytes",
     "read_toml",
     "write_bytes_atomic",

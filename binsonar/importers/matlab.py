@@ -8,7 +8,8 @@ shape is taken in MATLAB's order: (3, n), (n, 3) (one column per channel) or (n_
 
 from __future__ import annotations
 
-from typing import Any
+from types import MappingProxyType
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -20,8 +21,9 @@ from binsonar.importers.settings import ImportDescription
 from binsonar.recording.hdf5_safety import ReadLimits, checked_dataset, open_hdf5
 
 NUMERIC_CLASSES = ("double", "single", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64")
-ITEM_BYTES = {"double": 8, "single": 4, "int8": 1, "int16": 2, "int32": 4, "int64": 8, "uint8": 1, "uint16": 2,
-              "uint32": 4, "uint64": 8}
+ITEM_BYTES: Mapping[str, int] = MappingProxyType({
+    "double": 8, "single": 4, "int8": 1, "int16": 2, "int32": 4, "int64": 8, "uint8": 1, "uint16": 2, "uint32": 4,
+    "uint64": 8})
 
 
 def mat_version(path: Any) -> int:

@@ -8,7 +8,8 @@ volts with each channel's ``volts_per_code``); float samples are volts times ``v
 
 from __future__ import annotations
 
-from typing import Any
+from types import MappingProxyType
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from binsonar.files import check_input_file
 from binsonar.importers.array_source import ArraySource
 from binsonar.importers.settings import ImportDescription
 
-CODE_BITS = {"PCM_S8": 8, "PCM_U8": 8, "PCM_16": 16, "PCM_24": 24, "PCM_32": 32}
+CODE_BITS: Mapping[str, int] = MappingProxyType({"PCM_S8": 8, "PCM_U8": 8, "PCM_16": 16, "PCM_24": 24, "PCM_32": 32})
 """Integer WAV subtypes and the width of their codes."""
 FLOAT_SUBTYPES = ("FLOAT", "DOUBLE")
 CONTAINERS = ("WAV", "WAVEX", "RF64", "W64")
