@@ -110,8 +110,14 @@ def _beam_refinement(args: argparse.Namespace) -> Any:
     if args.method not in envelope_peak:
         raise RecordingError(f"--transducer-diameter-m refines TOFs timed by the template's envelope peak "
                              f"({', '.join(sorted(envelope_peak))}); method {args.method!r} is not one")
+    from binsonar.array_description import DIAMETER_RANGE_M
+
+    diameter = args.transducer_diameter_m
+    if not (math.isfinite(diameter) and DIAMETER_RANGE_M[0] <= diameter <= DIAMETER_RANGE_M[1]):
+        raise RecordingError(f"--transducer-diameter-m must be within {DIAMETER_RANGE_M[0]:g}-{DIAMETER_RANGE_M[1]:g} m, "
+                             f"got {diameter!r}")
     model = BeamModelConfig(target=args.beam_target or "vertical-edge", wedge_interior_angle_deg=args.wedge_angle_deg)
-    transducers = PistonTransducers.uniform(args.transducer_diameter_m)
+    transducers = PistonTransducers.uniform(diameter)
     config = BeamRefinementConfig(model=model)
     return lambda result, recording: refine_detection(result, recording, transducers, config)
 

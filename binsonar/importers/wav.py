@@ -14,7 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from binsonar.errors import InputError
-from binsonar.files import check_input_file
+from binsonar.files import check_input_file, open_input_file
 from binsonar.importers.array_source import ArraySource
 from binsonar.importers.settings import ImportDescription
 
@@ -22,6 +22,17 @@ CODE_BITS: Mapping[str, int] = MappingProxyType({"PCM_S8": 8, "PCM_U8": 8, "PCM_
 """Integer WAV subtypes and the width of their codes."""
 FLOAT_SUBTYPES = ("FLOAT", "DOUBLE")
 CONTAINERS = ("WAV", "WAVEX", "RF64", "W64")
+
+
+def _check_riff_size(path: Any, where: str) -> None:
+    """Refuse a RIFF file shorter than its header says (libsndfile reads what is there, silently)."""
+    with open_input_file(path, "WAV file") as handle:
+        head = handle.read(12)
+        size = handle.seek(0, 2)
+    if len(head) == 12 and head[:4] == b"RIFF" and head[8:12] in (b"WAVE",):
+        declared = int.from_bytes(head[4:8], "little")
+        if declared != 0xFFFFFFFF and declared + 8 > size:
+            raise InputError(f"{where}: truncated: the RIFF header declares {declared + 8} bytes, the file holds {size}")
 
 
 def open_wav(path: Any, description: ImportDescription) -> ArraySource:
@@ -37,6 +48,7 @@ def open_wav(path: Any, description: ImportDescription) -> ArraySource:
 
     p = check_input_file(path, "WAV file")
     where = str(p)
+    _check_riff_size(p, where)
     try:
         handle = soundfile.SoundFile(str(p), "r")
     except (soundfile.LibsndfileError, RuntimeError, OSError, ValueError, TypeError) as exc:
