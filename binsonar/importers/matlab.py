@@ -34,12 +34,12 @@ def mat_version(path: Any) -> int:
     InputError
         Not a MAT-file.
     """
-    from scipy.io.matlab import matfile_version
+    from scipy.io.matlab import MatReadError, matfile_version
 
     with open_input_file(path, "MATLAB file") as handle:
         try:
             major, _ = matfile_version(handle)
-        except (ValueError, OSError, EOFError, TypeError) as exc:
+        except (MatReadError, ValueError, OSError, EOFError, TypeError) as exc:
             raise InputError(f"{path}: not a MATLAB file: {str(exc).splitlines()[0] if str(exc) else exc!r}"
                              ) from None
     return int(major)
@@ -64,11 +64,12 @@ def open_mat(path: Any, description: ImportDescription) -> ArraySource:
 
 def _open_v5(path: Any, description: ImportDescription) -> ArraySource:
     import scipy.io
+    from scipy.io.matlab import MatReadError
 
     where = str(path)
     try:
         variables = scipy.io.whosmat(str(path))
-    except (ValueError, OSError, EOFError, TypeError, NotImplementedError, MemoryError) as exc:
+    except (MatReadError, ValueError, OSError, EOFError, TypeError, NotImplementedError, MemoryError) as exc:
         raise InputError(f"{where}: not a readable MATLAB file: {str(exc).splitlines()[0] if str(exc) else exc!r}"
                          ) from None
     numeric = {name: (tuple(shape), kind) for name, shape, kind in variables if kind in NUMERIC_CLASSES}
@@ -80,7 +81,7 @@ def _open_v5(path: Any, description: ImportDescription) -> ArraySource:
                          "once; save with -v7.3 (read ping by ping)")
     try:
         loaded = scipy.io.loadmat(str(path), variable_names=[name], squeeze_me=False, mat_dtype=False)
-    except (ValueError, OSError, EOFError, TypeError, NotImplementedError, MemoryError) as exc:
+    except (MatReadError, ValueError, OSError, EOFError, TypeError, NotImplementedError, MemoryError) as exc:
         raise InputError(f"{where}: cannot read variable {name!r}: {str(exc).splitlines()[0] if str(exc) else exc!r}"
                          ) from None
     data = np.asarray(loaded.get(name))
