@@ -91,6 +91,7 @@ class PingSource(ABC):
                 and 0 <= start < stop <= self.n_pings):
             raise RecordingError(f"{self.source}: ping range [{start!r}, {stop!r}) is outside [0, {self.n_pings})")
         data, clipped, pose = self.read_stored(int(start), int(stop))
+        data.setflags(write=False)  # ours alone: the recording takes it without a copy
         fields = self.header.recording_fields()
         if self.header.stores_codes:
             if keep_codes:
