@@ -108,7 +108,8 @@ def read_array_group(h5: "h5py.File", where: str, limits: ReadLimits) -> ArrayDe
     if order != [0, 1, 2]:
         raise RecordingError(f"{label}: channel indices must be 0, 1, 2, got {order}")
     try:
-        return ArrayDescription(tuple(c for _, c in sorted(channels, key=lambda item: item[0])), rate)  # type: ignore[arg-type]
+        ordered = tuple(channel for _, channel in sorted(channels, key=lambda item: item[0]))
+        return ArrayDescription(ordered, rate)  # type: ignore[arg-type]
     except ArrayDescriptionError as exc:
         raise RecordingError(f"{label}: {exc}") from None
 

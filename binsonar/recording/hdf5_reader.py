@@ -85,7 +85,8 @@ class RecordingFile(PingSource):
         t0 = number_attribute(h5, "t0_s", where, limits)
         names = _channel_names(attribute(h5, "channel_names", where, limits), where)
         created_by = text_attribute(h5, "created_by", where, limits, required=False, default="")
-        dset: h5py.Dataset = checked_dataset(h5, "waveforms", where, limits, kinds="iuf", required=True)  # type: ignore[assignment]
+        dset: h5py.Dataset = checked_dataset(  # type: ignore[assignment]
+            h5, "waveforms", where, limits, kinds="iuf", required=True)
         n_pings, n_samples = self._waveform_shape(dset, where)
         volts_per_code = adc_bits = None
         stores_codes = dset.dtype.kind in "iu"

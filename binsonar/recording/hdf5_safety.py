@@ -15,7 +15,6 @@ after checking their size (``attribute``). Every refusal is a one-line ``Recordi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -264,8 +263,3 @@ def number_attribute(obj: "h5py.HLObject", key: str, where: str, limits: ReadLim
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise RecordingError(f"{where}: attribute {key!r} must be a number, got {short_repr(value)}")
     return value
-
-
-def file_label(path: Path | str) -> str:
-    """The file's name as messages show it."""
-    return str(path)

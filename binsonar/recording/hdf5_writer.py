@@ -142,7 +142,8 @@ def write_recording_chunks(
                     volts_dtype = np.dtype(np.float64)
                     datasets = _write_header(h5, header, n_pings, store_codes, volts_dtype, chunk.pose is not None,
                                              truth)
-                elif chunk.n_samples != header.n_samples or (chunk.pose is None) != (datasets["pose"] is None):  # type: ignore[union-attr]
+                elif (chunk.n_samples != header.n_samples  # type: ignore[union-attr]
+                      or (chunk.pose is None) != (datasets["pose"] is None)):
                     raise RecordingError(f"{where}: pings {written}-{written + chunk.n_pings - 1} differ in length or "
                                          "pose from the first ones")
                 stop = written + chunk.n_pings

@@ -4,7 +4,7 @@ NumPy, MATLAB and CSV files, and argument lists of ``detect``, ``localize`` and 
 The contract, for every input: exit 0, or exit 2 with exactly one line on stderr ("binsonar:
 error: ..."); never an exception escaping (a traceback); within a time limit (hypothesis's
 deadline per example) and a memory limit (the peak of traced allocations). Seeded
-(``derandomize``): the same examples on every run. A few dozen examples per property run in the
+(``derandomize``): the same examples on every run. Fifteen examples per property run in the
 default suite; ``-m slow`` runs hundreds. Argument lists are well-formed for argparse (its
 usage errors are the command-line layer's own) and leave out ``--option``, whose method options
 the detectors check.
@@ -37,7 +37,7 @@ def _settings(examples: int) -> settings:
                                            HealthCheck.function_scoped_fixture])  # capsys is read after each run
 
 
-QUICK = _settings(25)
+QUICK = _settings(15)
 DEEP = _settings(400)
 
 
