@@ -24,6 +24,8 @@ folder removed afterwards). For each method and file, ``python -m binsonar.cli.m
 
 ``--baseline ROOT`` runs another checkout's ``binsonar detect`` on ``--baseline-pings`` counts
 (its reader holds the whole file as float64 volts: 1,000 pings would need 7.5 GB).
+``--open-pings N`` (default 41, the issue's file) also times ``read_recording(path,
+keep_codes=True)`` against one raw h5py read of the same dataset, in a fresh process each.
 """
 
 from __future__ import annotations
@@ -103,6 +105,33 @@ def run_detect(root: Path, path: Path, method: str) -> dict[str, float]:
             "n_pings": int(report["n_pings"])}
 
 
+OPEN_CODE = """
+import resource, sys, time
+import h5py, numpy
+from binsonar.recording import read_recording
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+start = time.perf_counter()
+if sys.argv[2] == "raw":
+    with h5py.File(sys.argv[1], "r") as h5:
+        data = h5["waveforms"][()]
+else:
+    data = read_recording(sys.argv[1], keep_codes=True)
+elapsed = time.perf_counter() - start
+print(elapsed, (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024.0)  # KB on Linux
+"""
+
+
+def run_open(root: Path, path: Path, how: str) -> tuple[float, float]:
+    """One read of ``path`` in a fresh process, ``how`` "raw" (h5py, the dataset whole) or
+    "recording" (``read_recording(path, keep_codes=True)``): (seconds, MB the read added to the
+    process's peak memory)."""
+    env = {**os.environ, "PYTHONPATH": str(root), "PYTHONWARNINGS": "ignore"}
+    out = subprocess.run([sys.executable, "-c", OPEN_CODE, str(path), how], capture_output=True, text=True, env=env,
+                         cwd=root, check=True)
+    seconds, memory = (float(v) for v in out.stdout.split())
+    return seconds, memory
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pings", type=int, nargs="+", default=[10, 1000])
@@ -112,19 +141,36 @@ def main() -> int:
     parser.add_argument("--baseline", type=Path, default=None, help="another checkout to time on --baseline-pings")
     parser.add_argument("--baseline-pings", type=int, nargs="+", default=[10, 100])
     parser.add_argument("--folder", type=Path, default=None, help="where to write the recordings (default a temp dir)")
+    parser.add_argument("--write-only", type=Path, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--open-pings", type=int, default=41,
+                        help="also time read_recording(keep_codes=True) on this many pings (the issue's 41); 0: skip")
     args = parser.parse_args()
-    pings = make_pings(args.samples)
-    counts = sorted(set(args.pings) | (set(args.baseline_pings) if args.baseline else set()))
-    with tempfile.TemporaryDirectory(prefix="bench-recording-", dir=args.folder) as folder:
-        files = {}
+    counts = sorted(set(args.pings) | (set(args.baseline_pings) if args.baseline else set())
+                    | ({args.open_pings} if args.open_pings else set()))
+    if args.write_only is not None:
+        pings = make_pings(args.samples)
         for n in counts:
             t = time.perf_counter()
-            files[n] = write_file(Path(folder) / f"pings-{n}.h5", pings, n)
-            print(f"wrote {n} pings ({files[n].stat().st_size / 1e6:.0f} MB) in {time.perf_counter() - t:.1f} s",
-                  flush=True)
+            path = write_file(args.write_only / f"pings-{n}.h5", pings, n)
+            print(f"wrote {n} pings ({path.stat().st_size / 1e6:.0f} MB) in {time.perf_counter() - t:.1f} s", flush=True)
+        return 0
+    with tempfile.TemporaryDirectory(prefix="bench-recording-", dir=args.folder) as folder:
+        # Written by a child process: Linux keeps a process's peak RSS across fork and exec, so
+        # this process stays small for the children's peaks to be their own.
+        subprocess.run([sys.executable, __file__, "--write-only", folder, "--samples", str(args.samples), "--pings",
+                        *map(str, counts), "--open-pings", "0"], check=True)
+        files = {n: Path(folder) / f"pings-{n}.h5" for n in counts}
         roots = [("this checkout", ROOT, args.pings)]
         if args.baseline is not None:
             roots.append(("baseline", args.baseline.resolve(), args.baseline_pings))
+        if args.open_pings:
+            print(f"\nread_recording(keep_codes=True) of {args.open_pings} pings (medians of {args.repeats}):")
+            for label, root, _ in roots:
+                for how in ("raw", "recording"):
+                    runs = [run_open(root, files[args.open_pings], how) for _ in range(args.repeats)]
+                    seconds, memory = (statistics.median(r[k] for r in runs) for k in range(2))
+                    name = "raw h5py read" if how == "raw" else "read_recording"
+                    print(f"{label:14s} {name:15s} {seconds * 1e3:8.1f} ms, {memory:6.0f} MB added to the peak")
         for method in args.methods:
             print(f"\nbinsonar detect --method {method} --json ({args.samples} samples x 3 channels per ping; "
                   f"medians of {args.repeats})")
