@@ -13,6 +13,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
@@ -24,6 +25,7 @@ from acoustisim.scene import Scene
 from acoustisim.sonar import CHANNEL_NAMES, SonarHead
 from acoustisim.synthesis.chain import ReceiverChain
 from acoustisim.synthesis.pings import PingSynthesiser
+from binsonar.array_description import ArrayDescription, ChannelDescription, ElectricalChain, PistonDirectivity
 from binsonar.recording import Recording, Template, write_recording
 
 if TYPE_CHECKING:
@@ -178,6 +180,32 @@ def truth_of(scene: Scene, paths: Paths) -> dict[str, Any]:
     return truth
 
 
+SIMULATED_ROLES: Mapping[str, str] = MappingProxyType({"transmit-receive": "both", "receive": "receive",
+                                                      "transmit": "transmit"})
+"""The array description's role of each of the simulator's transducer roles."""
+
+
+def array_description_of(sonar: SonarHead, chain: ReceiverChain, volts_per_code: float | None) -> ArrayDescription:
+    """The array description of a simulated head (written as every recording's ``/array``).
+
+    Each transducer's role, face centre and axis (head frame), its piston diameter, and its
+    receive chain: the net gain (gain minus attenuation, dB; a time-varying gain is not part of
+    it), the receive sensitivity, and the ADC step and resolution.
+    """
+    channels = []
+    for index, transducer in enumerate(sonar.transducers):
+        electrical = ElectricalChain(
+            gain_db=float(chain.gain_db[index] - chain.attenuation_db[index]),
+            receive_sensitivity_db=float(chain.receive_sensitivity_db),
+            volts_per_code=volts_per_code,
+            adc_bits=int(sonar.adc_bits),
+        )
+        channels.append(ChannelDescription(transducer.name, SIMULATED_ROLES[transducer.role], transducer.position_head_m,
+                                           transducer.axis_head, PistonDirectivity(2.0 * transducer.radius_m),
+                                           electrical))
+    return ArrayDescription(tuple(channels), float(sonar.sample_rate_hz))
+
+
 def _check_synthesiser(
     synthesiser: PingSynthesiser, sonar: SonarHead, scene: Scene, chain: ReceiverChain | None
 ) -> None:
@@ -278,6 +306,7 @@ def simulate(
         volts_per_code=None if average else pings.volts_per_code,
         adc_bits=int(sonar.adc_bits),
         created_by=CREATED_BY,
+        array=array_description_of(sonar, synthesiser.chain, pings.volts_per_code),
     )
     return Simulation(recording, codes, paths, pings.clean, truth_of(scene, paths), pings.noise_sigma_v)
 

@@ -21,7 +21,9 @@ import json
 def _generate(args: argparse.Namespace) -> int:
     from acoustisim.datasets.generate import generate
     from acoustisim.datasets.spec import load_spec
+    from binsonar.files import check_output_folder
 
+    check_output_folder(args.out, "--out")  # before the work: the store's folder takes new files
     spec = load_spec(args.spec)
     report = generate(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                       progress=not args.no_progress)

@@ -31,13 +31,15 @@ def _run(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise InputError(f"--seed must be >= 0, got {args.seed}")
     options = {k: v for k, v in vars(args).items() if k not in COMMON}
-    out_dir = Path(args.out) if args.out else Path("out") / args.experiment
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"--out {out_dir}: exists and is not a folder")
+    from binsonar.files import check_output_folder, note_created_folder
+
+    out_dir = check_output_folder(args.out if args.out else Path("out") / args.experiment, "--out")
+    existed = out_dir.exists()
     config = ExperimentConfig(name=args.experiment, out_dir=out_dir, seed=args.seed, trials=args.trials,
                               workers=args.workers, progress=not args.no_progress, options=options)
     report = module.run(config)
     files = report.write()
+    note_created_folder(out_dir, existed, "acoustisim")
     summary: dict[str, Any] = {
         "experiment": args.experiment,
         "out_dir": str(out_dir),

@@ -32,8 +32,10 @@ def _finite_float(text: str) -> float:
 def _run(args: argparse.Namespace) -> int:
     from acoustisim.propagation.config import SolverConfig
     from acoustisim.simulation import simulate, write_simulation
+    from binsonar.files import check_output_file
     from scenes.scene_file import load_scene
 
+    check_output_file(args.output, "-o")  # before the work: a refused path costs nothing
     scene = load_scene(args.scene)
     config = SolverConfig(
         max_order=args.max_order if args.max_order is not None else SolverConfig().max_order,

@@ -43,12 +43,16 @@ def _channels(text: str) -> tuple[int, ...]:
 def _run(args: argparse.Namespace) -> int:
     from acoustisim.viz.cameras import CAMERA_NAMES
     from acoustisim.viz.render import ViewOptions, export_html, has_display, render_png, show_scene
+    from binsonar.files import atomic_output, check_output_file
     from scenes.scene_file import load_scene
 
     if args.camera not in CAMERA_NAMES:  # argparse already restricts it; kept for API callers
         raise InputError(f"--camera: unknown preset {args.camera!r}")
     if args.png is None and args.html is None and not has_display():
         raise InputError("view: no display here; write an image with --png OUT.png or a page with --html OUT.html")
+    outputs = [(option, path) for option, path in (("--png", args.png), ("--html", args.html)) if path is not None]
+    for option, path in outputs:  # before the work: a refused path costs nothing
+        check_output_file(path, option)
     scene = load_scene(args.scene)
     sonar = scene.sonar
     paths = None
@@ -71,10 +75,11 @@ def _run(args: argparse.Namespace) -> int:
     common = dict(sonar=sonar, truths=truths, options=options, camera=args.camera, title=args.title,
                   window_size=args.size)
     written = []
-    if args.png is not None:
-        written.append(render_png(args.png, scene, paths, args.results, **common))
-    if args.html is not None:
-        written.append(export_html(args.html, scene, paths, args.results, **common))
+    for option, path in outputs:
+        writer = render_png if option == "--png" else export_html
+        with atomic_output(path, option) as temporary:  # the umask's mode; links and devices refused
+            writer(temporary, scene, paths, args.results, **common)
+        written.append(path)
     if written:
         for path in written:
             print(path)

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,24 +27,17 @@ def to_jsonable(value: Any) -> Any:
 
 
 def write_json_atomic(path: Path, payload: Any) -> Path:
-    """Write JSON to ``path`` via a temporary file and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    with os.fdopen(fd, "w") as handle:
-        json.dump(to_jsonable(payload), handle, indent=2, sort_keys=False)
-        handle.write("\n")
-    os.replace(tmp, path)
-    return path
+    """Write JSON to ``path`` via a temporary file and a rename (``binsonar.files``: the umask's
+    mode; a link or special file there is refused)."""
+    return write_text_atomic(path, json.dumps(to_jsonable(payload), indent=2, sort_keys=False) + "\n")
 
 
 def write_text_atomic(path: Path, text: str) -> Path:
-    """Write text to ``path`` via a temporary file and a rename."""
+    """Write text to ``path`` via a temporary file and a rename (``binsonar.files``)."""
+    from binsonar.files import write_text_atomic as write_atomically
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    with os.fdopen(fd, "w") as handle:
-        handle.write(text)
-    os.replace(tmp, path)
-    return path
+    return write_atomically(path, text, option="")
 
 
 @dataclass

@@ -1,5 +1,9 @@
 """``binsonar detect PING.h5 --method METHOD [--json]``: echoes per ping and channel.
 
+The recording is read range of pings by range of pings (``binsonar.streaming``): memory does
+not grow with its length. A WAV, NumPy, MATLAB or CSV file is read directly with
+``--array ARRAY.toml`` (its array description, see ``binsonar import``).
+
 Options common to every method are flags (``--average``, ``--bandpass LOW HIGH``,
 ``--pfa``, ``--noise-window START STOP``, ``--on-clipped``); any other method option is
 ``--option NAME=VALUE`` (``binsonar detect --list-options METHOD`` shows them). Clipped
@@ -87,34 +91,43 @@ def _report(result: Any, recording: Any, path: str) -> dict[str, Any]:
     }
 
 
-def _beam_refined(args: argparse.Namespace, result: Any, recording: Any) -> Any:
-    """``result`` with beam-aware TOFs when ``--transducer-diameter-m`` is given (else unchanged)."""
+def _beam_refinement(args: argparse.Namespace) -> Any:
+    """The beam-aware refinement of each range's detections when ``--transducer-diameter-m`` is
+    given (``refine_detection`` with its recording), else None."""
     if args.transducer_diameter_m is None:
         if args.beam_target is not None or args.wedge_angle_deg is not None:
             from binsonar.recording import RecordingError
 
             raise RecordingError("--beam-target and --wedge-angle-deg need --transducer-diameter-m")
-        return result
+        return None
+    from binsonar.detection.seed import SEED_COMBINATIONS
     from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers
     from binsonar.localization.beam_refine import BeamRefinementConfig, refine_detection
     from binsonar.recording import RecordingError
-
-    from binsonar.detection.seed import SEED_COMBINATIONS
 
     envelope_peak = {"matched", "local-matched"}
     envelope_peak |= {c.name for c in SEED_COMBINATIONS if c.base in envelope_peak}
     if args.method not in envelope_peak:
         raise RecordingError(f"--transducer-diameter-m refines TOFs timed by the template's envelope peak "
                              f"({', '.join(sorted(envelope_peak))}); method {args.method!r} is not one")
+    from binsonar.array_description import DIAMETER_RANGE_M
+
+    diameter = args.transducer_diameter_m
+    if not (math.isfinite(diameter) and DIAMETER_RANGE_M[0] <= diameter <= DIAMETER_RANGE_M[1]):
+        raise RecordingError(f"--transducer-diameter-m must be within {DIAMETER_RANGE_M[0]:g}-{DIAMETER_RANGE_M[1]:g} m, "
+                             f"got {diameter!r}")
     model = BeamModelConfig(target=args.beam_target or "vertical-edge", wedge_interior_angle_deg=args.wedge_angle_deg)
-    return refine_detection(result, recording, PistonTransducers.uniform(args.transducer_diameter_m),
-                            BeamRefinementConfig(model=model))
+    transducers = PistonTransducers.uniform(diameter)
+    config = BeamRefinementConfig(model=model)
+    return lambda result, recording: refine_detection(result, recording, transducers, config)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``binsonar detect``; returns the exit code."""
-    from binsonar.detection import METHODS, detect, method_options
-    from binsonar.recording import RecordingError, Template, read_recording
+    from binsonar.detection import METHODS, method_options
+    from binsonar.importers import open_source
+    from binsonar.recording import RecordingError, Template
+    from binsonar.streaming import detect_source
 
     if args.list_options:
         if args.list_options not in METHODS:
@@ -123,41 +136,43 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.recording is None:
         raise RecordingError("detect: a recording file (PING.h5) is required")
-    recording = read_recording(args.recording, keep_codes=True)
-    template = None
-    if args.template is not None:
-        import numpy as np
+    if args.method not in METHODS:
+        raise RecordingError(f"unknown detection method {args.method!r}; choose one of: {', '.join(METHODS)}")
+    refine = _beam_refinement(args)
+    options = _options(args)
+    with open_source(args.recording, args.array) as source:
+        header = source.header
+        template = None
+        if args.template is not None:
+            from binsonar.importers.settings import load_npy_vector
 
-        try:
-            samples = np.load(args.template, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise RecordingError(f"{args.template}: cannot read the template (.npy): {exc}") from None
-        template = Template(np.asarray(samples, dtype=float), recording.sample_rate_hz,
-                            args.template_t0, "calibration-echo")
-    bandpass = tuple(args.bandpass) if args.bandpass is not None else ("template" if args.bandpass_template else None)
-    result = detect(
-        recording,
-        args.method,
-        template=template,
-        average=True if args.average else None,
-        bandpass_hz=bandpass,
-        on_clipped=args.on_clipped,
-        full_scale_v=args.full_scale_v,
-        **_options(args),
-    )
-    result = _beam_refined(args, result, recording)
+            template = Template(load_npy_vector(args.template, "template"), header.sample_rate_hz,
+                                args.template_t0, "calibration-echo")
+        bandpass = tuple(args.bandpass) if args.bandpass is not None else (
+            "template" if args.bandpass_template else None)
+        result = detect_source(
+            source,
+            args.method,
+            template=template,
+            average=True if args.average else None,
+            bandpass_hz=bandpass,
+            on_clipped=args.on_clipped,
+            full_scale_v=args.full_scale_v,
+            refine=refine,
+            **options,
+        )
     for p, row in enumerate(result.clipped):
         for c, clipped in enumerate(row):
             if clipped:
                 action = "echoes dropped" if args.on_clipped == "drop" else "echoes flagged, unreliable"
                 print(f"binsonar: warning: {args.recording}: ping {p}, channel {c} clipped ({action})", file=sys.stderr)
     if args.json:
-        print(json.dumps(_report(result, recording, str(args.recording))))
+        print(json.dumps(_report(result, header, str(args.recording))))
         return 0
     print(f"{args.recording}: method {result.method}, {result.n_pings} ping(s), {result.elapsed_s * 1e3:.2f} ms")
     for p, channels in enumerate(result.echoes):
         for c, echoes in enumerate(channels):
-            name = recording.channel_names[c] if c < len(recording.channel_names) else str(c)
+            name = header.channel_names[c] if c < len(header.channel_names) else str(c)
             flag = " [clipped]" if result.clipped[p][c] else ""
             if not echoes:
                 print(f"  ping {p} {name:>6}: no echo{flag}")
@@ -177,7 +192,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="detect echoes and their times of flight in a recording",
         description="Detect echoes and estimate their times of flight (per ping and channel).",
     )
-    parser.add_argument("recording", nargs="?", help="recording file (HDF5, format 1.x)")
+    parser.add_argument("recording", nargs="?",
+                        help="recording file (HDF5, format 1.x), or a WAV, .npy, .npz, .mat or .csv file with --array")
+    parser.add_argument("--array", default=None, metavar="ARRAY.toml",
+                        help="array description of a WAV, NumPy, MATLAB or CSV file (see binsonar import)")
     parser.add_argument("--method", default="matched", metavar="METHOD",
                         help=f"detection method (default matched): {', '.join(METHODS)}")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")

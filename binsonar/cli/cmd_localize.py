@@ -10,6 +10,10 @@ Each target has ``class`` (point, cylinder, plane, unknown), ``status`` ("ok" or
 ``radius_m`` (null when not fitted, "inf" for a plane), ``radius_std_m``, ``path_lengths_m``,
 ``path_length_std_m`` and ``tof_s`` (left, centre, right; null where missing). Non-finite numbers
 are null.
+
+The recording is detected range of pings by range of pings (``binsonar.streaming``): memory
+does not grow with its length. A WAV, NumPy, MATLAB or CSV file is read directly with
+``--array ARRAY.toml``.
 """
 
 from __future__ import annotations
@@ -27,7 +31,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Detect echoes, associate them across channels, fit point, cylinder and plane models "
                     "and classify each target; tank positions when the recording has poses.",
     )
-    parser.add_argument("recording", help="recording file (HDF5)")
+    parser.add_argument("recording",
+                        help="recording file (HDF5), or a WAV, .npy, .npz, .mat or .csv file with --array")
+    parser.add_argument("--array", default=None, metavar="ARRAY.toml",
+                        help="array description of a WAV, NumPy, MATLAB or CSV file (see binsonar import)")
     parser.add_argument("--method", default="ca-cfar",
                         help="detection method (default: ca-cfar, which reports every echo; see binsonar detect)")
     parser.add_argument("--sound-speed", type=float, default=None, dest="sound_speed",
@@ -45,16 +52,22 @@ def _fmt(v: float | None, spec: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``localize``; returns the exit code."""
-    from binsonar.localization.pipeline import LocalizationConfig, localize
-    from binsonar.recording import RecordingError, read_recording
+    from binsonar.importers import open_source
+    from binsonar.localization.pipeline import LocalizationConfig
+    from binsonar.recording import RecordingError
+    from binsonar.streaming import localize_source
 
     if args.sound_speed is not None and not (math.isfinite(args.sound_speed) and 1000 < args.sound_speed < 2000):
         raise RecordingError(f"--sound-speed: out of range (1000-2000 m/s): {args.sound_speed!r}")
     if not (math.isfinite(args.tof_floor_ns) and args.tof_floor_ns >= 0):
         raise RecordingError(f"--tof-floor-ns: must be >= 0, got {args.tof_floor_ns!r}")
-    recording = read_recording(args.recording)
-    result = localize(recording, method=args.method, sound_speed_m_s=args.sound_speed,
-                      config=LocalizationConfig(fuse=not args.no_fuse, tof_floor_s=args.tof_floor_ns * 1e-9))
+    from binsonar.detection import METHODS
+
+    if args.method not in METHODS:
+        raise RecordingError(f"unknown detection method {args.method!r}; choose one of: {', '.join(METHODS)}")
+    config = LocalizationConfig(fuse=not args.no_fuse, tof_floor_s=args.tof_floor_ns * 1e-9)
+    with open_source(args.recording, args.array) as source:
+        result = localize_source(source, method=args.method, sound_speed_m_s=args.sound_speed, config=config)
     if args.json:
         print(json.dumps(result.to_dict()))
         return 0

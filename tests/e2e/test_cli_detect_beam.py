@@ -44,7 +44,7 @@ def test_refinement_removes_the_beam_bias(point_file, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--method", "threshold", "--transducer-diameter-m", "0.019"], "envelope peak"),
     (["--method", "matched", "--beam-target", "point"], "need --transducer-diameter-m"),
-    (["--method", "matched", "--transducer-diameter-m", "-1"], "diameters_m"),
+    (["--method", "matched", "--transducer-diameter-m", "-1"], "--transducer-diameter-m must be within"),
     (["--method", "matched", "--transducer-diameter-m", "0.019", "--wedge-angle-deg", "200"], "wedge_interior"),
 ])
 def test_bad_beam_options_exit_2(point_file, capsys, args, message):
