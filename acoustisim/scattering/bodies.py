@@ -19,13 +19,16 @@ a :class:`Fluid`. :func:`body_from_material` maps a library or scene-file materi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple, Union
+from typing import TYPE_CHECKING, NamedTuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
 from acoustisim.materials import Material
+
+if TYPE_CHECKING:
+    from acoustisim.medium import Medium
 
 __all__ = ("Body", "Elastic", "Fluid", "PressureRelease", "Rigid", "Shell", "body_from_material",
            "complex_wavenumber")
@@ -54,6 +57,12 @@ class Fluid(NamedTuple):
     def wavenumber(self, omega: ArrayLike) -> NDArray[np.complex128]:
         """k (1/m), shape of ``omega``."""
         return complex_wavenumber(omega, self.sound_speed_m_s, self.loss_factor)
+
+    @classmethod
+    def from_medium(cls, medium: "Medium") -> "Fluid":
+        """The host water of a scene's :class:`acoustisim.medium.Medium` (loss 0: the simulator
+        applies the water's absorption per path)."""
+        return cls(float(medium.density), float(medium.sound_speed))
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,7 @@ and rounding: below 1e-10.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -65,12 +65,16 @@ from scipy import special
 
 from acoustisim.errors import InputError
 from acoustisim.materials import Material
-from acoustisim.scattering.bodies import Body, Fluid
+from acoustisim.scattering.bodies import Body, Fluid, body_from_material
 from acoustisim.scattering.modal import modal_coefficients
 from acoustisim.scattering.series import DEFAULT_EXTRA_ORDERS, ModalCoefficients
 from acoustisim.scattering.special import bessel_table
 
-__all__ = ("EchoGeometry", "EchoTarget", "SpecularPoint", "echo_transfer", "exact_echo", "specular_point")
+if TYPE_CHECKING:
+    from acoustisim.scene import SceneObject
+
+__all__ = ("EchoGeometry", "EchoTarget", "SpecularPoint", "echo_target_for", "echo_transfer", "exact_echo",
+           "specular_point")
 
 TargetShape = Literal["post", "sphere"]
 
@@ -157,6 +161,32 @@ class EchoTarget:
             raise InputError(f"echo target shape = {self.shape!r}: expected 'post' or 'sphere'")
         if not self.radius_m > 0.0:
             raise InputError(f"echo target radius_m = {self.radius_m!r}: must be > 0")
+
+
+def echo_target_for(obj: "SceneObject", body: Body | None = None) -> tuple[EchoTarget, NDArray[np.float64],
+                                                                            NDArray[np.float64] | None] | None:
+    """The exact-echo description of a scene object, with its centre and axis for
+    :meth:`EchoGeometry.from_points`, or None when no series describes it.
+
+    Posts and cylinders (a finite cylinder: the axial stationary phase needs its ends outside
+    the first Fresnel zone) become "post" targets, spheres "sphere" targets; their body is the
+    material's (:func:`acoustisim.scattering.bodies.body_from_material`) unless ``body`` is
+    given (a pipe's :class:`Shell`, whose wall thickness and fill the scene file does not hold
+    yet).
+
+    Returns
+    -------
+    (EchoTarget, centre (3,), axis (3,) or None) or None
+    """
+    primitive = obj.primitive
+    if primitive is None or obj.kind not in ("post", "cylinder", "sphere"):
+        return None
+    chosen = body if body is not None else body_from_material(obj.material)
+    if obj.kind == "sphere":
+        return (EchoTarget("sphere", float(primitive.radius_m), chosen, obj.material),
+                np.asarray(primitive.center_m, dtype=float), None)
+    return (EchoTarget("post", float(primitive.radius_m), chosen, obj.material),
+            np.asarray(primitive.center_m, dtype=float), np.asarray(primitive.axis, dtype=float))
 
 
 @dataclass(frozen=True)

@@ -82,3 +82,31 @@ def test_kirchhoff_post_shadow_levels():
     assert 20 * np.log10(on_axis[0]) > 20 * np.log10(on_axis[1])
     aside = np.abs(kirchhoff_post_shadow(k, source, receiver, (0.2, 1.0), 0.025)) / free
     assert np.all(np.abs(20 * np.log10(aside)) < 1.0)
+
+
+def test_thesis_tank_post_three_behind_post_one_matches_the_issue_estimate():
+    # Issue 17: from the default pose the legs to post-3 graze post-1; "a Kirchhoff estimate
+    # puts post-3's echo at about -18 / -9 / -16 dB (centre / right / left) relative to
+    # unobstructed". This reference, coded independently, at 500 kHz, both legs through the
+    # Kirchhoff integral (reflection point on post-3 facing the midpoint of transmitter and
+    # receiver): -18.0 / -8.1 / -15.6 dB; the issue's figures are rounded (and may average the
+    # band): within 1.5 dB.
+    from scenes.builtin import builtin_scene
+
+    scene = builtin_scene("thesis-tank")
+    objects = {o.name: o for o in scene.objects}
+    post1, post3 = objects["post-1"].primitive, objects["post-3"].primitive
+    transmitter, receivers = scene.sonar.transmitter_position, scene.sonar.receiver_positions
+    k = np.array([2 * np.pi * 500e3 / scene.medium.sound_speed])
+    levels = {}
+    for name, receiver in zip(("left", "centre", "right"), receivers):
+        middle = 0.5 * (transmitter + receiver)
+        facing = (middle[:2] - np.asarray(post3.center_m[:2])) / np.linalg.norm(middle[:2] - post3.center_m[:2])
+        point = np.r_[np.asarray(post3.center_m[:2]) + post3.radius_m * facing, middle[2]]
+        gain = 1.0
+        for a, b in ((transmitter, point), (point, receiver)):
+            field = kirchhoff_post_shadow(k, a, b, post1.center_m[:2], post1.radius_m)[0]
+            gain *= abs(field) * np.linalg.norm(b - a)
+        levels[name] = 20 * np.log10(gain)
+    for name, issue in (("centre", -18.0), ("right", -9.0), ("left", -16.0)):
+        assert abs(levels[name] - issue) < 1.5, (name, levels[name])
