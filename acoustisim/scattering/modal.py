@@ -167,8 +167,8 @@ def boundary_system(shape: Shape, body: Rigid | PressureRelease | Elastic, x: ND
             else:
                 matrix[..., 2, 1] = 2.0 * n * (z_l.value - xl * z_l.derivative)
                 matrix[..., 2, 2] = (xt * xt - 2.0 * n * n) * z_t.value + 2.0 * xt * z_t.derivative
-            # n = 0: the shear potential does not couple to the water (c = 0).
-            matrix[:, 0, :, :] = np.where(orders[0] == 0, _decoupled_shear(matrix[:, 0]), matrix[:, 0])
+            # n = 0 (orders start at 0): the shear potential does not couple to the water (c = 0).
+            matrix[:, 0, :, :] = _decoupled_shear(matrix[:, 0])
     identity = np.broadcast_to(np.eye(3, dtype=complex), shape_systems)
     matrix = np.where(keep[..., None, None], matrix, identity)
     rhs = np.where(keep[..., None], rhs, 0.0)

@@ -74,14 +74,17 @@ def test_specular_point_and_spreading_match_the_simulators_geometric_optics():
     np.testing.assert_allclose(mine.path_length_m, lengths, rtol=1e-12)
 
 
+@pytest.mark.parametrize("material", ["rigid", "pressure-release"])
 @pytest.mark.parametrize("shape, tolerance_db", [("post", 0.03), ("sphere", 0.15)])
-def test_rigid_limit_reproduces_todays_echo(shape, tolerance_db):
-    # Rigid body, 1 m, three channels, 300-700 kHz: |H| = 1 up to the creeping waves and the
-    # 1/(ka) corrections (measured: post 0.014 dB, sphere 0.095 dB, the sphere's creeping
-    # wave being about -40 dB), phase within 0.06 rad.
+def test_rigid_and_soft_limits_reproduce_todays_echo(shape, tolerance_db, material):
+    # Rigid (R = +1) and pressure-release (R = -1) bodies, 1 m, three channels, 300-700 kHz:
+    # |H| = 1 up to the creeping waves and the 1/(ka) corrections (measured, rigid: post
+    # 0.014 dB, sphere 0.095 dB, the sphere's creeping wave being about -40 dB), phase within
+    # 0.06 rad.
     f = np.linspace(300e3, 700e3, 201)
     geometry = EchoGeometry.from_points(HEAD, RECEIVERS, [0.0, RADIUS, 0.5], [0, 0, 1] if shape == "post" else None)
-    transfer = echo_transfer(EchoTarget(shape, RADIUS, Rigid(), RIGID), geometry, WATER, f)
+    today = get_material(material)
+    transfer = echo_transfer(EchoTarget(shape, RADIUS, body_from_material(today), today), geometry, WATER, f)
     assert transfer.shape == (3, f.size)
     assert np.max(np.abs(20 * np.log10(np.abs(transfer)))) < tolerance_db
     assert np.max(np.abs(np.angle(transfer))) < 0.06
@@ -149,6 +152,18 @@ def test_solid_pvc_post_specular_level_and_internal_echoes():
     energy = 10 ** (level / 10)
     gate = np.abs(t) < 5e-6
     assert energy[~gate & (t > 0)].sum() > energy[gate].sum()
+
+
+def test_fluid_limit_reproduces_todays_specular_level():
+    # PVC as a fluid (c_S = 0): today's model exactly (the plane-wave fluid R at the specular
+    # point, -8.43 dB re rigid at normal incidence); the exact fluid cylinder's specular echo
+    # peaks at that level up to the 1/(ka) corrections and the weak interference of later
+    # arrivals: within 0.1 dB.
+    fluid_pvc = Material("pvc-fluid", 1380.0, 2380.0, 0.0)
+    level, t = post_echo_envelope(fluid_pvc)
+    today = 20 * np.log10(abs(fluid_pvc.normal_reflection(WATER.density_kg_m3, WATER.sound_speed_m_s)))
+    assert today == pytest.approx(-8.43, abs=0.01)
+    assert abs(np.max(level[np.abs(t) < 2e-6]) - today) < 0.1
 
 
 def test_losses_attenuate_the_internal_echo_as_the_loss_factor_predicts():
