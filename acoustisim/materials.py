@@ -31,6 +31,32 @@ mu = 1.9338e-5. The library keeps the formula's double (``acoustisim.experiments
 small_roughness_lambert_mu``; ``tests/physics/test_materials.py`` recomputes it): the inputs justify about
 one digit, but all digits make the figures of the sweeps that use it reproducible from the formula.
 mu scales as h^2; the equivalent mu at other angles is about half at 30-45 deg, 3.7 times at 75 deg.
+
+Elastic parameters and losses
+-----------------------------
+Every material also carries what the exact elastic scattering of :mod:`acoustisim.scattering`
+needs: the shear speed c_S (0 for a fluid) and the loss factors eta_L, eta_S of compressional
+and shear waves. With time dependence exp(-i w t) a wave of speed c and loss factor eta has the
+wavenumber k = (w / c)(1 + i eta / 2) (structural-acoustics convention, ``conventions.md``); the
+attenuation is alpha = eta w / (2 c) Np/m, i.e. eta = alpha c / (pi f) (constant over the band:
+attenuation proportional to frequency). ``roughness_rms_m`` is the rms height h of the face, for
+the coherent-reflection (Kirchhoff / Eckart) factor of :mod:`acoustisim.scattering.roughness`
+(0 for every built-in: the tank's faces are not characterised; a scene file sets it).
+
+Sources of the built-in elastic values (rho kg/m^3, c_L / c_S m/s) are the handbook values of
+``physics.md`` section 3 (PVC 1380, 2380/1060; concrete 2300, 4000/2300; glass 2500,
+5800/3400; steel 7850, 5900/3200), which agree with the standard tables to a few per cent
+(Kaye & Laby, *Tables of Physical and Chemical Constants*, section 2.4.1; Selfridge, IEEE Trans.
+Sonics Ultrason. SU-32, 381, 1985: mild steel 7850, 5960/3235; aluminium 2700, 6420/3040;
+crown glass 2500, 5660/3420); aluminium keeps the library's 2700, 6320/3130 (rolled
+aluminium alloy, the same tables). Loss factors are representative values, not measurements of
+the tank's own objects: rigid PVC (unplasticised) eta_L = 0.03, eta_S = 0.05, the values of
+issue 17's example, within the range Ono (Appl. Sci. 10, 5265, 2020) measured for engineering
+polymers at 0.5-5 MHz (damping factors alpha lambda / pi = eta of 0.01-0.065, shear above
+compressional); metals and glass eta of 1e-3 to 4e-3 (the bottom of that range, Ono 2020, and
+Ono, Appl. Sci. 12, 13026, 2022 for glasses); concrete (and mortar) eta_L = 0.05, eta_S = 0.08,
+dominated by scattering from the aggregate at these frequencies (Ono 2022 measured mortars at
+the top of the range). A scene file can override every value (``[[materials]]``).
 """
 
 from __future__ import annotations
@@ -38,10 +64,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Literal, Mapping
+from typing import Literal, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from acoustisim.errors import InputError
 
 ReflectionModel = Literal["fluid", "rigid", "pressure-release", "fixed"]
 
@@ -57,15 +85,20 @@ class Material:
     density_kg_m3 : float
         Density (kg/m^3).
     sound_speed_m_s : float
-        Longitudinal (compressional) sound speed (m/s).
+        Longitudinal (compressional) sound speed c_L (m/s); also ``compressional_speed_m_s``.
     shear_speed_m_s : float
-        Shear speed (m/s); informative, the fluid model ignores it.
+        Shear speed c_S (m/s), 0 for a fluid; the plane-wave ``fluid`` reflection model ignores
+        it, the elastic scattering of :mod:`acoustisim.scattering` uses it.
     model : {"fluid", "rigid", "pressure-release", "fixed"}
         Reflection model (see module docstring).
     fixed_reflection : float
         The coefficient of the ``fixed`` model.
     diffuse_mu : float
         Lambert scattering strength mu (dimensionless, 0 <= mu <= 1/pi).
+    compressional_loss_factor, shear_loss_factor : float
+        Loss factors eta_L, eta_S (dimensionless, >= 0): k = (w / c)(1 + i eta / 2).
+    roughness_rms_m : float
+        Rms height h of the surface (m, >= 0) for the coherent-reflection factor.
     """
 
     name: str
@@ -75,18 +108,33 @@ class Material:
     model: ReflectionModel = "fluid"
     fixed_reflection: float = 0.0
     diffuse_mu: float = 0.0
+    compressional_loss_factor: float = 0.0
+    shear_loss_factor: float = 0.0
+    roughness_rms_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.model not in ("fluid", "rigid", "pressure-release", "fixed"):
-            raise ValueError(f"material {self.name!r}: unknown reflection model {self.model!r}")
+            raise InputError(f"material {self.name!r}: unknown reflection model {self.model!r}")
         for field in ("density_kg_m3", "sound_speed_m_s"):
             value = getattr(self, field)
             if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"material {self.name!r}: {field} must be > 0, got {value!r}")
+                raise InputError(f"material {self.name!r}: {field} must be > 0, got {value!r}")
+        for field in ("shear_speed_m_s", "compressional_loss_factor", "shear_loss_factor", "roughness_rms_m"):
+            value = getattr(self, field)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise InputError(f"material {self.name!r}: {field} must be finite and >= 0, got {value!r}")
+        for field in ("compressional_loss_factor", "shear_loss_factor"):
+            if getattr(self, field) >= 2.0:
+                raise InputError(f"material {self.name!r}: {field} must be < 2 (k = (w/c)(1 + i eta/2)), "
+                                 f"got {getattr(self, field)!r}")
+        # Positive bulk modulus K = rho (c_L^2 - 4 c_S^2 / 3) > 0 (a stable solid).
+        if not self.shear_speed_m_s < 0.5 * math.sqrt(3.0) * self.sound_speed_m_s:
+            raise InputError(f"material {self.name!r}: shear_speed_m_s = {self.shear_speed_m_s!r} must be below "
+                             f"sqrt(3)/2 of the compressional speed {self.sound_speed_m_s!r} (positive bulk modulus)")
         if not 0.0 <= self.diffuse_mu <= 1.0 / math.pi + 1e-12:
-            raise ValueError(f"material {self.name!r}: diffuse_mu must lie in [0, 1/pi], got {self.diffuse_mu!r}")
+            raise InputError(f"material {self.name!r}: diffuse_mu must lie in [0, 1/pi], got {self.diffuse_mu!r}")
         if not -1.0 <= self.fixed_reflection <= 1.0:
-            raise ValueError(
+            raise InputError(
                 f"material {self.name!r}: fixed_reflection must lie in [-1, 1], got {self.fixed_reflection!r}"
             )
 
@@ -127,23 +175,45 @@ class Material:
         return float(self.reflection_coefficient(1.0, medium_density_kg_m3, medium_sound_speed_m_s).real)
 
 
+    @property
+    def compressional_speed_m_s(self) -> float:
+        """c_L (m/s): the scene file's name for ``sound_speed_m_s``."""
+        return self.sound_speed_m_s
+
+    @property
+    def is_solid(self) -> bool:
+        """Whether the material carries shear waves (c_S > 0)."""
+        return self.shear_speed_m_s > 0.0
+
+
 def material_library() -> Mapping[str, Material]:
     """The built-in materials, by name (a read-only mapping, built fresh on each call).
 
-    Handbook values (rho kg/m^3, c_L / c_S m/s), see ``physics.md`` section 3.
+    Elastic values and losses with their sources in the module docstring.
     """
     materials = (
-        Material("concrete", 2300.0, 4000.0, 2300.0, "fluid", diffuse_mu=0.01),
-        Material("glass", 2500.0, 5800.0, 3400.0, "fluid", diffuse_mu=0.001),
-        Material("pvc", 1380.0, 2380.0, 1060.0, "fluid", diffuse_mu=0.003),
-        Material("steel", 7850.0, 5900.0, 3200.0, "fluid", diffuse_mu=0.002),
+        Material("concrete", 2300.0, 4000.0, 2300.0, "fluid", diffuse_mu=0.01,
+                 compressional_loss_factor=0.05, shear_loss_factor=0.08),
+        Material("glass", 2500.0, 5800.0, 3400.0, "fluid", diffuse_mu=0.001,
+                 compressional_loss_factor=0.002, shear_loss_factor=0.003),
+        Material("pvc", 1380.0, 2380.0, 1060.0, "fluid", diffuse_mu=0.003,
+                 compressional_loss_factor=0.03, shear_loss_factor=0.05),
+        Material("steel", 7850.0, 5900.0, 3200.0, "fluid", diffuse_mu=0.002,
+                 compressional_loss_factor=0.002, shear_loss_factor=0.003),
         # Machined finish, rms 3 um: small-perturbation mu at 500 kHz, 60 deg, 1.93e-5 (module docstring).
-        Material("steel-machined", 7850.0, 5900.0, 3200.0, "fluid", diffuse_mu=1.9338212442616098e-05),
-        Material("aluminium", 2700.0, 6320.0, 3130.0, "fluid", diffuse_mu=0.002),
-        Material("rubber", 1100.0, 1600.0, 50.0, "fluid", diffuse_mu=0.005),
-        Material("sand", 1900.0, 1650.0, 0.0, "fluid", diffuse_mu=0.03),
-        Material("pvc-pipe-air", 1380.0, 2380.0, 1060.0, "fixed", fixed_reflection=-0.9, diffuse_mu=0.003),
-        Material("pvc-pipe-water", 1380.0, 2380.0, 1060.0, "fixed", fixed_reflection=0.35, diffuse_mu=0.003),
+        Material("steel-machined", 7850.0, 5900.0, 3200.0, "fluid", diffuse_mu=1.9338212442616098e-05,
+                 compressional_loss_factor=0.002, shear_loss_factor=0.003),
+        Material("aluminium", 2700.0, 6320.0, 3130.0, "fluid", diffuse_mu=0.002,
+                 compressional_loss_factor=0.001, shear_loss_factor=0.002),
+        # Soft rubber: heavily damped (loss factors of order 0.1-0.3 are typical of elastomers).
+        Material("rubber", 1100.0, 1600.0, 50.0, "fluid", diffuse_mu=0.005,
+                 compressional_loss_factor=0.1, shear_loss_factor=0.3),
+        # Water-saturated sand as a fluid: Hamilton's attenuation about 0.5 dB/(m kHz) -> eta = 0.03.
+        Material("sand", 1900.0, 1650.0, 0.0, "fluid", diffuse_mu=0.03, compressional_loss_factor=0.03),
+        Material("pvc-pipe-air", 1380.0, 2380.0, 1060.0, "fixed", fixed_reflection=-0.9, diffuse_mu=0.003,
+                 compressional_loss_factor=0.03, shear_loss_factor=0.05),
+        Material("pvc-pipe-water", 1380.0, 2380.0, 1060.0, "fixed", fixed_reflection=0.35, diffuse_mu=0.003,
+                 compressional_loss_factor=0.03, shear_loss_factor=0.05),
         Material("rigid", 1.0e6, 1.0e6, 0.0, "rigid"),
         Material("pressure-release", 1.2, 343.0, 0.0, "pressure-release"),
         Material("air", 1.2, 343.0, 0.0, "pressure-release"),
@@ -151,11 +221,21 @@ def material_library() -> Mapping[str, Material]:
     return MappingProxyType({m.name: m for m in materials})
 
 
-def get_material(name: str) -> Material:
-    """Look a material up by name; raises ``KeyError`` naming the known ones."""
+def get_material(name: str, scene_materials: Sequence[Material] = ()) -> Material:
+    """Look a material up by name: first among ``scene_materials`` (a scene file's own
+    ``[[materials]]``), then in the built-in library.
+
+    Raises
+    ------
+    InputError
+        Unknown name; the message names it and the known ones.
+    """
+    for material in scene_materials:
+        if material.name == name:
+            return material
     library = material_library()
     try:
         return library[name]
-    except KeyError:
-        known = ", ".join(sorted(library))
-        raise KeyError(f"unknown material {name!r} (known: {known})") from None
+    except (KeyError, TypeError):
+        known = ", ".join(sorted({*library, *(m.name for m in scene_materials)}))
+        raise InputError(f"unknown material {name!r} (known: {known})") from None

@@ -101,7 +101,9 @@ class Boundary:
 class Tank:
     """A rectangular tank, tank frame origin at a floor corner (m).
 
-    The free surface is the plane z = ``water_depth_m`` (pressure release, R = -1).
+    The free surface is the plane z = ``water_depth_m`` (pressure release, R = -1). The
+    ``*_material`` names are looked up among ``materials`` (a scene file's ``[[materials]]``)
+    first, then in the built-in library.
     """
 
     length_m: float = 9.0
@@ -110,6 +112,7 @@ class Tank:
     wall_material: str = "concrete"
     floor_material: str = "concrete"
     surface_material: str = "pressure-release"
+    materials: tuple[Material, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("length_m", "width_m", "water_depth_m"):
@@ -117,7 +120,12 @@ class Tank:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"tank.{name} must be a finite number > 0, got {value!r}")
         for name in ("wall_material", "floor_material", "surface_material"):
-            get_material(getattr(self, name))  # raises KeyError naming the value
+            self.material(name)  # raises InputError naming the value
+
+    def material(self, which: str) -> Material:
+        """The material named by ``which`` ("wall_material", "floor_material" or
+        "surface_material"): a scene-file material of ``materials`` or a built-in one."""
+        return get_material(getattr(self, which), self.materials)
 
     @property
     def bounds_m(self) -> np.ndarray:
@@ -134,15 +142,15 @@ class Tank:
     def boundaries(self) -> tuple[Boundary, ...]:
         """The six planar boundaries: four walls, the floor and the free surface."""
         length, width, depth = self.length_m, self.width_m, self.water_depth_m
-        wall = get_material(self.wall_material)
+        wall = self.material("wall_material")
         spec = (
             ("wall-x0", "wall", wall, (0.0, width / 2, depth / 2), (1, 0, 0), (0, 1, 0), (width / 2, depth / 2)),
             ("wall-x1", "wall", wall, (length, width / 2, depth / 2), (-1, 0, 0), (0, 1, 0), (width / 2, depth / 2)),
             ("wall-y0", "wall", wall, (length / 2, 0.0, depth / 2), (0, 1, 0), (1, 0, 0), (length / 2, depth / 2)),
             ("wall-y1", "wall", wall, (length / 2, width, depth / 2), (0, -1, 0), (1, 0, 0), (length / 2, depth / 2)),
-            ("floor", "floor", get_material(self.floor_material), (length / 2, width / 2, 0.0), (0, 0, 1), (1, 0, 0),
+            ("floor", "floor", self.material("floor_material"), (length / 2, width / 2, 0.0), (0, 0, 1), (1, 0, 0),
              (length / 2, width / 2)),
-            ("surface", "surface", get_material(self.surface_material), (length / 2, width / 2, depth), (0, 0, -1),
+            ("surface", "surface", self.material("surface_material"), (length / 2, width / 2, depth), (0, 0, -1),
              (1, 0, 0), (length / 2, width / 2)),
         )
         return tuple(

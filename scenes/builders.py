@@ -59,8 +59,8 @@ def _material(owner: str, material: str | Material) -> Material:
         return material
     try:
         return get_material(material)
-    except KeyError as exc:
-        raise InputError(f"{owner}.material = {material!r}: {exc.args[0]}") from None
+    except InputError as exc:
+        raise InputError(f"{owner}.material = {material!r}: {exc}") from None
 
 
 # --------------------------------------------------------------------------- mesh helpers

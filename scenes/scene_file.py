@@ -9,6 +9,8 @@ and an array ``[[objects]]`` whose ``kind`` is ``post``, ``edge``, ``cylinder``,
 - ``[medium]``: ``depth_m``, ``ph``, ``formula`` (``auto``, ``marczak``, ``mackenzie``,
   ``unesco``) and the optional ``sound_speed_m_s`` override;
 - ``[tank]``: ``surface_material`` (default ``pressure-release``);
+- ``[[materials]]``: the file's own materials (:mod:`scenes.materials_table`), which objects,
+  walls, floor and surface may name besides the built-in ones;
 - ``[sonar]``: ``pitch_deg``, ``roll_deg``, ``source_level_pa``, ``channel_positions_m``
   (three rows of three numbers, head frame); missing keys take the default sonar's values
   (:func:`scenes.builders.default_sonar`); a custom sampled pulse is not stored;
@@ -36,13 +38,14 @@ from typing import Any, Callable, Mapping
 import tomli_w
 
 from acoustisim.errors import InputError
-from acoustisim.materials import material_library
+from acoustisim.materials import Material, get_material, material_library
 from acoustisim.medium import Medium
 from acoustisim.scene import Scene, SceneObject, Tank
 from acoustisim.sonar import SonarHead
 from scenes import builders
 from scenes.builtin import builtin_scene, builtin_scene_names
 from scenes.errors import SceneFileError
+from scenes.materials_table import materials_to_toml, read_materials_table
 from scenes.validation import validate_scene
 
 __all__ = ["SceneFileError", "load_scene", "read_scene_file", "save_scene", "scene_to_toml", "scene_from_toml"]
@@ -68,6 +71,7 @@ class _Context:
     """Where we are, for messages."""
 
     source: str
+    materials: tuple[Material, ...] = ()  # the file's own [[materials]]
 
     def error(self, key: str, value: Any, problem: str) -> SceneFileError:
         return SceneFileError(f"{self.source}: {key} = {_show(value)}: {problem}")
@@ -128,9 +132,9 @@ def _choice(*options: str) -> Callable[[_Context, str, Any], str]:
 
 def _material(ctx: _Context, key: str, value: Any) -> str:
     name = _string(ctx, key, value)
-    library = material_library()
-    if name not in library:
-        raise ctx.error(key, value, f"unknown material (known: {', '.join(sorted(library))})")
+    known = {*material_library(), *(m.name for m in ctx.materials)}
+    if name not in known:
+        raise ctx.error(key, value, f"unknown material (known: {', '.join(sorted(known))})")
     return name
 
 
@@ -179,7 +183,7 @@ def _read_table(
 
 
 # --------------------------------------------------------------------------- schema
-_TOP_KEYS = ("name", "free_field", "medium", "tank", "sonar", "objects")
+_TOP_KEYS = ("name", "free_field", "medium", "tank", "sonar", "materials", "objects")
 
 _MEDIUM = MappingProxyType({
     "water": _Field(_choice("fresh", "sea")),
@@ -272,7 +276,7 @@ def _medium(ctx: _Context, table: Any) -> Medium:
 
 def _tank(ctx: _Context, table: Any) -> Tank:
     values = _read_table(ctx, "tank", table, _TANK)
-    return Tank(**values)
+    return Tank(**values, materials=ctx.materials)
 
 
 def _sonar(ctx: _Context, table: Any) -> SonarHead:
@@ -309,7 +313,7 @@ def _object(ctx: _Context, index: int, table: Any, tank: Tank | None, base_dir: 
         raise ctx.error(f"{prefix}.kind", kind, f"unknown kind (known: {', '.join(_OBJECTS)})")
     v = _read_table(ctx, prefix, table, _OBJECTS[kind])
     name = v.get("name", f"{kind}-{index + 1}")
-    material = v.get("material", _DEFAULT_MATERIAL[kind])
+    material = get_material(v.get("material", _DEFAULT_MATERIAL[kind]), ctx.materials)
     try:
         if kind == "post":
             bottom, top = _vertical(ctx, prefix, v, tank)
@@ -374,7 +378,7 @@ def scene_from_toml(
     ------
     SceneFileError
     """
-    ctx = _Context(source)
+    ctx = _Context(source, read_materials_table(data.get("materials", []), source))
     for key in data:
         if key not in _TOP_KEYS:
             raise ctx.error(key, data[key], f"unknown key (known: {', '.join(_TOP_KEYS)})")
@@ -452,6 +456,28 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _scene_materials(scene: Scene) -> tuple[Material, ...]:
+    """The materials of ``scene`` that are not the library's (written as [[materials]]).
+
+    Raises
+    ------
+    SceneFileError
+        Two different materials under one name (a file names materials uniquely).
+    """
+    library = material_library()
+    used = [*(scene.tank.materials if scene.tank is not None else ()), *(obj.material for obj in scene.objects)]
+    own: dict[str, Material] = {}
+    for material in used:
+        if library.get(material.name) == material:
+            continue
+        if material.name in library or own.setdefault(material.name, material) != material:
+            raise SceneFileError(
+                f"{scene.name}: material {material.name!r}: two different materials share this name"
+                " (a scene file stores materials by name)"
+            )
+    return tuple(own.values())
+
+
 def scene_to_dict(scene: Scene, base_dir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """The scene as a TOML-ready mapping (every value explicit).
 
@@ -461,12 +487,13 @@ def scene_to_dict(scene: Scene, base_dir: str | os.PathLike[str] | None = None) 
     base_dir : path-like, optional
         Write mesh paths relative to this directory (the target file's); absolute if None.
 
+    Materials that are not the library's are written as ``[[materials]]`` tables.
+
     Raises
     ------
     SceneFileError
-        A material that is not in the library (the file stores materials by name).
+        Two different materials under one name (the file stores materials by name).
     """
-    library = material_library()
     medium = scene.medium
     data: dict[str, Any] = {"name": scene.name}
     if scene.tank is None:
@@ -493,13 +520,11 @@ def scene_to_dict(scene: Scene, base_dir: str | os.PathLike[str] | None = None) 
         }
     sonar = scene.sonar
     data["sonar"] = {key: _plain(getattr(sonar, key)) for key in _SONAR if getattr(sonar, key) is not None}
+    own = _scene_materials(scene)
+    if own:
+        data["materials"] = materials_to_toml(own, scene.name)
     objects = []
-    for index, obj in enumerate(scene.objects):
-        if library.get(obj.material.name) != obj.material:
-            raise SceneFileError(
-                f"{scene.name}: objects[{index}].material = {obj.material.name!r}: not a library material;"
-                " a scene file stores materials by name"
-            )
+    for obj in scene.objects:
         table: dict[str, Any] = {"kind": obj.kind, "name": obj.name}
         for key, value in obj.parameters:
             if key == "path" and base_dir is not None:

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from acoustisim.errors import InputError
 from acoustisim.materials import Material, get_material, material_library
 from acoustisim.medium import Medium
 
@@ -77,8 +78,42 @@ def test_library_holds_the_required_materials():
 
 
 def test_unknown_material_names_the_known_ones():
-    with pytest.raises(KeyError, match="wood.*known: .*steel"):
+    with pytest.raises(InputError, match="wood.*known: .*steel"):
         get_material("wood")
+    # scene materials are searched first and named among the known ones
+    lab = Material("pvc-lab", 1380.0, 2380.0, 1060.0)
+    assert get_material("pvc-lab", (lab,)) is lab
+    with pytest.raises(InputError, match="known: .*pvc-lab"):
+        get_material("wood", (lab,))
+
+
+@pytest.mark.parametrize("name", ["pvc", "steel", "aluminium", "glass", "concrete"])
+def test_builtin_solids_carry_elastic_values_and_losses(name):
+    material = get_material(name)
+    assert material.is_solid and material.compressional_speed_m_s == material.sound_speed_m_s
+    # Poisson's ratio from the speeds lies in the physical range of these solids (0.2-0.4):
+    # a check that c_L and c_S were not swapped or mistyped.
+    ratio = (material.shear_speed_m_s / material.sound_speed_m_s) ** 2
+    poisson = (1.0 - 2.0 * ratio) / (2.0 * (1.0 - ratio))
+    assert 0.2 < poisson < 0.4
+    # Losses: small (eta << 1) and shear at least as lossy as compressional (Ono 2020), and
+    # the passivity bound alpha_L / alpha_T >= 4 c_T^3 / (3 c_L^3) (Norris 2017), i.e.
+    # eta_L / eta_S >= (4/3) (c_S / c_L)^2.
+    eta_l, eta_s = material.compressional_loss_factor, material.shear_loss_factor
+    assert 0.0 < eta_l <= eta_s < 0.1
+    assert eta_l / eta_s >= 4.0 / 3.0 * ratio
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"shear_speed_m_s": -1.0}, {"shear_speed_m_s": 1400.0}, {"compressional_loss_factor": 2.5},
+     {"shear_loss_factor": float("inf")}, {"roughness_rms_m": -1e-3}],
+)
+def test_bad_elastic_values_are_rejected_naming_the_field(kwargs):
+    base = {"name": "x", "density_kg_m3": 1000.0, "sound_speed_m_s": 1500.0}
+    (field,) = kwargs
+    with pytest.raises(InputError, match=field):
+        Material(**{**base, **kwargs})
 
 
 @pytest.mark.parametrize(

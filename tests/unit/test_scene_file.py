@@ -137,7 +137,9 @@ def test_save_leaves_no_file_when_the_scene_cannot_be_written(tmp_path):
     from scenes.errors import SceneFileError
 
     scene = builtin_scene("free-sphere")
-    odd = replace(scene.objects[0], material=Material("unobtainium", 1000.0, 1500.0))
-    with pytest.raises(SceneFileError, match="objects\\[0\\].material = 'unobtainium'"):
+    # A material that is not the library's is written as [[materials]], unless it takes a
+    # built-in name (the file would then mean the library's material).
+    odd = replace(scene.objects[0], material=Material("steel", 1000.0, 1500.0))
+    with pytest.raises(SceneFileError, match="material 'steel': two different materials"):
         save_scene(Scene(scene.name, scene.medium, scene.sonar, None, (odd,)), tmp_path / "x.toml")
     assert not (tmp_path / "x.toml").exists()
