@@ -6,7 +6,7 @@ half-plane near its shadow boundary."""
 import numpy as np
 import pytest
 
-from acoustisim.propagation.btm import infinite_wedge_impulse_response
+from acoustisim.propagation.reference.btm import infinite_wedge_impulse_response
 from support.diffraction_references import (btm_spectrum, half_plane_diffracted, kirchhoff_post_shadow,
                                             wedge_point_source)
 

@@ -8,7 +8,8 @@ from scipy.signal import find_peaks, hilbert
 from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive
 from acoustisim.materials import Material, get_material
-from acoustisim.propagation.curved import cylinder_specular_point, go_amplitude
+from acoustisim.propagation.curved import CurvedSet
+from acoustisim.propagation.reference.curved import go_amplitude, specular_points
 from acoustisim.scattering.arrivals import internal_arrivals, rayleigh_speed, shell_arrivals
 from acoustisim.scattering.bodies import Fluid, Rigid, Shell, body_from_material
 from acoustisim.scattering.echo import EchoGeometry, EchoTarget, echo_transfer, exact_echo, specular_point
@@ -63,11 +64,11 @@ def test_specular_point_and_spreading_match_the_simulators_geometric_optics():
     source = centre + np.c_[distance * np.cos(angle), distance * np.sin(angle), rng.uniform(-0.3, 0.3, n)]
     receiver = source + np.c_[rng.uniform(-0.1, 0.1, (n, 2)), rng.uniform(-0.3, 0.3, n)]
     cylinder = CylinderPrimitive(tuple(centre), (0.0, 0.0, 1.0), RADIUS, 3.0)
-    x, normal, valid = cylinder_specular_point(cylinder, source, receiver)
-    assert np.all(valid)
-    e1 = np.cross([0.0, 0.0, 1.0], normal)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    theirs = go_amplitude(source, receiver, x, normal, e1, np.tile([0.0, 0.0, 1.0], (n, 1)), 1.0 / RADIUS, 0.0)
+    points = specular_points(CurvedSet.from_primitives([cylinder]), np.zeros(n, dtype=np.int64), source, receiver)
+    assert np.all(points.valid)
+    x = points.point
+    theirs, _ = go_amplitude(source, receiver, x, points.normal, points.e1, points.e2, points.k11, points.k22,
+                             points.k12)
     mine = specular_point("post", RADIUS, EchoGeometry.from_points(source, receiver, centre, [0, 0, 1]))
     np.testing.assert_allclose(mine.spreading, theirs, rtol=1e-9)
     lengths = np.linalg.norm(x - source, axis=1) + np.linalg.norm(x - receiver, axis=1)
