@@ -283,7 +283,8 @@ def simulate(
     snr_rows = None
     if snr_db is not None:
         snr_rows = echo_rows(paths, snr_echo, len(scene.boundaries))
-    pings = synthesiser.render(paths.rows, seed=seed, n_pings=n_pings, snr_db=snr_db, snr_rows=snr_rows)
+    pings = synthesiser.render(paths.rows, seed=seed, n_pings=n_pings, snr_db=snr_db, snr_rows=snr_rows,
+                               responses=paths.responses)
     samples, t0 = synthesiser.template()
     template = Template(samples, sonar.sample_rate_hz, t0, "transmitted-pulse")
     pose = np.array([*sonar.position_m, sonar.yaw_deg, sonar.pitch_deg, sonar.roll_deg], dtype=float)

@@ -10,8 +10,11 @@ truth table of ``conventions.md``).
 Every row is the impulse response ``geometric_gain * delta(t - delay_s)`` with an extra
 constant phase ``phase_rad`` (applied as exp(+j phase) on positive frequencies: speckle of
 diffuse paths, complex reflection coefficients beyond the critical angle), to which synthesis
-adds the frequency-dependent factors: directivities at ``angle_tx_rad`` / ``angle_rx_rad``
-and absorption over ``path_length_m``.
+adds the frequency-dependent factors: directivities at ``angle_tx_rad`` / ``angle_rx_rad``,
+absorption over ``path_length_m``, the coherent-roughness factor exp(-S k^2) of rows with
+``roughness_m2`` S > 0, and the transfer function ``Paths.responses[response_id]`` of rows
+that stand for a whole shaped echo (an elastic object's, a shadow's;
+:mod:`acoustisim.propagation.responses`).
 """
 
 from __future__ import annotations
@@ -61,6 +64,8 @@ PATH_DTYPE = np.dtype(
         ("arrival_dir", np.float64, (3,)),  # unit vector of propagation arriving at the receiver
         ("object_ids", np.int16, (MAX_INTERACTIONS,)),  # index into Paths.surface_names, -1 pad
         ("points_m", np.float64, (MAX_INTERACTIONS, 3)),  # interaction points, NaN pad
+        ("roughness_m2", np.float64),  # S: coherent-roughness factor exp(-S k^2), 0 if smooth
+        ("response_id", np.int32),  # index into Paths.responses (a transfer function), -1 none
     ]
 )
 
@@ -70,6 +75,7 @@ def empty_paths_array(n: int = 0) -> NDArray[Any]:
     rows = np.zeros(n, dtype=PATH_DTYPE)
     rows["object_ids"] = -1
     rows["points_m"] = np.nan
+    rows["response_id"] = -1
     return rows
 
 
@@ -87,12 +93,15 @@ class Paths:
         Frequency at which the scalar columns (directivity, absorption, amplitude) are given.
     sound_speed_m_s : float
         Sound speed used for the delays.
+    responses : tuple of EchoResponse
+        The transfer functions rows name by ``response_id``.
     """
 
     rows: NDArray[Any] = field(repr=False)
     surface_names: tuple[str, ...] = ()
     centre_frequency_hz: float = 500e3
     sound_speed_m_s: float = 1482.38
+    responses: tuple[Any, ...] = ()
 
     def __post_init__(self) -> None:
         rows = np.array(self.rows, dtype=PATH_DTYPE, copy=True)
@@ -101,15 +110,16 @@ class Paths:
 
     @classmethod
     def adopt(cls, rows: NDArray[Any], surface_names: tuple[str, ...] = (), centre_frequency_hz: float = 500e3,
-              sound_speed_m_s: float = 1482.38) -> "Paths":
+              sound_speed_m_s: float = 1482.38, responses: tuple[Any, ...] = ()) -> "Paths":
         """Paths owning ``rows`` without a copy: for a freshly built PATH_DTYPE array that the
         caller hands over (it is made read-only; keep no writable reference to it)."""
         if rows.dtype != PATH_DTYPE or rows.base is not None or not rows.flags.c_contiguous:
-            return cls(rows, surface_names, centre_frequency_hz, sound_speed_m_s)
+            return cls(rows, surface_names, centre_frequency_hz, sound_speed_m_s, tuple(responses))
         rows.setflags(write=False)
         paths = object.__new__(cls)
         for name, value in (("rows", rows), ("surface_names", surface_names),
-                            ("centre_frequency_hz", centre_frequency_hz), ("sound_speed_m_s", sound_speed_m_s)):
+                            ("centre_frequency_hz", centre_frequency_hz), ("sound_speed_m_s", sound_speed_m_s),
+                            ("responses", tuple(responses))):
             object.__setattr__(paths, name, value)
         return paths
 
@@ -121,7 +131,8 @@ class Paths:
 
     def select(self, mask: NDArray[np.bool_]) -> "Paths":
         """The subset of rows where ``mask`` is true."""
-        return Paths(self.rows[mask], self.surface_names, self.centre_frequency_hz, self.sound_speed_m_s)
+        return Paths(self.rows[mask], self.surface_names, self.centre_frequency_hz, self.sound_speed_m_s,
+                     self.responses)
 
     def for_channel(self, channel: int) -> "Paths":
         """Rows of one receiver channel (0 left, 1 centre, 2 right)."""

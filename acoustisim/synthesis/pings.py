@@ -9,6 +9,7 @@ before the time-varying gain and the ADC.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -22,6 +23,7 @@ from acoustisim.sonar import SonarHead
 from acoustisim.synthesis.adc import adc_code_range, adc_step_v
 from acoustisim.synthesis.chain import ReceiverChain
 from acoustisim.synthesis.noise import NoiseModel, thermal_noise_psd_v2_per_hz
+from acoustisim.propagation.responses import EchoResponse
 from acoustisim.synthesis.synthesiser import PathSynthesiser
 from acoustisim.synthesis.transducer import pulse_spectrum, pulse_support_s
 
@@ -127,9 +129,11 @@ class PingSynthesiser:
         return self.paths.grid.sample_rate_hz
 
     # ---------------------------------------------------------------- spectra
-    def echo_spectrum(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.complex128]:
-        """rfft (3, M//2+1) of the echoes at the ADC input before TVG (V per sample)."""
-        return self.paths.spectrum(rows, warn=warn) * self._transfer
+    def echo_spectrum(self, rows: NDArray[Any], *, warn: bool = True,
+                      responses: Sequence[EchoResponse] = ()) -> NDArray[np.complex128]:
+        """rfft (3, M//2+1) of the echoes at the ADC input before TVG (V per sample); rows with a
+        ``response_id`` name an entry of ``responses`` (``Paths.responses``)."""
+        return self.paths.spectrum(rows, warn=warn, responses=responses) * self._transfer
 
     def main_bang_spectrum(self) -> NDArray[np.complex128]:
         """rfft (3, M//2+1) of the main bang and cross-talk at the ADC input before TVG."""
@@ -145,9 +149,10 @@ class PingSynthesiser:
             volts *= self._tvg
         return volts
 
-    def echo_volts(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.float64]:
+    def echo_volts(self, rows: NDArray[Any], *, warn: bool = True,
+                   responses: Sequence[EchoResponse] = ()) -> NDArray[np.float64]:
         """Noise-free echoes (3, n_samples) at the ADC input (V), without the main bang."""
-        return self.to_volts(self.echo_spectrum(rows, warn=warn))
+        return self.to_volts(self.echo_spectrum(rows, warn=warn, responses=responses))
 
     # --------------------------------------------------------------- template
     def template(self) -> tuple[NDArray[np.float64], float]:
@@ -184,6 +189,7 @@ class PingSynthesiser:
         n_pings: int = 1,
         snr_db: float | None = None,
         snr_rows: tuple[NDArray[Any], NDArray[Any], NDArray[Any]] | None = None,
+        responses: Sequence[EchoResponse] = (),
     ) -> Pings:
         """Render ``n_pings`` pings of the same paths with independent noise.
 
@@ -199,12 +205,14 @@ class PingSynthesiser:
             input, replacing the chain's noise models.
         snr_rows : 3 structured arrays, required with ``snr_db``
             The rows of the named echo on each channel.
+        responses : sequence of EchoResponse
+            The transfer functions the rows' ``response_id`` name (``Paths.responses``).
         """
         if not (isinstance(n_pings, (int, np.integer)) and n_pings >= 1):
             raise InputError(f"n_pings must be an integer >= 1, got {n_pings!r}")
         sequence = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(_check_seed(seed))
         generators = [np.random.Generator(np.random.PCG64(child)) for child in sequence.spawn(int(n_pings))]
-        deterministic = self.echo_spectrum(rows)
+        deterministic = self.echo_spectrum(rows, responses=responses)
         if self._bang is not None:
             deterministic = deterministic + self._bang
         sigma = None
@@ -214,7 +222,7 @@ class PingSynthesiser:
             if snr_rows is None or len(snr_rows) != 3:
                 raise InputError("snr_db needs the named echo's rows on each of the 3 channels")
             energy = np.array(
-                [np.sum(self.echo_volts(snr_rows[c], warn=False)[c] ** 2) for c in range(3)]
+                [np.sum(self.echo_volts(snr_rows[c], warn=False, responses=responses)[c] ** 2) for c in range(3)]
             )
             if np.any(energy <= 0):
                 channel = int(np.flatnonzero(energy <= 0)[0])

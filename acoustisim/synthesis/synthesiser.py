@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +47,8 @@ from acoustisim.errors import InputError
 from acoustisim.medium import Medium
 from acoustisim.sonar import SonarHead
 from acoustisim.propagation.directivity import piston_directivity
+from acoustisim.propagation.responses import EchoResponse
+from acoustisim.synthesis.spectral_rows import add_spectral_rows, needs_spectral_path
 from acoustisim.synthesis.transducer import Pulse, pulse_band_top_hz, pulse_spectrum, pulse_support_s
 
 SYNTHESIS_BAND_DB = -100.0
@@ -199,6 +202,9 @@ class PathSynthesiser:
     plans : tuple of KernelPlan
         Kernel sizes, shortest first; each row takes the shortest that holds its echo (near-axis
         rows need about half the samples of rows at 90 deg).
+    band_top_hz : float
+        Highest synthesised frequency (Hz): where the pulse's spectrum falls
+        :data:`SYNTHESIS_BAND_DB` below its peak, at most the decimated Nyquist frequency.
     """
 
     pulse: Pulse
@@ -207,6 +213,7 @@ class PathSynthesiser:
     sound_speed_m_s: float
     grid: RecordGrid
     plans: tuple[KernelPlan, ...]
+    band_top_hz: float
 
     @classmethod
     def create(cls, sonar: SonarHead, medium: Medium, padding_s: float = 0.0) -> "PathSynthesiser":
@@ -254,10 +261,15 @@ class PathSynthesiser:
             plans.append(KernelPlan.create(length, centre, max_spread, bins, pulse, medium, radius, fs_dec, max_length))
         padding = padding_s + (longest + 2) / fs_dec
         grid = make_record_grid(fs, int(sonar.n_samples), decimation, padding)
-        return cls(pulse, medium, radius, c, grid, tuple(plans))
+        return cls(pulse, medium, radius, c, grid, tuple(plans), float(synth_top))
 
-    def decimated_record(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.float64]:
+    def decimated_record(self, rows: NDArray[Any], *, warn: bool = True,
+                         responses: Sequence[EchoResponse] = ()) -> NDArray[np.float64]:
         """The pressure at the three receivers (Pa), (3, M / q), sampled at fs / q.
+
+        Rows with a transfer function (``response_id`` >= 0, an entry of ``responses``) or a
+        rough reflection (``roughness_m2`` > 0) are synthesised on kernels of their own
+        (:mod:`acoustisim.synthesis.spectral_rows`); every other row as follows.
 
         Every row keeps its own spectrum (its exact weight, fractional delay, directivities and
         absorption, to the tables' resolution). Rows of one kernel size that start on the same
@@ -281,6 +293,15 @@ class PathSynthesiser:
         columns = {name: rows[name].astype(rows[name].dtype.newbyteorder("="), copy=False) for name in ROW_COLUMNS}
         if rows.size == 0:
             return record
+        special = needs_spectral_path(rows)
+        if special.any():
+            add_spectral_rows(record, rows[special], responses, pulse=self.pulse, medium=self.medium,
+                              radius_m=self.piston_radius_m, sound_speed_m_s=self.sound_speed_m_s, fs_dec=fs_dec,
+                              band_top_hz=self.band_top_hz, keep=keep)
+            rows = rows[~special]
+            columns = {name: rows[name].astype(rows[name].dtype.newbyteorder("="), copy=False) for name in ROW_COLUMNS}
+            if rows.size == 0:
+                return record
         plans = self.plans
         status, plan, first, i_tx, i_rx, i_len, i_frac, weight = row_parameters(
             *(columns[name] for name in ROW_COLUMNS),
@@ -322,7 +343,8 @@ class PathSynthesiser:
                 overlap_add(kernels, group_first[g0:g1], group_channel[g0:g1], keep, record)
         return record
 
-    def spectrum(self, rows: NDArray[Any], *, warn: bool = True) -> NDArray[np.complex128]:
+    def spectrum(self, rows: NDArray[Any], *, warn: bool = True,
+                 responses: Sequence[EchoResponse] = ()) -> NDArray[np.complex128]:
         """Full-rate rfft (3, M//2 + 1) of the pressure at the receivers (Pa per sample).
 
         X[k] = q X_dec[k] below the decimated Nyquist frequency, 0 above (the signal has no
@@ -330,7 +352,7 @@ class PathSynthesiser:
         """
         q = self.grid.decimation
         m_dec = self.grid.n_fft_decimated
-        spectrum_dec = np.fft.rfft(self.decimated_record(rows, warn=warn), axis=1)
+        spectrum_dec = np.fft.rfft(self.decimated_record(rows, warn=warn, responses=responses), axis=1)
         full = np.zeros((3, self.grid.n_fft // 2 + 1), dtype=complex)
         top = m_dec // 2 if q > 1 else m_dec // 2 + 1
         full[:, :top] = q * spectrum_dec[:, :top]

@@ -451,6 +451,8 @@ def pack_rows(events: EventArrays, receivers: NDArray[np.float64], first_path_id
         row.directivity_rx = 0.0
         row.absorption_db = 0.0
         row.amplitude = 0.0
+        row.roughness_m2 = 0.0
+        row.response_id = -1
         row.arrival_dir[0], row.arrival_dir[1], row.arrival_dir[2] = ax, ay, az
         for k in range(3):
             row.departure_dir[k] = events.departure[e, k]

@@ -97,6 +97,8 @@ def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulse
         row.directivity_rx = 0.0
         row.absorption_db = 0.0
         row.amplitude = 0.0
+        row.roughness_m2 = 0.0
+        row.response_id = -1
         z = impulses.z_m[i]
         x0 = lines.start[e, 0] + z * lines.direction[e, 0]
         x1 = lines.start[e, 1] + z * lines.direction[e, 1]

@@ -1,0 +1,72 @@
+"""Frequency-dependent echo responses: what a path row cannot say with one gain and one phase.
+
+Most rows are an impulse ``geometric_gain * delta(t - delay_s)`` with a constant phase, to which
+synthesis adds directivity and absorption per frequency. Two effects need more:
+
+* **coherent roughness** (every reflection on a rough surface): the Kirchhoff (Eckart) factor
+  exp(-2 (k h sin theta_g)^2) per reflection (h the rms height, theta_g the grazing angle,
+  k = 2 pi f / c; physics.md section 8). Over a row's reflections it is exp(-S k^2) with
+  S = 2 sum_i (h_i sin theta_g,i)^2: one number per row, the ``roughness_m2`` column;
+* **echo transfer functions** (``response_id`` >= 0): an echo whose spectrum is shaped by the
+  object itself, e.g. an elastic post ringing after its specular echo, or the field
+  diffracted into an obstacle's shadow. The row then stands for the whole echo, and
+  ``Paths.responses[response_id]`` gives H(f), which multiplies the row's spectrum.
+
+Conventions: H is in the engineering convention of synthesis (a delay d is exp(-j 2 pi f d));
+H = 1 leaves the row as it is. ``span_s`` bounds the impulse response of H relative to the
+row's delay (s), so that synthesis can size the kernel that holds it.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+class EchoResponse(Protocol):
+    """A transfer function multiplying one echo row's spectrum.
+
+    Attributes
+    ----------
+    label : str
+        What it is, for the ground truth (e.g. "elastic cylinder, pvc, bistatic 3.2 deg").
+    span_s : tuple of 2 float
+        (earliest, latest) time (s) of its impulse response relative to the row's delay:
+        H's energy outside it is negligible (below -80 dB of its peak).
+    """
+
+    label: str
+    span_s: tuple[float, float]
+
+    def transfer(self, frequency_hz: NDArray[np.float64], sound_speed_m_s: float) -> NDArray[np.complex128]:
+        """H at ``frequency_hz`` (Hz, shape (n,)), complex, shape (n,)."""
+
+
+def roughness_factor(roughness_m2: NDArray[np.float64], frequency_hz: NDArray[np.float64],
+                     sound_speed_m_s: float) -> NDArray[np.float64]:
+    """The coherent factor exp(-S k^2), k = 2 pi f / c, of rows with ``roughness_m2`` S (m^2).
+
+    Parameters
+    ----------
+    roughness_m2 : ndarray, shape (r,)
+        S = 2 sum over the row's reflections of (h sin theta_g)^2 (m^2).
+    frequency_hz : ndarray, shape (n,)
+    sound_speed_m_s : float
+
+    Returns
+    -------
+    ndarray, shape (r, n)
+    """
+    k = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float) / float(sound_speed_m_s)
+    return np.exp(-np.multiply.outer(np.asarray(roughness_m2, dtype=float), k * k))
+
+
+def roughness_span_s(roughness_m2: float, sound_speed_m_s: float) -> float:
+    """Half-width (s) of the impulse response of exp(-S k^2): a Gaussian of standard deviation
+    sqrt(2 S) / c in time; 7 standard deviations hold it to exp(-24.5) (-213 dB)."""
+    return 7.0 * np.sqrt(2.0 * max(float(roughness_m2), 0.0)) / float(sound_speed_m_s)
+
+
+__all__ = ("EchoResponse", "roughness_factor", "roughness_span_s")
