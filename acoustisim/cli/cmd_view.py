@@ -115,5 +115,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--no-beam", action="store_true", help="hide the transmit beam cones")
     parser.add_argument("--size", type=_size, default=(1200, 800), metavar="WxH",
                         help="image or window size in pixels (default 1200x800)")
-    parser.add_argument("--title", help="title text (default: the scene's name)")
+    parser.add_argument("--title", metavar="TEXT", help="title text (default: the scene's name)")
     parser.set_defaults(run=_run)

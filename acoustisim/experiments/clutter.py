@@ -89,11 +89,11 @@ counted as a miss."""
 
 def add_arguments(parser: Any) -> None:
     """``--densities``, ``--snrs``, ``--detectors``."""
-    parser.add_argument("--densities", default=",".join(str(d) for d in DENSITIES),
+    parser.add_argument("--densities", metavar="LIST", default=",".join(str(d) for d in DENSITIES),
                         help="objects per scene, comma-separated (default 1,4,8)")
-    parser.add_argument("--snrs", default=",".join(f"{s:g}" for s in SNRS_DB),
+    parser.add_argument("--snrs", metavar="LIST", default=",".join(f"{s:g}" for s in SNRS_DB),
                         help="SNRs (2E/N0 of the strongest target echo, dB), comma-separated (default 20,30,40)")
-    parser.add_argument("--detectors", default=",".join(DETECTORS),
+    parser.add_argument("--detectors", metavar="LIST", default=",".join(DETECTORS),
                         help=f"detectors, comma-separated (default {','.join(DETECTORS)})")
 
 

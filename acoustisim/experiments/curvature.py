@@ -95,14 +95,14 @@ FUSION_POSES = 20
 
 def add_arguments(parser: Any) -> None:
     """``--detector``, ``--snr-db``, ``--poses``, ``--cases``."""
-    parser.add_argument("--detector", default="matched",
+    parser.add_argument("--detector", default="matched", metavar="METHOD",
                         help="detection method giving the three TOFs (default matched)")
-    parser.add_argument("--snr-db", type=float, default=None,
+    parser.add_argument("--snr-db", type=float, default=None, metavar="X",
                         help="set 2E/N0 of the cylinder's echo with white noise (default: the simulator's noise "
                              "models, about 60-70 dB here)")
-    parser.add_argument("--poses", type=int, default=FUSION_POSES,
+    parser.add_argument("--poses", type=int, default=FUSION_POSES, metavar="N",
                         help=f"poses along the 1 m track for the fusion (default {FUSION_POSES}; 0 skips it)")
-    parser.add_argument("--cases", default="case1,case2,case3",
+    parser.add_argument("--cases", default="case1,case2,case3", metavar="LIST",
                         help="comma-separated cases to run (default case1,case2,case3)")
 
 

@@ -47,12 +47,12 @@ METHODS: tuple[str, ...] = tuple(f"seed-{k}" for k in range(1, 10))
 
 def add_arguments(parser: Any) -> None:
     """``--pings-per-position``, ``--min-range``, ``--max-range``, ``--max-bearing``."""
-    parser.add_argument("--pings-per-position", type=int, default=4,
+    parser.add_argument("--pings-per-position", type=int, default=4, metavar="N",
                         help="pings recorded at each position (default 4); --trials is the total number of pings (68)")
-    parser.add_argument("--min-range", type=float, default=2.0, help="nearest range (m, default 2)")
-    parser.add_argument("--max-range", type=float, default=5.0, help="farthest range (m, default 5)")
-    parser.add_argument("--max-bearing", type=float, default=3.0, help="bearings drawn in +/- this (deg, default 3)")
-    parser.add_argument("--timing-repeats", type=int, default=3,
+    parser.add_argument("--min-range", type=float, default=2.0, metavar="M", help="nearest range (m, default 2)")
+    parser.add_argument("--max-range", type=float, default=5.0, metavar="M", help="farthest range (m, default 5)")
+    parser.add_argument("--max-bearing", type=float, default=3.0, metavar="DEG", help="bearings drawn in +/- this (deg, default 3)")
+    parser.add_argument("--timing-repeats", type=int, default=3, metavar="N",
                         help="timed runs of each method per position after an untimed one; the median counts (default 3)")
     parser.add_argument("--no-reverberation", action="store_true",
                         help="leave out the diffuse (Lambert) reverberation of the floor, surface, walls and prism")
