@@ -2,8 +2,8 @@
 
 ``acoustisim view FILE_OR_NAME [--ping PING.h5 [--ping-index I]] [--results RESULTS.json]
 [--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective|targets] [--echo N|NAME]
-[--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--edge-elements] [--no-beam]
-[--size WxH] [--title TEXT]``
+[--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--max-diffuse N] [--edge-elements] [--no-beam]
+[--no-labels] [--size WxH] [--title TEXT]``
 
 Paths: the ping's true arrivals with ``--ping``, else traced now (``acoustisim.propagation``),
 unless ``--no-paths``. Rendering is off-screen when ``--png`` or ``--html`` is given; without
@@ -66,15 +66,17 @@ def _run(args: argparse.Namespace) -> int:
 
         config = SolverConfig() if args.max_order is None else SolverConfig(max_order=args.max_order)
         paths = solve(scene, sonar, config)
-    options = ViewOptions(channels=args.channels, max_paths=args.max_paths or None, edge_elements=args.edge_elements,
-                          echo=args.echo, show_beam=not args.no_beam)
+    options = ViewOptions(channels=args.channels, max_paths=args.max_paths or None,
+                          max_diffuse=args.max_diffuse or None, edge_elements=args.edge_elements,
+                          echo=args.echo, show_beam=not args.no_beam, labels=not args.no_labels)
     common = dict(sonar=sonar, truths=truths, options=options, camera=args.camera, title=args.title,
                   window_size=args.size)
     written = []
     if args.png is not None:
-        written.append(render_png(args.png, scene, paths, args.results, **common))
+        written.append(render_png(scene, args.png, paths, args.results, **common))
+    common["window_size"] = args.size or (1200, 800)
     if args.html is not None:
-        written.append(export_html(args.html, scene, paths, args.results, **common))
+        written.append(export_html(scene, args.html, paths, args.results, **common))
     if written:
         for path in written:
             print(path)
@@ -110,10 +112,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="receiver channels whose paths are drawn, e.g. centre or left,right (default all)")
     parser.add_argument("--max-paths", type=int_at_least(0), default=10_000, metavar="N",
                         help="draw only the N strongest paths (0: all; default 10000)")
+    parser.add_argument("--max-diffuse", type=int_at_least(0), default=400, metavar="N",
+                        help="of those, draw only the N strongest diffuse paths (0: all; default 400)")
     parser.add_argument("--edge-elements", action="store_true",
                         help="draw every edge-diffraction element instead of one line per edge arrival")
     parser.add_argument("--no-beam", action="store_true", help="hide the transmit beam cones")
-    parser.add_argument("--size", type=_size, default=(1200, 800), metavar="WxH",
-                        help="image or window size in pixels (default 1200x800)")
+    parser.add_argument("--no-labels", action="store_true", help="do not write the objects' names")
+    parser.add_argument("--size", type=_size, default=None, metavar="WxH",
+                        help="image or window size in pixels (default: a 1400 pixel wide PNG as tall as the view "
+                             "needs; a 1200x800 window or page)")
     parser.add_argument("--title", metavar="TEXT", help="title text (default: the scene's name)")
     parser.set_defaults(run=_run)

@@ -1,12 +1,23 @@
 """The viewer's Python API, for notebooks and the ``acoustisim view`` command.
 
->>> from scenes.builtin import builtin_scene                       # doctest: +SKIP
+Every function takes the scene first, as a :class:`~acoustisim.scene.Scene`, a built-in
+scene's name or a scene file's path:
+
 >>> from acoustisim.propagation import solve                      # doctest: +SKIP
->>> scene = builtin_scene("thesis-tank")                          # doctest: +SKIP
->>> plotter = show_scene(scene, solve(scene), camera="top")       # doctest: +SKIP
->>> plotter.show()                                                # doctest: +SKIP
->>> render_png("tank.png", scene, solve(scene))                   # doctest: +SKIP
->>> export_html("tank.html", scene, solve(scene))                 # doctest: +SKIP
+>>> render_png("thesis-tank", "tank.png", camera="top")           # doctest: +SKIP
+>>> scene = load_scene("thesis-tank")                             # doctest: +SKIP
+>>> render_png(scene, "paths.png", solve(scene), camera="top")    # doctest: +SKIP
+>>> export_html(scene, "tank.html", solve(scene))                 # doctest: +SKIP
+>>> show_scene(scene, solve(scene)).show()                        # doctest: +SKIP
+
+In a notebook, :func:`acoustisim.viz.notebook.view` returns an object that displays itself.
+
+A PNG (:func:`render_png`, :func:`render_image`) is a picture designed for reading: VTK
+renders the 3-D scene into the scene area and :mod:`acoustisim.viz.picture` adds the object
+names, axes in metres and a scale bar (plan and elevation views) or the tank's dimensions and
+axes (perspective views), the markers on top, and the legend in a panel beside the scene. The
+interactive window (:func:`show_scene`) and the HTML page (:func:`export_html`) carry the same
+layers, the object names and a legend box.
 
 Without a display (``DISPLAY``/``WAYLAND_DISPLAY`` unset on Linux) rendering is off-screen
 through EGL (Mesa's software rasteriser is enough); with one, ``show_scene(...).show()`` opens
@@ -20,16 +31,18 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.errors import InputError
+from acoustisim.errors import InputError, InputTypeError
 from acoustisim.propagation.paths import Paths
 from acoustisim.scene import Scene
 from acoustisim.sonar import SonarHead
 from acoustisim.viz.actors import (
+    ESTIMATE_COLOR,
     EstimateMarker,
     TruthMarker,
     beam_layers,
@@ -41,13 +54,54 @@ from acoustisim.viz.actors import (
     tank_layers,
     tof_layers,
 )
-from acoustisim.viz.cameras import CameraPreset, apply_camera, camera_preset
+from acoustisim.viz.cameras import CAMERA_NAMES, CameraPreset, apply_camera, camera_preset
 from acoustisim.viz.layers import RGBA_ARRAY, Layer
 
 if TYPE_CHECKING:
     import pyvista as pv
 
+    from acoustisim.viz.picture import Picture, Projection
+
 ResultsInput = Sequence[EstimateMarker] | str | os.PathLike[str] | None
+SceneInput = Scene | str | os.PathLike[str]
+
+OVERLAY_LAYERS: tuple[str, ...] = ("estimates", "truth", "estimate-errors", "echo-point", "sonar-marker")
+"""Layers a PNG draws as markers on top of the render (:mod:`acoustisim.viz.picture`), so that
+no surface or path hides them; the window and the HTML page draw them in 3-D."""
+
+PARALLEL_CAMERAS: tuple[str, ...] = ("top", "side", "targets")
+"""Cameras with a parallel projection: their PNG has axes in metres and a scale bar."""
+
+CAMERA_SUBTITLES: Mapping[str, str] = MappingProxyType({
+    "top": "plan view (from above)",
+    "side": "elevation (looking along +y)",
+    "sonar": "from behind the sonar, along its boresight",
+    "perspective": "perspective",
+    "targets": "plan view of the sonar, the estimates and the true positions",
+})
+
+FRAME_PAD = 0.04
+"""Fraction of the region added on every side of a parallel view."""
+
+
+def resolve_scene(scene: SceneInput) -> Scene:
+    """A Scene from a Scene, a built-in scene's name or a scene file's path.
+
+    Raises
+    ------
+    InputError
+        An unknown name or a bad scene file (the message names it).
+    InputTypeError
+        Anything else.
+    """
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, (str, os.PathLike)):
+        from scenes.scene_file import load_scene
+
+        return load_scene(scene)
+    raise InputTypeError(f"scene: expected a Scene, a built-in scene name or a scene file path, got "
+                         f"{type(scene).__name__} (the scene comes first: render_png(scene, 'out.png', ...))")
 
 
 @dataclass(frozen=True)
@@ -60,6 +114,9 @@ class ViewOptions:
         Receiver channels whose paths are drawn (0 left, 1 centre, 2 right).
     max_paths : int or None
         Draw only this many strongest path rows (None: all).
+    max_diffuse : int or None
+        Of those, draw only this many strongest diffuse rows (None: all; see
+        :func:`acoustisim.viz.actors.path_layers`).
     edge_elements : bool
         Draw each edge-diffraction element instead of one polyline per edge arrival.
     dynamic_range_db : float
@@ -73,16 +130,20 @@ class ViewOptions:
         Error ellipsoids' size in standard deviations.
     magnification : float or None
         Error ellipsoids' drawing scale (None: automatic, stated in the legend).
+    labels : bool
+        Write the objects' names on the picture.
     """
 
     channels: tuple[int, ...] = (0, 1, 2)
     max_paths: int | None = 10_000
+    max_diffuse: int | None = 400
     edge_elements: bool = False
     dynamic_range_db: float = 40.0
     echo: int | str | None = None
     show_beam: bool = True
     n_sigma: float = 2.0
     magnification: float | None = None
+    labels: bool = True
 
 
 def has_display() -> bool:
@@ -102,34 +163,39 @@ def _prefer_egl_without_display() -> None:
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 
-def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, region: NDArray[np.float64], pad_m: float = 0.3,
-                   match_radius_m: float = 0.25) -> NDArray[np.float64]:
-    """What the "targets" camera frames (2, 3) (m): the sonar, the estimates inside ``region``
-    and the true targets within ``match_radius_m`` of one (all true targets when there is no
-    estimate), padded by ``pad_m`` and widened toward +x for the legend box."""
-    by_name = {layer.name: np.asarray(layer.mesh.points, dtype=float) for layer in layers
-               if layer.name in ("estimates", "truth")}
-    estimates = by_name.get("estimates", np.empty((0, 3)))
-    truths = by_name.get("truth", np.empty((0, 3)))
-    inside = estimates[np.all((estimates >= region[0]) & (estimates <= region[1]), axis=1)]
-    if inside.size and truths.size:
-        near = np.min(np.linalg.norm(truths[:, None, :] - inside[None, :, :], axis=2), axis=1) <= match_radius_m
-        truths = truths[near]
-    points = np.vstack([sonar.receiver_positions, inside, truths])
-    lo, hi = points.min(axis=0) - pad_m, points.max(axis=0) + pad_m
-    # Room on the +x side for the legend box (lower-right corner, about 30 % of the width).
-    hi[0] += 0.35 * (hi[0] - lo[0])
-    return np.array([lo, hi])
+def _points_of(layers: Sequence[Layer], name: str) -> NDArray[np.float64]:
+    for layer in layers:
+        if layer.name == name:
+            return np.asarray(layer.mesh.points, dtype=float).reshape(-1, 3)
+    return np.empty((0, 3))
+
+
+def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, pad_m: float = 0.3) -> NDArray[np.float64]:
+    """What the "targets" camera frames (2, 3) (m): the sonar, every estimate and every true
+    target, padded by ``pad_m``."""
+    points = np.vstack([sonar.receiver_positions, _points_of(layers, "estimates"), _points_of(layers, "truth")])
+    return np.array([points.min(axis=0) - pad_m, points.max(axis=0) + pad_m])
+
+
+def view_region(camera: str, scene: Scene, sonar: SonarHead, layers: Sequence[Layer]) -> NDArray[np.float64]:
+    """The region (2, 3) (m) a camera preset frames: the tank (or, in free field, the objects
+    and the sonar) grown to hold every estimate and true target; for "targets" the sonar, the
+    estimates and the true targets only."""
+    if camera == "targets":
+        return targets_bounds(layers, sonar)
+    bounds = scene_bounds(scene, sonar)
+    extra = np.vstack([_points_of(layers, "estimates"), _points_of(layers, "truth")])
+    if extra.size:
+        bounds = np.array([np.minimum(bounds[0], extra.min(axis=0)), np.maximum(bounds[1], extra.max(axis=0))])
+    return bounds
 
 
 def _camera(camera: str | CameraPreset, scene: Scene, sonar: SonarHead, layers: Sequence[Layer],
             window_size: tuple[int, int]) -> CameraPreset:
     if isinstance(camera, CameraPreset):
         return camera
-    bounds = scene_bounds(scene, sonar)
-    if camera == "targets":
-        bounds = targets_bounds(layers, sonar, bounds)
-    return camera_preset(camera, bounds, aspect=window_size[0] / window_size[1], sonar=sonar)
+    return camera_preset(camera, view_region(camera, scene, sonar, layers), aspect=window_size[0] / window_size[1],
+                         sonar=sonar)
 
 
 def default_truths(scene: Scene) -> list[TruthMarker]:
@@ -137,14 +203,27 @@ def default_truths(scene: Scene) -> list[TruthMarker]:
     return [TruthMarker(obj.bounds_m.mean(axis=0), obj.name) for obj in scene.objects]
 
 
-def build_layers(scene: Scene, paths: Paths | None = None, results: ResultsInput = None, *,
+def estimate_markers(results: ResultsInput, sonar: SonarHead) -> list[EstimateMarker] | None:
+    """The estimates to draw: the given markers, or those of a results file (None: none)."""
+    from acoustisim.viz.results_file import load_results
+
+    if results is None:
+        return None
+    if isinstance(results, (str, os.PathLike)):
+        return load_results(results, sonar)
+    return list(results)
+
+
+def build_layers(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None, *,
                  sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
                  options: ViewOptions = ViewOptions()) -> list[Layer]:
-    """Every layer of the view, in drawing order (opaque things first).
+    """Every layer of the view, in drawing order: opaque things, then the translucent ones
+    from the faintest background (tank, diffuse paths) to what must stay on top (echo paths,
+    beam lines, ellipsoids, markers).
 
     Parameters
     ----------
-    scene : Scene
+    scene : Scene, built-in name or scene file path
     paths : Paths, optional
         Traced paths (``acoustisim.propagation.solve``) or a ping's true arrivals.
     results : sequence of EstimateMarker, or path of a results JSON, optional
@@ -160,24 +239,19 @@ def build_layers(scene: Scene, paths: Paths | None = None, results: ResultsInput
     InputError
         A bad results file, or an echo number beyond the paths' echoes.
     """
-    from acoustisim.viz.results_file import load_results
-
+    scene = resolve_scene(scene)
     sonar = scene.sonar if sonar is None else sonar
     bounds = scene_bounds(scene, sonar)
     layers: list[Layer] = []
     layers += object_layers(scene)
     layers += sonar_layers(sonar)
+    layers += tank_layers(scene)
     if paths is not None:
         layers += path_layers(paths, sonar, channels=options.channels, max_paths=options.max_paths,
-                              dynamic_range_db=options.dynamic_range_db, edge_elements=options.edge_elements)
-    if results is not None:
-        markers = list(results) if not isinstance(results, (str, os.PathLike)) else load_results(results, sonar)
-        true_targets = list(truths) if truths is not None else default_truths(scene)
-        layers += estimate_layers(markers, true_targets, n_sigma=options.n_sigma,
-                                  magnification=options.magnification,
-                                  view_size_m=float(np.linalg.norm(bounds[1] - bounds[0])))
-    elif truths:
-        layers += estimate_layers([], list(truths))
+                              dynamic_range_db=options.dynamic_range_db, edge_elements=options.edge_elements,
+                              max_diffuse=options.max_diffuse)
+    if options.show_beam:
+        layers += beam_layers(sonar, scene.medium.sound_speed, bounds)
     if options.echo is not None:
         if paths is None:
             raise InputError("echo: time-of-flight ellipsoids need paths (a ping file or traced paths)")
@@ -185,9 +259,13 @@ def build_layers(scene: Scene, paths: Paths | None = None, results: ResultsInput
             layers += tof_layers(paths, sonar, options.echo, bounds)
         except IndexError as exc:
             raise InputError(f"echo: {exc}") from None
-    layers += tank_layers(scene)
-    if options.show_beam:
-        layers += beam_layers(sonar, scene.medium.sound_speed, bounds)
+    markers = estimate_markers(results, sonar)
+    if markers is not None:
+        true_targets = list(truths) if truths is not None else default_truths(scene)
+        layers += estimate_layers(markers, true_targets, n_sigma=options.n_sigma, magnification=options.magnification,
+                                  view_size_m=float(np.linalg.norm(bounds[1] - bounds[0])))
+    elif truths:
+        layers += estimate_layers([], list(truths))
     return layers
 
 
@@ -219,7 +297,8 @@ def add_layers(plotter: "pv.Plotter", layers: Sequence[Layer]) -> None:
 
 def add_legend(plotter: "pv.Plotter", entries: Sequence[tuple[str, tuple[float, float, float]]],
                window_size: tuple[int, int]) -> object:
-    """A legend box (actor named "legend") in the lower-right corner: coloured squares, black text.
+    """A legend box (actor named "legend") in the lower-right corner of the interactive
+    window: coloured squares, black text, room between them.
 
     Returns
     -------
@@ -230,22 +309,25 @@ def add_legend(plotter: "pv.Plotter", entries: Sequence[tuple[str, tuple[float, 
 
     legend = vtkLegendBoxActor()
     legend.SetNumberOfEntries(len(entries))
-    square = pv.PolyData(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]),
-                         faces=np.array([4, 0, 1, 2, 3]))
+    # A square swatch followed by blank space: the symbol's bounds set its width in the entry,
+    # so the empty right part keeps the text clear of the colour.
+    square = pv.PolyData(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
+                                   [1.8, 0.5, 0.0]]), faces=np.array([4, 0, 1, 2, 3]))
     for i, (label, color) in enumerate(entries):
         # The swatch carries its colour as scalars so that the entry colour (black) only
         # colours the text; light colours are unreadable on white otherwise.
         symbol = square.copy()
-        symbol.point_data.set_array(np.tile(np.round(np.asarray(color) * 255.0).astype(np.uint8), (4, 1)), "swatch")
+        symbol.point_data.set_array(np.tile(np.round(np.asarray(color) * 255.0).astype(np.uint8), (5, 1)), "swatch")
         symbol.point_data.active_scalars_name = "swatch"
         legend.SetEntry(i, symbol, label, (0.0, 0.0, 0.0))
     legend.SetScalarVisibility(True)
-    width = min(0.45, 330.0 / window_size[0])
+    width = min(0.45, 360.0 / window_size[0])
     height = min(0.9, (19.0 * len(entries) + 8.0) / window_size[1])
     legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
     legend.GetPositionCoordinate().SetValue(1.0 - width - 0.01, 0.01)
     legend.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
     legend.GetPosition2Coordinate().SetValue(width, height)
+    legend.SetPadding(4)
     legend.UseBackgroundOn()
     legend.SetBackgroundColor(1.0, 1.0, 1.0)
     legend.SetBackgroundOpacity(0.85)
@@ -256,30 +338,50 @@ def add_legend(plotter: "pv.Plotter", entries: Sequence[tuple[str, tuple[float, 
     return legend
 
 
+def label_anchor(bounds_m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Where an object's name points: the top centre of its bounding box (m)."""
+    lo, hi = np.asarray(bounds_m, dtype=float)
+    return np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), hi[2]])
+
+
 def _title(scene: Scene, title: str | None) -> str:
     return scene.name if title is None else title
 
 
-def show_scene(scene: Scene, paths: Paths | None = None, results: ResultsInput = None, *,
+def _plotter(layers: Sequence[Layer], window_size: tuple[int, int], off_screen: bool, background: str,
+             multi_samples: int) -> "pv.Plotter":
+    import pyvista as pv
+
+    if off_screen:
+        _prefer_egl_without_display()
+    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
+    plotter.ren_win.SetMultiSamples(int(multi_samples))
+    plotter.set_background(background)
+    add_layers(plotter, layers)
+    return plotter
+
+
+def show_scene(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None, *,
                sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
                options: ViewOptions = ViewOptions(), camera: str | CameraPreset = "perspective",
-               off_screen: bool | None = None, window_size: tuple[int, int] = (1200, 800),
+               off_screen: bool | None = None, window_size: tuple[int, int] | None = (1200, 800),
                title: str | None = None, legend: bool = True, background: str = "white",
                multi_samples: int = 4) -> "pv.Plotter":
     """A pyvista plotter holding the view (call ``.show()`` for a window, ``.screenshot()`` off-screen).
 
     Parameters
     ----------
-    scene, paths, results, sonar, truths, options
+    scene : Scene, built-in name or scene file path
+    paths, results, sonar, truths, options
         See :func:`build_layers`.
     camera : {"top", "side", "sonar", "perspective", "targets"} or CameraPreset
-        "targets" is a top view of the sonar and the true targets (or the estimates).
+        "targets" is a top view of the sonar, the estimates and the true targets.
     off_screen : bool or None
         None: off-screen exactly when there is no display.
     window_size : (int, int)
-        Pixels (width, height).
+        Pixels (width, height); None: 1200 x 800.
     title : str, optional
-        Text in the upper-left corner (default: the scene's name and the number of paths).
+        Text in the upper-left corner (default: the scene's name).
     legend : bool
         Draw the legend (labelled layers).
     background : str
@@ -291,64 +393,310 @@ def show_scene(scene: Scene, paths: Paths | None = None, results: ResultsInput =
     Returns
     -------
     pyvista.Plotter
-        Actors are named after the layers ("tank-walls", "paths-specular", ...).
+        Actors are named after the layers ("tank-walls", "paths-specular", ...), the object
+        names "labels".
     """
-    import pyvista as pv
-
+    scene = resolve_scene(scene)
+    window_size = (1200, 800) if window_size is None else window_size
     if off_screen is None:
         off_screen = not has_display()
-    if off_screen:
-        _prefer_egl_without_display()
     sonar = scene.sonar if sonar is None else sonar
     layers = build_layers(scene, paths, results, sonar=sonar, truths=truths, options=options)
-    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
-    plotter.ren_win.SetMultiSamples(int(multi_samples))
-    plotter.set_background(background)
-    add_layers(plotter, layers)
+    plotter = _plotter(layers, window_size, off_screen, background, multi_samples)
     apply_camera(plotter, _camera(camera, scene, sonar, layers, window_size))
+    if options.labels and scene.objects:
+        plotter.add_point_labels(np.array([label_anchor(obj.bounds_m) for obj in scene.objects]),
+                                 [obj.name for obj in scene.objects], name="labels", font_size=14,
+                                 text_color="black", shape_color="white", shape_opacity=0.8, point_size=1,
+                                 always_visible=True, reset_camera=False)
     entries = legend_entries(layers)
     if legend and entries:
         add_legend(plotter, entries, window_size)
-    plotter.add_text(_title(scene, title), position="lower_left", font_size=11, color="black",
-                     name="title")
+    plotter.add_text(_title(scene, title), position="upper_left", font_size=11, color="black", name="title")
     return plotter
 
 
-def render_png(path: str | os.PathLike[str], scene: Scene, paths: Paths | None = None, results: ResultsInput = None,
-               **kwargs: object) -> Path:
-    """Render the view off-screen to a PNG file (keyword arguments as :func:`show_scene`).
+# ------------------------------------------------------------------------------------ pictures
+def _parallel_camera(name: str, region: NDArray[np.float64], scene_px: tuple[int, int]) -> tuple[CameraPreset,
+                                                                                                 "Projection"]:
+    """The camera of a parallel view filling the scene area exactly, and its projection to
+    metres along the view's axes."""
+    from acoustisim.viz.picture import Projection
+
+    horizontal, vertical = (0, 2) if name == "side" else (0, 1)
+    lo, hi = region
+    centre = 0.5 * (lo + hi)
+    extent = hi - lo
+    aspect = scene_px[0] / scene_px[1]
+    height = max(extent[vertical], extent[horizontal] / aspect) * (1.0 + 2.0 * FRAME_PAD)
+    width = height * aspect
+    distance = 4.0 * float(np.linalg.norm(extent)) + 1.0
+    offset = np.array([0.0, -distance, 0.0]) if name == "side" else np.array([0.0, 0.0, distance])
+    up = (0.0, 0.0, 1.0) if name == "side" else (0.0, 1.0, 0.0)
+    preset = CameraPreset(name, tuple(float(v) for v in centre + offset), tuple(float(v) for v in centre), up, True,
+                          0.5 * height)
+    ch, cv = centre[horizontal], centre[vertical]
+
+    def to_data(points: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(points, dtype=float).reshape(-1, 3)[:, [horizontal, vertical]]
+
+    projection = Projection(to_data, (ch - 0.5 * width, ch + 0.5 * width, cv - 0.5 * height, cv + 0.5 * height), True,
+                            ("xyz"[horizontal], "xyz"[vertical]))
+    return preset, projection
+
+
+def _camera_projection(plotter: "pv.Plotter", scene_px: tuple[int, int]) -> "Projection":
+    """The projection of the plotter's current camera to scene-image pixels (origin lower left;
+    NaN for points behind the eye)."""
+    from acoustisim.viz.picture import Projection
+
+    w, h = scene_px
+    matrix = plotter.camera.GetCompositeProjectionTransformMatrix(w / h, -1.0, 1.0)
+    m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+
+    def to_data(points: NDArray[np.float64]) -> NDArray[np.float64]:
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        clip = np.c_[points, np.ones(len(points))] @ m.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ndc = clip[:, :2] / clip[:, 3:4]
+        ndc[clip[:, 3] <= 0] = np.nan  # behind the eye: not on the picture
+        return (ndc + 1.0) * 0.5 * np.array([w, h])
+
+    return Projection(to_data, (0.0, float(w), 0.0, float(h)), False)
+
+
+def frame_everything(plotter: "pv.Plotter", points_m: NDArray[np.float64], scene_px: tuple[int, int],
+                     fill: float = 0.92, steps: int = 8) -> None:
+    """Aim a perspective camera so that every point projects inside the scene area, centred,
+    their extent filling ``fill`` of the tighter dimension (the tank's corners, the objects'
+    bounding boxes, the sonar, the markers: nothing of the scene is cut off, and little of the
+    area is left empty). The viewing direction is kept; the camera slides sideways to centre
+    and along its view to scale (the projected size of a scene far from the eye goes as the
+    inverse of the distance, so a few steps converge)."""
+    camera = plotter.camera
+    size = np.array(scene_px, dtype=float)
+    for _ in range(steps):
+        plotter.renderer.reset_camera_clipping_range()
+        px = _camera_projection(plotter, scene_px).to_data(points_m)
+        px = px[np.all(np.isfinite(px), axis=1)]
+        if not px.size:
+            break
+        lo, hi = px.min(axis=0), px.max(axis=0)
+        focal = np.asarray(camera.focal_point, dtype=float)
+        position = np.asarray(camera.position, dtype=float)
+        distance = float(np.linalg.norm(position - focal))
+        forward = (focal - position) / distance
+        up = np.asarray(camera.up, dtype=float)
+        right = np.cross(forward, up)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        # World size of one pixel at the focal distance.
+        metres_per_px = 2.0 * distance * np.tan(np.radians(0.5 * camera.view_angle)) / size[1]
+        shift = (0.5 * (lo + hi) - 0.5 * size) * metres_per_px
+        move = shift[0] * right + shift[1] * up
+        scale = max((hi - lo)[0] / (fill * size[0]), (hi - lo)[1] / (fill * size[1]))
+        focal = focal + move
+        camera.focal_point = tuple(focal)
+        camera.position = tuple(focal - forward * distance * scale)
+        if abs(scale - 1.0) < 0.01 and np.all(np.abs(shift / metres_per_px) < 2.0):
+            break
+    plotter.renderer.reset_camera_clipping_range()
+
+
+def _legend(layers: Sequence[Layer]) -> tuple:
+    from acoustisim.viz.picture import LegendEntry
+
+    entries = []
+    for layer in layers:
+        if not layer.label:
+            continue
+        if layer.name == "estimates":
+            entries.append(LegendEntry(layer.label, (0.0, 0.0, 0.0), "marker", layer.group, "o", ESTIMATE_COLOR))
+        elif layer.name == "truth":
+            entries.append(LegendEntry(layer.label, (0.0, 0.0, 0.0), "marker", layer.group, "s", None))
+        elif layer.name == "echo-point":
+            entries.append(LegendEntry(layer.label, (0.0, 0.0, 0.0), "marker", layer.group, "X", (0.0, 0.0, 0.0)))
+        elif layer.style in ("lines", "wireframe"):
+            entries.append(LegendEntry(layer.label, layer.color, "line", layer.group))
+        elif layer.style == "points":
+            entries.append(LegendEntry(layer.label, layer.color, "marker", layer.group, "o", layer.color))
+        else:
+            entries.append(LegendEntry(layer.label, layer.color, "patch", layer.group, alpha=max(layer.opacity, 0.35)))
+    return tuple(entries)
+
+
+def _estimate_notes(markers: Sequence[EstimateMarker], truths: Sequence[TruthMarker],
+                    match_radius_m: float = 0.25) -> tuple[str, ...]:
+    """One line per numbered estimate: its class, position and the nearest true target."""
+    if not markers:
+        return ()
+    lines = [f"Estimates ({len(markers)}, all marked), and the", "nearest object's centre within 0.25 m:"]
+    truth_xyz = np.array([t.position_m for t in truths], dtype=float).reshape(-1, 3)
+    for k, marker in enumerate(markers, start=1):
+        x, y, _ = (float(v) for v in marker.position_m)
+        text = f"{k:>2} {marker.cls[:8]:<8} {x:6.3f}, {y:6.3f} m"
+        if truth_xyz.size:
+            distance = np.linalg.norm(truth_xyz - np.asarray(marker.position_m, dtype=float), axis=1)
+            nearest = int(np.argmin(distance))
+            if distance[nearest] <= match_radius_m:
+                name = truths[nearest].name or f"target {nearest + 1}"
+                text += f"  {name[:8]} {distance[nearest] * 1e3:5.1f} mm"
+            else:
+                text += "  -"
+        lines.append(text)
+    return tuple(lines)
+
+
+def _picture(scene: Scene, sonar: SonarHead, layers: Sequence[Layer], markers: Sequence[EstimateMarker] | None,
+             truths: Sequence[TruthMarker], camera: str, title: str | None, options: ViewOptions,
+             region: NDArray[np.float64]) -> "Picture":
+    from acoustisim.viz.picture import Marker, Picture, Segments
+
+    overlay: list[Marker] = []
+    points = {name: _points_of(layers, name) for name in ("estimates", "truth", "echo-point")}
+    if points["truth"].size:
+        overlay.append(Marker(points["truth"], "s", 13.0, (0.0, 0.0, 0.0), None))
+    if points["echo-point"].size:
+        overlay.append(Marker(points["echo-point"], "X", 10.0, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)))
+    if points["estimates"].size:
+        overlay.append(Marker(points["estimates"], "o", 8.0, (0.0, 0.0, 0.0), ESTIMATE_COLOR, numbered=True))
+    segments = []
+    for layer in layers:
+        if layer.name == "estimate-errors":
+            ends = np.asarray(layer.mesh.points, dtype=float)
+            half = len(ends) // 2
+            segments.append(Segments(ends[:half], ends[half:], (0.15, 0.15, 0.15), 1.2))
+    names: list[tuple[str, NDArray[np.float64]]] = []
+    if options.labels:
+        names = [(obj.name, label_anchor(obj.bounds_m)) for obj in scene.objects]
+        names.append(("sonar", np.asarray(sonar.transmitter_position, dtype=float)))
+    subtitle = CAMERA_SUBTITLES.get(camera, camera)
+    return Picture(
+        title=_title(scene, title),
+        subtitle=subtitle,
+        names=tuple(names),
+        markers=tuple(overlay),
+        segments=tuple(segments),
+        legend=_legend(layers),
+        notes=_estimate_notes(markers or [], truths),
+        tank_bounds_m=None if scene.tank is None else scene.tank.bounds_m,
+        region_m=region,
+    )
+
+
+def render_image(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None, *,
+                 sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
+                 options: ViewOptions = ViewOptions(), camera: str = "perspective",
+                 window_size: tuple[int, int] | None = None, title: str | None = None,
+                 multi_samples: int = 4) -> NDArray[np.uint8]:
+    """The view as a finished picture (see :mod:`acoustisim.viz.picture`).
+
+    Parameters
+    ----------
+    scene : Scene, built-in name or scene file path
+    paths, results, sonar, truths, options
+        See :func:`build_layers`.
+    camera : {"top", "side", "sonar", "perspective", "targets"}
+    window_size : (width, height) or None
+        The picture's size (pixels); None: 1400 pixels wide and as tall as the view needs.
+    title : str, optional
+        Default: the scene's name.
+    multi_samples : int
+
+    Returns
+    -------
+    ndarray, shape (height, width, 3) uint8
+    """
+    from acoustisim.viz.picture import compose, panel_height, scene_area
+
+    scene = resolve_scene(scene)
+    if not isinstance(camera, str) or camera not in CAMERA_NAMES:
+        raise InputError(f"camera: unknown preset {camera!r}; choose one of {', '.join(CAMERA_NAMES)}")
+    sonar = scene.sonar if sonar is None else sonar
+    markers = estimate_markers(results, sonar)
+    true_targets = list(truths) if truths is not None else (default_truths(scene) if markers is not None else [])
+    layers = build_layers(scene, paths, markers, sonar=sonar, truths=truths, options=options)
+    region = view_region(camera, scene, sonar, layers)
+    picture = _picture(scene, sonar, layers, markers, true_targets, camera, title, options, region)
+    parallel = camera in PARALLEL_CAMERAS
+    aspect = None
+    if parallel:
+        horizontal, vertical = (0, 2) if camera == "side" else (0, 1)
+        size = region[1] - region[0]
+        aspect = float(size[horizontal] / max(size[vertical], 1e-9))
+    fig_w, fig_h, scene_w, scene_h = scene_area(window_size, aspect, panel_height(picture))
+    drawn = [layer for layer in layers if layer.name not in OVERLAY_LAYERS]
+    plotter = _plotter(drawn, (scene_w, scene_h), True, "white", multi_samples)
+    try:
+        if parallel:
+            preset, projection = _parallel_camera("side" if camera == "side" else "top", region, (scene_w, scene_h))
+            apply_camera(plotter, preset)
+        else:
+            apply_camera(plotter, camera_preset(camera, region, aspect=scene_w / scene_h, sonar=sonar))
+            if camera == "perspective":
+                lo, hi = region
+                corners = [np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])]
+                corners += [obj.bounds_m for obj in scene.objects] + [sonar.receiver_positions]
+                corners += [_points_of(layers, name) for name in ("estimates", "truth")]
+                frame_everything(plotter, np.vstack(corners), (scene_w, scene_h))
+            plotter.renderer.reset_camera_clipping_range()
+            projection = _camera_projection(plotter, (scene_w, scene_h))
+        image = np.asarray(plotter.screenshot(return_img=True))[:, :, :3]
+    finally:
+        plotter.close()
+    return compose(image, picture, projection, (fig_w, fig_h), (scene_w, scene_h))
+
+
+def render_png(scene: SceneInput, path: str | os.PathLike[str], paths: Paths | None = None,
+               results: ResultsInput = None, **kwargs: object) -> Path:
+    """Render the view off-screen to a PNG file (keyword arguments as :func:`render_image`).
 
     Returns
     -------
     Path
         The written file.
     """
+    from PIL import Image
+
+    if isinstance(scene, (str, os.PathLike)) and isinstance(path, Scene):
+        raise InputTypeError("render_png(scene, path, ...): the scene comes first")
+    image = render_image(scene, paths, results, **kwargs)  # type: ignore[arg-type]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    kwargs["off_screen"] = True
-    plotter = show_scene(scene, paths, results, **kwargs)  # type: ignore[arg-type]
-    try:
-        plotter.screenshot(str(path))
-    finally:
-        plotter.close()
+    Image.fromarray(image).save(path, optimize=True)
     return path
 
 
-def export_html(path: str | os.PathLike[str], scene: Scene, paths: Paths | None = None, results: ResultsInput = None,
-                *, sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
-                options: ViewOptions = ViewOptions(), camera: str | CameraPreset = "perspective",
-                title: str | None = None, window_size: tuple[int, int] = (1200, 800)) -> Path:
+def html_page(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None, *,
+              sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
+              options: ViewOptions = ViewOptions(), camera: str | CameraPreset = "perspective",
+              title: str | None = None, window_size: tuple[int, int] | None = (1200, 800)) -> str:
+    """The view as one self-contained HTML page with an embedded WebGL viewer (the text of
+    what :func:`export_html` writes)."""
+    from acoustisim.viz.webgl import render_page
+
+    scene = resolve_scene(scene)
+    window_size = (1200, 800) if window_size is None else window_size
+    sonar = scene.sonar if sonar is None else sonar
+    layers = build_layers(scene, paths, results, sonar=sonar, truths=truths, options=options)
+    return render_page(layers, _camera(camera, scene, sonar, layers, window_size), _title(scene, title))
+
+
+def export_html(scene: SceneInput, path: str | os.PathLike[str], paths: Paths | None = None,
+                results: ResultsInput = None, **kwargs: object) -> Path:
     """Write the view as one self-contained HTML page with an embedded WebGL viewer (no network,
-    no extra package): drag to rotate, right-drag or shift-drag to pan, wheel to zoom.
+    no extra package): drag to rotate, right-drag or shift-drag to pan, wheel to zoom. Keyword
+    arguments as :func:`html_page`.
 
     Returns
     -------
     Path
         The written file.
     """
-    from acoustisim.viz.webgl import write_webgl_html
-
-    sonar = scene.sonar if sonar is None else sonar
-    layers = build_layers(scene, paths, results, sonar=sonar, truths=truths, options=options)
-    return write_webgl_html(path, layers, _camera(camera, scene, sonar, layers, window_size),
-                            title=_title(scene, title))
+    if isinstance(scene, (str, os.PathLike)) and isinstance(path, Scene):
+        raise InputTypeError("export_html(scene, path, ...): the scene comes first")
+    text = html_page(scene, paths, results, **kwargs)  # type: ignore[arg-type]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
