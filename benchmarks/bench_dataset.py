@@ -399,6 +399,7 @@ def crossover(spec_path: Path, sizes: list[int], repeats: int, workdir: Path) ->
           flush=True)
     modes = {"in-process": dict(workers=0), "LocalCluster(2)": dict(workers=2), "scheduler+2 workers": {}}
     times: dict[str, dict[int, list[float]]] = {mode: {n: [] for n in sizes} for mode in modes}
+    startups: dict[str, list[float]] = {mode: [] for mode in modes}
     run = 0
     try:
         # The first run on the fresh workers imports the simulator in each (once per worker life).
@@ -415,6 +416,7 @@ def crossover(spec_path: Path, sizes: list[int], repeats: int, workdir: Path) ->
                     t0 = time.perf_counter()
                     report = generate(spec, out, scheduler=address if not kwargs else None, progress=False, **kwargs)
                     times[mode][n].append(time.perf_counter() - t0)
+                    startups[mode].append(report.startup_s)
                     assert report.n_complete == n
                     shutil.rmtree(out)
     finally:
@@ -425,7 +427,8 @@ def crossover(spec_path: Path, sizes: list[int], repeats: int, workdir: Path) ->
         print(f"{n:8d} " + " ".join(f"{medians[mode][k]:20.2f}" for mode in modes))
     fits = {mode: _fit_line(sizes, medians[mode]) for mode in modes}
     for mode, (a, b) in fits.items():
-        print(f"{mode:>20s}: T = {a:5.2f} s + {b * 1e3:6.1f} ms x N")
+        print(f"{mode:>20s}: T = {a:5.2f} s + {b * 1e3:6.1f} ms x N (fit); start-up (planning, store, cluster, "
+              f"warm-up) median {statistics.median(startups[mode]):.2f} s")
     a0, b0 = fits["in-process"]
     for mode in list(modes)[1:]:
         a, b = fits[mode]

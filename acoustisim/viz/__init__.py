@@ -28,7 +28,8 @@ from __future__ import annotations
 from types import MappingProxyType
 from typing import Any
 
-__all__ = ("SceneView", "ViewOptions", "export_html", "html_page", "render_image", "render_png", "show_scene", "view")
+__all__ = ("SceneView", "ViewOptions", "export_html", "html_page", "render_image", "render_picture", "render_png",
+           "show_scene", "view")
 
 _HOMES = MappingProxyType({"SceneView": "notebook", "view": "notebook"})
 """The module of each public name not in ``render``."""

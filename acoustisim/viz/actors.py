@@ -44,7 +44,7 @@ KIND_COLORS: Mapping[PathKind, RGB] = MappingProxyType({
     PathKind.DIRECT: OKABE_ITO["black"],
     PathKind.SPECULAR: OKABE_ITO["blue"],
     PathKind.EDGE: OKABE_ITO["vermillion"],
-    PathKind.DIFFUSE: (0.55, 0.55, 0.55),
+    PathKind.DIFFUSE: (0.75, 0.75, 0.75),
 })
 """Colour of each path kind: the discrete echoes in strong colours, the diffuse reverberation
 (thousands of weak rays) in grey."""
@@ -258,11 +258,9 @@ def cone_lines(apex_m: NDArray[np.float64], axis: NDArray[np.float64], half_angl
         phi = np.linspace(0.0, 2.0 * math.pi, resolution + 1)
         ring = (apex + axial * axis)[None, :] + axial * tan * (np.cos(phi)[:, None] * e2 + np.sin(phi)[:, None] * e3)
         inside = np.all((ring >= bounds[0] - 1e-9) & (ring <= bounds[1] + 1e-9), axis=1)
-        start = len(points)
-        points += list(ring)
-        for k in range(resolution):
-            if inside[k] and inside[k + 1]:
-                lines.append([2, start + k, start + k + 1])
+        for k in np.flatnonzero(inside[:-1] & inside[1:]):  # arcs of the rim inside the box
+            lines.append([2, len(points), len(points) + 1])
+            points += [ring[k], ring[k + 1]]
     if not lines:
         return pv.PolyData()
     return pv.PolyData(np.asarray(points, dtype=float), lines=np.asarray(lines).ravel())

@@ -194,11 +194,12 @@ def place_labels(anchors_px: NDArray[np.float64], sizes_px: NDArray[np.float64],
                  clear_radius_px: float = 8.0) -> NDArray[np.float64]:
     """Where to put each label: the offset (pixels) of its box's centre from its anchor.
 
-    Greedy, in the order given: each label tries 16 positions around its anchor (right, left,
-    above, below, the diagonals, then twice as far) and takes the first whose box overlaps no
-    label placed before, no point of ``keep_clear_px`` (markers, other anchors) within
-    ``clear_radius_px`` and stays inside ``frame_px``; when none does, the one with the least
-    overlap.
+    Greedy, in the order given: each label tries positions around its anchor (right, left,
+    above, below, the diagonals, then the directions between, at growing distances) and takes
+    the first whose box overlaps no label placed before, covers no point of ``keep_clear_px``
+    (markers, other anchors; ``clear_radius_px`` around each) and stays inside ``frame_px``;
+    when none does, the one that breaks the fewest of these rules (leaving the frame worst,
+    then covering a label, then a marker).
 
     Parameters
     ----------
@@ -222,9 +223,10 @@ def place_labels(anchors_px: NDArray[np.float64], sizes_px: NDArray[np.float64],
     placed: list[NDArray[np.float64]] = []
     offsets = np.zeros_like(anchors_px)
     directions = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, 1), (1, -1), (-1, -1)]
+    directions += [(np.cos(a), np.sin(a)) for a in np.radians(np.arange(15.0, 360.0, 30.0))]
     for k, (anchor, (w, h)) in enumerate(zip(anchors_px, sizes_px)):
         best, best_cost = np.zeros(2), math.inf
-        for scale in (1.0, 2.2, 3.6):
+        for scale in (1.0, 2.2, 3.6, 5.5, 8.0):
             for dx, dy in directions:
                 offset = np.array([dx * (0.5 * w + gap_px * scale), dy * (0.5 * h + gap_px * scale)])
                 centre = anchor + offset
@@ -236,8 +238,8 @@ def place_labels(anchors_px: NDArray[np.float64], sizes_px: NDArray[np.float64],
                 if clear.size:
                     nearest_x = np.clip(clear[:, 0], box[0], box[2])
                     nearest_y = np.clip(clear[:, 1], box[1], box[3])
-                    cost += float(np.count_nonzero(np.hypot(clear[:, 0] - nearest_x, clear[:, 1] - nearest_y)
-                                                   < clear_radius_px))
+                    cost += 3.0 * float(np.count_nonzero(np.hypot(clear[:, 0] - nearest_x, clear[:, 1] - nearest_y)
+                                                         < clear_radius_px))
                 cost += 0.01 * scale  # prefer near
                 if cost < best_cost:
                     best, best_cost = offset, cost
@@ -328,8 +330,32 @@ def scene_area(window_px: tuple[int, int] | None, region_aspect: float | None,
     return fig_w, fig_h, max(16, scene_w), max(16, int(round(scene_w / region_aspect)))
 
 
+@dataclass(frozen=True)
+class ComposedPicture:
+    """A finished picture and where things landed on it.
+
+    Attributes
+    ----------
+    image : ndarray, shape (height, width, 3) uint8
+    to_pixels : callable
+        ``(n, 3)`` tank-frame points (m) to ``(n, 2)`` (column, row) pixel positions on ``image``.
+    scene_box_px : tuple of 4 float
+        ``(left, top, right, bottom)`` of the scene area on ``image`` (pixels).
+    legend_box_px : tuple of 4 float
+        The legend panel's text, the same way.
+    label_boxes_px : tuple of tuple of 4 float
+        Each label drawn (object names, estimate numbers), the same way.
+    """
+
+    image: NDArray[np.uint8]
+    to_pixels: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+    scene_box_px: tuple[float, float, float, float]
+    legend_box_px: tuple[float, float, float, float]
+    label_boxes_px: tuple[tuple[float, float, float, float], ...]
+
+
 def compose(image: NDArray[np.uint8], picture: Picture, projection: Projection,
-            size_px: tuple[int, int], scene_px: tuple[int, int]) -> NDArray[np.uint8]:
+            size_px: tuple[int, int], scene_px: tuple[int, int]) -> ComposedPicture:
     """The finished picture: the scene image with the overlay, the legend panel and the title.
 
     Parameters
@@ -345,7 +371,7 @@ def compose(image: NDArray[np.uint8], picture: Picture, projection: Projection,
 
     Returns
     -------
-    ndarray, shape (height, width, 3) uint8
+    ComposedPicture
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -392,11 +418,26 @@ def compose(image: NDArray[np.uint8], picture: Picture, projection: Projection,
     texts = [(name, projection.to_data(point[None, :])[0], True) for name, point in picture.names]
     texts += [(number, xy, False) for number, xy in numbered]
     texts = [text for text in texts if _on_picture(text[1], projection)]
-    _draw_labels(ax, renderer, texts, keep_clear)
-    _legend_panel(fig, picture, fig_w, fig_h, left + scene_w + gap)
+    labels = _draw_labels(ax, renderer, texts, keep_clear)
+    legend_box = _legend_panel(fig, picture, fig_w, fig_h, left + scene_w + gap)
     canvas.draw()
     rgba = np.asarray(canvas.buffer_rgba())
-    return np.ascontiguousarray(rgba[:, :, :3])
+    renderer = canvas.get_renderer()
+
+    def flip(box: Any) -> tuple[float, float, float, float]:
+        return (float(box.x0), float(fig_h - box.y1), float(box.x1), float(fig_h - box.y0))
+
+    def to_pixels(points: NDArray[np.float64]) -> NDArray[np.float64]:
+        xy = ax.transData.transform(projection.to_data(points))
+        return np.column_stack([xy[:, 0], fig_h - xy[:, 1]])
+
+    return ComposedPicture(
+        image=np.ascontiguousarray(rgba[:, :, :3]),
+        to_pixels=to_pixels,
+        scene_box_px=flip(ax.get_window_extent(renderer)),
+        legend_box_px=flip(legend_box.get_window_extent(renderer)) if legend_box is not None else (0, 0, 0, 0),
+        label_boxes_px=tuple(flip(artist.get_window_extent(renderer)) for artist in labels),
+    )
 
 
 def _on_picture(xy: NDArray[np.float64], projection: Projection) -> bool:
@@ -406,10 +447,11 @@ def _on_picture(xy: NDArray[np.float64], projection: Projection) -> bool:
 
 
 def _draw_labels(ax: Any, renderer: Any, texts: list[tuple[str, NDArray[np.float64], bool]],
-                 keep_clear: list[NDArray[np.float64]]) -> None:
-    """Object names (boxed, with a leader line) and estimate numbers, placed by :func:`place_labels`."""
+                 keep_clear: list[NDArray[np.float64]]) -> list[Any]:
+    """Object names (boxed, with a leader line) and estimate numbers, placed by
+    :func:`place_labels`; returns the text artists."""
     if not texts:
-        return
+        return []
     to_px = ax.transData.transform
     anchors = to_px(np.array([xy for _, xy, _ in texts], dtype=float))
     artists = []
@@ -434,6 +476,7 @@ def _draw_labels(ax: Any, renderer: Any, texts: list[tuple[str, NDArray[np.float
             start = inverse(anchor[None, :])[0]
             ax.annotate("", xy=start, xytext=centre, zorder=5,
                         arrowprops=dict(arrowstyle="-", color="0.35", linewidth=0.7, shrinkA=8, shrinkB=2))
+    return artists
 
 
 def _scale_bar(ax: Any, projection: Projection) -> None:
@@ -494,9 +537,9 @@ def _scale_bar_3d(ax: Any, picture: Picture, projection: Projection) -> None:
                 fontsize=FONT_SIZE, zorder=5)
 
 
-def _legend_panel(fig: Any, picture: Picture, fig_w: int, fig_h: int, x_px: float) -> None:
+def _legend_panel(fig: Any, picture: Picture, fig_w: int, fig_h: int, x_px: float) -> Any:
     """The legend by group in a panel right of the scene, and the notes (the numbered
-    estimates) under it."""
+    estimates) under it; returns the legend (None without entries)."""
     handles, labels, headings = legend_handles(picture.legend)
     top_px = MARGINS_PX[2]
     legend_ax = fig.add_axes((x_px / fig_w, 0.02, 1.0 - x_px / fig_w - 0.005, 1.0 - top_px / fig_h - 0.02))
@@ -515,3 +558,4 @@ def _legend_panel(fig: Any, picture: Picture, fig_w: int, fig_h: int, x_px: floa
         y_px = (box.y0 - 14) if box is not None else fig_h - top_px
         fig.text(x_px / fig_w, y_px / fig_h, "\n".join(picture.notes), fontsize=FONT_SIZE - 1.5, va="top",
                  family="monospace", linespacing=1.35)
+    return legend_ax.get_legend()

@@ -60,7 +60,7 @@ from acoustisim.viz.layers import RGBA_ARRAY, Layer
 if TYPE_CHECKING:
     import pyvista as pv
 
-    from acoustisim.viz.picture import Picture, Projection
+    from acoustisim.viz.picture import ComposedPicture, Picture, Projection
 
 ResultsInput = Sequence[EstimateMarker] | str | os.PathLike[str] | None
 SceneInput = Scene | str | os.PathLike[str]
@@ -394,7 +394,7 @@ def show_scene(scene: SceneInput, paths: Paths | None = None, results: ResultsIn
     -------
     pyvista.Plotter
         Actors are named after the layers ("tank-walls", "paths-specular", ...), the object
-        names "labels".
+        names "labels-labels".
     """
     scene = resolve_scene(scene)
     window_size = (1200, 800) if window_size is None else window_size
@@ -584,12 +584,20 @@ def _picture(scene: Scene, sonar: SonarHead, layers: Sequence[Layer], markers: S
     )
 
 
-def render_image(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None, *,
-                 sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
-                 options: ViewOptions = ViewOptions(), camera: str = "perspective",
-                 window_size: tuple[int, int] | None = None, title: str | None = None,
-                 multi_samples: int = 4) -> NDArray[np.uint8]:
-    """The view as a finished picture (see :mod:`acoustisim.viz.picture`).
+def render_image(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None,
+                 **kwargs: object) -> NDArray[np.uint8]:
+    """The view as a finished picture, (height, width, 3) uint8 (keyword arguments as
+    :func:`render_picture`)."""
+    return render_picture(scene, paths, results, **kwargs).image  # type: ignore[arg-type]
+
+
+def render_picture(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None, *,
+                   sonar: SonarHead | None = None, truths: Sequence[TruthMarker] | None = None,
+                   options: ViewOptions = ViewOptions(), camera: str = "perspective",
+                   window_size: tuple[int, int] | None = None, title: str | None = None,
+                   multi_samples: int = 4) -> "ComposedPicture":
+    """The view as a finished picture with where things landed on it (see
+    :mod:`acoustisim.viz.picture`).
 
     Parameters
     ----------
@@ -605,7 +613,7 @@ def render_image(scene: SceneInput, paths: Paths | None = None, results: Results
 
     Returns
     -------
-    ndarray, shape (height, width, 3) uint8
+    ComposedPicture
     """
     from acoustisim.viz.picture import compose, panel_height, scene_area
 
