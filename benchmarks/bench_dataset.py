@@ -389,6 +389,10 @@ def _fit_line(sizes: list[int], times: list[float]) -> tuple[float, float]:
 def crossover(spec_path: Path, sizes: list[int], repeats: int, workdir: Path) -> None:
     """Wall time of whole generate calls per mode and size; the fitted fixed and per-sample
     costs and the crossover sizes (see the module docstring)."""
+    import signal
+
+    # A kill (SIGTERM) still stops the cluster started below (the finally clause).
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     base = load_spec(spec_path)
     # This process's own first run: imports and numba's cache loads, not a per-run cost.
     generate(dataclasses.replace(base, n_samples=2), workdir / "warm.zarr", workers=0, progress=False)

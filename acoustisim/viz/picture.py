@@ -407,10 +407,13 @@ def compose(image: NDArray[np.uint8], picture: Picture, projection: Projection,
     numbered = []
     for marker in picture.markers:
         xy = projection.to_data(marker.points_m)
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        inside = np.ones(len(xy), dtype=bool)
+        if projection.metric:
+            xy, inside = _arrows_for_the_outside(ax, xy, projection, marker)
         if marker.numbered:
             numbered += [(str(k + 1), xy[k]) for k in range(len(xy))]
-        xy = xy[np.all(np.isfinite(xy), axis=1)]
-        ax.scatter(xy[:, 0], xy[:, 1], s=marker.size**2, marker=marker.marker, edgecolors=[marker.edge],
+        ax.scatter(xy[inside, 0], xy[inside, 1], s=marker.size**2, marker=marker.marker, edgecolors=[marker.edge],
                    facecolors="none" if marker.face is None else [marker.face], linewidths=1.5, zorder=4)
         keep_clear.append(xy)
     canvas.draw()
@@ -438,6 +441,25 @@ def compose(image: NDArray[np.uint8], picture: Picture, projection: Projection,
         legend_box_px=flip(legend_box.get_window_extent(renderer)) if legend_box is not None else (0, 0, 0, 0),
         label_boxes_px=tuple(flip(artist.get_window_extent(renderer)) for artist in labels),
     )
+
+
+def _arrows_for_the_outside(ax: Any, xy: NDArray[np.float64], projection: Projection,
+                            marker: Marker) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Points outside the picture (a metric view) are drawn at its edge as an arrow head
+    pointing toward them; returns every point's drawn position (the others unchanged) and
+    which were inside."""
+    left, right, bottom, top = projection.extent
+    inset = 0.012 * np.array([right - left, top - bottom])
+    lo, hi = np.array([left, bottom]) + inset, np.array([right, top]) - inset
+    clipped = np.clip(xy, lo, hi)
+    outside = np.any(np.abs(clipped - xy) > 0, axis=1)
+    for point, edge in zip(xy[outside], clipped[outside]):
+        direction = point - edge
+        glyph = (">" if direction[0] > 0 else "<") if abs(direction[0]) * (top - bottom) >= abs(direction[1]) * (
+            right - left) else ("^" if direction[1] > 0 else "v")
+        ax.scatter([edge[0]], [edge[1]], s=(1.4 * marker.size) ** 2, marker=glyph, edgecolors=[marker.edge],
+                   facecolors=[marker.face if marker.face is not None else (1.0, 1.0, 1.0)], linewidths=1.5, zorder=4)
+    return clipped, ~outside
 
 
 def _on_picture(xy: NDArray[np.float64], projection: Projection) -> bool:

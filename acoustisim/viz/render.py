@@ -83,6 +83,9 @@ CAMERA_SUBTITLES: Mapping[str, str] = MappingProxyType({
 FRAME_PAD = 0.04
 """Fraction of the region added on every side of a parallel view."""
 
+BEYOND_TANK_M = 0.5
+"""How far past the tank's walls a view reaches to frame an estimate (m)."""
+
 
 def resolve_scene(scene: SceneInput) -> Scene:
     """A Scene from a Scene, a built-in scene's name or a scene file's path.
@@ -170,21 +173,39 @@ def _points_of(layers: Sequence[Layer], name: str) -> NDArray[np.float64]:
     return np.empty((0, 3))
 
 
-def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, pad_m: float = 0.3) -> NDArray[np.float64]:
+def _within(points: NDArray[np.float64], limits: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    """``points`` moved into ``limits`` (2, 3) (m), when given."""
+    return points if limits is None or not points.size else np.clip(points, limits[0], limits[1])
+
+
+def _frame_limits(scene: Scene) -> NDArray[np.float64] | None:
+    """How far a view may reach: the tank grown by ``BEYOND_TANK_M`` (None in free field). An
+    estimate farther out (a ghost of a multipath) would shrink the tank to a corner of the
+    picture: it is marked at the picture's edge instead, pointing toward it."""
+    if scene.tank is None:
+        return None
+    lo, hi = scene.tank.bounds_m
+    return np.array([lo - BEYOND_TANK_M, hi + BEYOND_TANK_M])
+
+
+def targets_bounds(layers: Sequence[Layer], sonar: SonarHead, pad_m: float = 0.3,
+                   limits: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """What the "targets" camera frames (2, 3) (m): the sonar, every estimate and every true
-    target, padded by ``pad_m``."""
+    target (those beyond ``limits`` at the limit), padded by ``pad_m``."""
     points = np.vstack([sonar.receiver_positions, _points_of(layers, "estimates"), _points_of(layers, "truth")])
+    points = _within(points, limits)
     return np.array([points.min(axis=0) - pad_m, points.max(axis=0) + pad_m])
 
 
 def view_region(camera: str, scene: Scene, sonar: SonarHead, layers: Sequence[Layer]) -> NDArray[np.float64]:
     """The region (2, 3) (m) a camera preset frames: the tank (or, in free field, the objects
-    and the sonar) grown to hold every estimate and true target; for "targets" the sonar, the
-    estimates and the true targets only."""
+    and the sonar) grown to hold every estimate and true target up to ``BEYOND_TANK_M`` past
+    the walls; for "targets" the sonar, the estimates and the true targets only."""
+    limits = _frame_limits(scene)
     if camera == "targets":
-        return targets_bounds(layers, sonar)
+        return targets_bounds(layers, sonar, limits=limits)
     bounds = scene_bounds(scene, sonar)
-    extra = np.vstack([_points_of(layers, "estimates"), _points_of(layers, "truth")])
+    extra = _within(np.vstack([_points_of(layers, "estimates"), _points_of(layers, "truth")]), limits)
     if extra.size:
         bounds = np.array([np.minimum(bounds[0], extra.min(axis=0)), np.maximum(bounds[1], extra.max(axis=0))])
     return bounds
@@ -526,7 +547,7 @@ def _legend(layers: Sequence[Layer]) -> tuple:
 
 
 def _estimate_notes(markers: Sequence[EstimateMarker], truths: Sequence[TruthMarker],
-                    match_radius_m: float = 0.25) -> tuple[str, ...]:
+                    match_radius_m: float = 0.25, limits: NDArray[np.float64] | None = None) -> tuple[str, ...]:
     """One line per numbered estimate: its class, position and the nearest true target."""
     if not markers:
         return ()
@@ -543,6 +564,8 @@ def _estimate_notes(markers: Sequence[EstimateMarker], truths: Sequence[TruthMar
                 text += f"  {name[:8]} {distance[nearest] * 1e3:5.1f} mm"
             else:
                 text += "  -"
+        if limits is not None and np.any((marker.position_m < limits[0]) | (marker.position_m > limits[1])):
+            text = text.removesuffix("  -") + "  (arrow: beyond)"
         lines.append(text)
     return tuple(lines)
 
@@ -578,7 +601,8 @@ def _picture(scene: Scene, sonar: SonarHead, layers: Sequence[Layer], markers: S
         markers=tuple(overlay),
         segments=tuple(segments),
         legend=_legend(layers),
-        notes=_estimate_notes(markers or [], truths),
+        notes=_estimate_notes(markers or [], truths, limits=_frame_limits(scene) if camera in PARALLEL_CAMERAS
+                              else None),
         tank_bounds_m=None if scene.tank is None else scene.tank.bounds_m,
         region_m=region,
     )

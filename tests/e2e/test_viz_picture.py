@@ -141,26 +141,36 @@ def test_top_view_legend_beside_the_tank_names_axes_and_no_blank_band(thesis_tan
 
 
 def test_localisation_view_marks_every_estimate_on_top_and_frames_everything(thesis_tank):
-    """Seven estimates, two of them beyond the far wall and two 86 mm apart, and a truth inside
-    the opaque pipe: every estimate is drawn (its yellow at its place), every truth marker is
-    visible (black at its outline), post-3 far from every estimate is in frame, and the notes
-    list all seven."""
-    from acoustisim.viz.render import render_picture
+    """Eight estimates: two just beyond the far wall, two 86 mm apart, one 3 m outside the
+    tank (a multipath ghost), and a truth inside the opaque pipe. Every estimate is drawn (its
+    yellow at its place; the ghost as an arrow at the picture's edge, the view staying on the
+    tank), every truth marker is visible (black at its outline), post-3 far from every estimate
+    is in frame, and the notes list all eight."""
+    from acoustisim.viz.render import BEYOND_TANK_M, render_picture
 
     positions = [(2.500, 1.500), (2.586, 1.500), (2.976, 1.210), (3.175, 1.846), (4.425, 1.893), (9.133, 1.512),
-                 (9.149, 1.501)]
+                 (9.149, 1.501), (7.427, 6.337)]
     estimates = [EstimateMarker(np.array([x, y, 0.5]), np.diag([1e-6, 4e-6, 0.0]), "point") for x, y in positions]
     truths = [TruthMarker(obj.bounds_m.mean(axis=0), obj.name) for obj in thesis_tank.objects]
     picture = render_picture(thesis_tank, None, estimates, truths=truths, camera="targets")
     image = picture.image.astype(int)
     scene = picture.scene_box_px
     yellow = np.round(np.asarray(ESTIMATE_COLOR) * 255)
-    # Estimates 6 and 7 are 16 mm apart: their markers overlap, so look for yellow at each one
-    # within a few pixels of its centre.
-    for k, (col, row) in enumerate(picture.to_pixels(np.array([e.position_m for e in estimates])), start=1):
+
+    def yellow_near(col: float, row: float, radius: int = 3) -> bool:
+        patch = image[int(row) - radius:int(row) + radius + 1, int(col) - radius:int(col) + radius + 1]
+        return bool(np.any(np.all(np.abs(patch - yellow) < 30, axis=-1)))
+
+    pixels = picture.to_pixels(np.array([e.position_m for e in estimates]))
+    # Estimates 6 and 7 are 16 mm apart: their markers overlap, so look within 3 pixels of each centre.
+    for k, (col, row) in enumerate(pixels[:-1], start=1):
         assert scene[0] < col < scene[2] and scene[1] < row < scene[3], f"estimate {k} out of frame"
-        patch = image[int(row) - 3:int(row) + 4, int(col) - 3:int(col) + 4]
-        assert np.any(np.all(np.abs(patch - yellow) < 30, axis=-1)), f"estimate {k} not drawn"
+        assert yellow_near(col, row), f"estimate {k} not drawn"
+    ghost_col, ghost_row = pixels[-1]
+    assert ghost_row < scene[1], "the ghost lies above the picture: the view did not grow to hold it"
+    assert yellow_near(ghost_col, scene[1] + 8, radius=6), "the ghost has no arrow at the top edge"
+    top_of_view = picture.to_pixels(np.array([[0.0, 3.0 + BEYOND_TANK_M + 0.2, 0.5]]))[0, 1]
+    assert top_of_view < scene[1] + 0.2 * (scene[3] - scene[1])  # the view reaches just past the wall
     for truth, (col, row) in zip(truths, picture.to_pixels(np.array([t.position_m for t in truths]))):
         assert scene[0] < col < scene[2] and scene[1] < row < scene[3], f"{truth.name} out of frame"
         ring = image[int(row) - 10:int(row) + 11, int(col) - 10:int(col) + 11]
