@@ -137,6 +137,8 @@ class Picture:
         The tank's water (m), for the dimension labels of perspective views.
     region_m : ndarray (2, 3)
         The region framed (m).
+    scale_start_m : ndarray (3,) or None
+        Free-field perspective views: where the scale bar starts (m; it runs along +x).
     """
 
     title: str
@@ -148,6 +150,7 @@ class Picture:
     notes: tuple[str, ...]
     tank_bounds_m: NDArray[np.float64] | None
     region_m: NDArray[np.float64]
+    scale_start_m: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)
@@ -317,7 +320,7 @@ def scene_area(window_px: tuple[int, int] | None, region_aspect: float | None,
     avail_w = max(16, fig_w - left - gap - legend_w - 8)
     if window_px is None:
         if region_aspect is None:
-            scene_w, scene_h = avail_w, int(round(avail_w / 1.6))
+            scene_w, scene_h = avail_w, int(round(avail_w / 1.75))
         else:
             scene_w, scene_h = avail_w, int(round(avail_w / region_aspect))
         fig_h = max(scene_h + bottom + top, panel_px + top)
@@ -546,11 +549,12 @@ def _dimension_labels(ax: Any, picture: Picture, projection: Projection) -> None
 
 
 def _scale_bar_3d(ax: Any, picture: Picture, projection: Projection) -> None:
-    """A bar of a round length along the tank frame's x axis at the region's lower front edge,
-    with end ticks and its length, drawn in perspective (true length at that depth)."""
+    """A bar of a round length along the tank frame's x axis from ``picture.scale_start_m``
+    (default the region's lower front corner), with its length, drawn in perspective (true
+    length at that depth)."""
     lo, hi = np.asarray(picture.region_m, dtype=float)
     length = nice_length(hi[0] - lo[0], 0.3)
-    start = np.array([lo[0], lo[1], lo[2]])
+    start = np.array([lo[0], lo[1], lo[2]]) if picture.scale_start_m is None else np.asarray(picture.scale_start_m)
     ends = projection.to_data(np.array([start, start + np.array([length, 0.0, 0.0])]))
     ax.plot(ends[:, 0], ends[:, 1], color="black", linewidth=2.5, zorder=5, solid_capstyle="butt")
     middle = ends.mean(axis=0)

@@ -359,6 +359,12 @@ def add_legend(plotter: "pv.Plotter", entries: Sequence[tuple[str, tuple[float, 
     return legend
 
 
+def box_corners(bounds_m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The 8 corners (8, 3) of an axis-aligned box given by its bounds (2, 3)."""
+    lo, hi = np.asarray(bounds_m, dtype=float)
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
 def label_anchor(bounds_m: NDArray[np.float64]) -> NDArray[np.float64]:
     """Where an object's name points: the top centre of its bounding box (m)."""
     lo, hi = np.asarray(bounds_m, dtype=float)
@@ -605,7 +611,17 @@ def _picture(scene: Scene, sonar: SonarHead, layers: Sequence[Layer], markers: S
                               else None),
         tank_bounds_m=None if scene.tank is None else scene.tank.bounds_m,
         region_m=region,
+        scale_start_m=_scale_start(scene, sonar),
     )
+
+
+def _scale_start(scene: Scene, sonar: SonarHead) -> NDArray[np.float64] | None:
+    """Free field: the scale bar starts under the transmitter, below the lowest object."""
+    if scene.tank is None and scene.objects:
+        bottom = min(float(obj.bounds_m[0, 2]) for obj in scene.objects)
+        tx = np.asarray(sonar.transmitter_position, dtype=float)
+        return np.array([tx[0], tx[1], min(bottom, tx[2]) - 0.05])
+    return None
 
 
 def render_image(scene: SceneInput, paths: Paths | None = None, results: ResultsInput = None,
@@ -639,7 +655,7 @@ def render_picture(scene: SceneInput, paths: Paths | None = None, results: Resul
     -------
     ComposedPicture
     """
-    from acoustisim.viz.picture import compose, panel_height, scene_area
+    from acoustisim.viz.picture import compose, nice_length, panel_height, scene_area
 
     scene = resolve_scene(scene)
     if not isinstance(camera, str) or camera not in CAMERA_NAMES:
@@ -666,10 +682,14 @@ def render_picture(scene: SceneInput, paths: Paths | None = None, results: Resul
         else:
             apply_camera(plotter, camera_preset(camera, region, aspect=scene_w / scene_h, sonar=sonar))
             if camera == "perspective":
-                lo, hi = region
-                corners = [np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])]
-                corners += [obj.bounds_m for obj in scene.objects] + [sonar.receiver_positions]
-                corners += [_points_of(layers, name) for name in ("estimates", "truth")]
+                # The tank's corners (in free field the objects and the sonar themselves: the
+                # region's padding would leave the picture mostly empty).
+                boxes = [obj.bounds_m for obj in scene.objects] + ([] if scene.tank is None else [scene.tank.bounds_m])
+                corners = [box_corners(box) for box in boxes]
+                corners += [_points_of(layers, name) for name in ("sonar-head", "estimates", "truth")]
+                if picture.scale_start_m is not None:  # the free-field scale bar is part of the picture
+                    length = nice_length(region[1][0] - region[0][0], 0.3)
+                    corners.append(picture.scale_start_m + np.array([[0.0, 0.0, 0.0], [length, 0.0, 0.0]]))
                 frame_everything(plotter, np.vstack(corners), (scene_w, scene_h))
             plotter.renderer.reset_camera_clipping_range()
             projection = _camera_projection(plotter, (scene_w, scene_h))
