@@ -354,14 +354,22 @@ def _start_dask_cluster(workdir: Path, n_workers: int) -> tuple[str, list, float
     t0 = time.perf_counter()
     processes = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
                                    "--dashboard-address", ":0", "--scheduler-file", str(scheduler_file)], **quiet)]
-    while not scheduler_file.exists():
-        time.sleep(0.05)
-    address = json.loads(scheduler_file.read_text())["address"]
-    for _ in range(n_workers):
-        processes.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads",
-                                           "1", "--dashboard-address", ":0"], **quiet))
-    with Client(address) as client:
-        client.wait_for_workers(n_workers, timeout=120)
+    try:
+        address = None
+        while address is None:  # the file appears before it is written whole
+            time.sleep(0.05)
+            try:
+                address = json.loads(scheduler_file.read_text())["address"]
+            except (OSError, ValueError, KeyError):
+                address = None
+        for _ in range(n_workers):
+            processes.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                                               "--nthreads", "1", "--dashboard-address", ":0"], **quiet))
+        with Client(address) as client:
+            client.wait_for_workers(n_workers, timeout=120)
+    except BaseException:
+        _stop(processes)
+        raise
     return address, processes, time.perf_counter() - t0
 
 

@@ -818,6 +818,9 @@ def generate(
             mode = str(client.scheduler.address)
         if client is not None:
             at_start = _worker_addresses(client)
+            if chunks and not at_start:
+                raise InputError(f"{mode}: no worker is connected to this scheduler (start `dask worker {mode}` "
+                                 "processes that see --out)")
             if chunks:
                 check_workers_see_store(client, store)
                 client.run(warm_up_worker)

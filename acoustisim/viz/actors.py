@@ -615,7 +615,7 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
     if estimates:
         positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
         layers.append(Layer("estimates", pv.PolyData(positions), ESTIMATE_COLOR, 1.0, "points", point_size=11.0,
-                            label=f"estimates ({len(estimates)}, numbered)", group="estimate"))
+                            label=f"estimates ({len(estimates)})", group="estimate"))
         axes_list = []
         for est in estimates:
             if est.covariance_m2 is None:

@@ -537,8 +537,9 @@ def _legend(layers: Sequence[Layer]) -> tuple:
     for layer in layers:
         if not layer.label:
             continue
-        if layer.name == "estimates":
-            entries.append(LegendEntry(layer.label, (0.0, 0.0, 0.0), "marker", layer.group, "o", ESTIMATE_COLOR))
+        if layer.name == "estimates":  # numbered on the picture, listed under the legend
+            entries.append(LegendEntry(layer.label.removesuffix(")") + ", numbered)", (0.0, 0.0, 0.0), "marker",
+                                       layer.group, "o", ESTIMATE_COLOR))
         elif layer.name == "truth":
             entries.append(LegendEntry(layer.label, (0.0, 0.0, 0.0), "marker", layer.group, "s", None))
         elif layer.name == "echo-point":

@@ -269,3 +269,16 @@ def test_real_scheduler_relative_out_and_a_killed_worker(tmp_path: Path) -> None
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGKILL)
             process.wait()
+
+
+def test_a_scheduler_without_workers_is_refused_in_one_line(client, tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tasks on a scheduler with no worker would wait for ever: the run stops first (the
+    scheduler's worker list is emptied here; a real empty one gives the same set)."""
+    import acoustisim.datasets.generate as generation
+    from acoustisim.errors import InputError
+
+    monkeypatch.setattr(generation, "_worker_addresses", lambda c: set())
+    with pytest.raises(InputError, match="no worker is connected to this scheduler"):
+        generate(loads_spec(small_spec(name="none", n_samples=1, seed=1)), tmp_path / "n.zarr", client=client,
+                 progress=False)
