@@ -30,7 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from acoustisim.propagation import solve  # noqa: E402
-from acoustisim.viz.render import ViewOptions, build_layers, export_html, render_png  # noqa: E402
+from acoustisim.viz.render import ViewOptions, build_layers, export_html  # noqa: E402
+from acoustisim.viz.snapshot import render_png  # noqa: E402
 from scenes.builtin import builtin_scene  # noqa: E402
 
 GOAL_S = 5.0

@@ -42,7 +42,8 @@ def _channels(text: str) -> tuple[int, ...]:
 
 def _run(args: argparse.Namespace) -> int:
     from acoustisim.viz.cameras import CAMERA_NAMES
-    from acoustisim.viz.render import ViewOptions, export_html, has_display, render_png, show_scene
+    from acoustisim.viz.render import ViewOptions, export_html, has_display, show_scene
+    from acoustisim.viz.snapshot import render_png
     from scenes.scene_file import load_scene
 
     if args.camera not in CAMERA_NAMES:  # argparse already restricts it; kept for API callers

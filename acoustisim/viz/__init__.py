@@ -17,8 +17,8 @@ takes the scene first: a Scene, a built-in scene's name or a scene file's path.
 Command line: ``acoustisim view``.
 
 Modules: ``layers`` (the drawable unit), ``actors`` (layer builders, the palette), ``beam``
-(piston beam angles), ``cameras`` (presets), ``render`` (plotter, picture, HTML), ``picture``
-(the overlay, axes and legend of a PNG), ``notebook`` (Jupyter display), ``webgl`` (the HTML
+(piston beam angles), ``cameras`` (presets), ``render`` (layers, regions, window, HTML), ``snapshot`` (the PNG
+picture), ``picture`` (its overlay, axes and legend), ``notebook`` (Jupyter display), ``webgl`` (the HTML
 writer), ``results_file`` (localisation results JSON), ``ping_file`` (pose and truth of a ping
 file).
 """
@@ -31,7 +31,8 @@ from typing import Any
 __all__ = ("SceneView", "ViewOptions", "export_html", "html_page", "render_image", "render_picture", "render_png",
            "show_scene", "view")
 
-_HOMES = MappingProxyType({"SceneView": "notebook", "view": "notebook"})
+_HOMES = MappingProxyType({"SceneView": "notebook", "view": "notebook", "render_image": "snapshot",
+                           "render_picture": "snapshot", "render_png": "snapshot"})
 """The module of each public name not in ``render``."""
 
 

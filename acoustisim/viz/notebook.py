@@ -5,7 +5,7 @@
 >>> view(scene, paths, camera="perspective").interactive()           # doctest: +SKIP
 
 :func:`view` returns a :class:`SceneView`: the last expression of a cell shows it as the PNG
-picture of :func:`acoustisim.viz.render.render_image` (``_repr_png_``; it is rendered once,
+picture of :func:`acoustisim.viz.snapshot.render_image` (``_repr_png_``; it is rendered once,
 when first shown, and kept). ``.interactive()`` gives the WebGL page of
 :func:`acoustisim.viz.render.html_page` inside the notebook (``_repr_html_``: an ``iframe``
 holding the self-contained page, nothing fetched from the network). ``.save(path)`` and
@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.paths import Paths
-from acoustisim.viz.render import ResultsInput, SceneInput, html_page, render_image, resolve_scene
+from acoustisim.viz.render import ResultsInput, SceneInput, html_page, resolve_scene
+from acoustisim.viz.snapshot import render_image
 
 PAGE_HEIGHT_PX = 600
 """Height of the interactive page's frame in a notebook (pixels)."""
@@ -61,7 +62,7 @@ class SceneView:
     paths : Paths, optional
     results : sequence of EstimateMarker, or results JSON path, optional
     **options
-        Keyword arguments of :func:`acoustisim.viz.render.render_image` (``camera``,
+        Keyword arguments of :func:`acoustisim.viz.snapshot.render_image` (``camera``,
         ``options``, ``sonar``, ``truths``, ``window_size``, ``title``); ``window_size`` and
         ``camera`` also set the interactive page's.
     """

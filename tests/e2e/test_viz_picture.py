@@ -118,7 +118,7 @@ def _background_rows(image: np.ndarray) -> float:
 
 
 def test_top_view_legend_beside_the_tank_names_axes_and_no_blank_band(thesis_tank):
-    from acoustisim.viz.render import render_picture
+    from acoustisim.viz.snapshot import render_picture
 
     picture = render_picture(thesis_tank, camera="top")
     height, width, _ = picture.image.shape
@@ -146,7 +146,8 @@ def test_localisation_view_marks_every_estimate_on_top_and_frames_everything(the
     yellow at its place; the ghost as an arrow at the picture's edge, the view staying on the
     tank), every truth marker is visible (black at its outline), post-3 far from every estimate
     is in frame, and the notes list all eight."""
-    from acoustisim.viz.render import BEYOND_TANK_M, render_picture
+    from acoustisim.viz.render import BEYOND_TANK_M
+    from acoustisim.viz.snapshot import render_picture
 
     positions = [(2.500, 1.500), (2.586, 1.500), (2.976, 1.210), (3.175, 1.846), (4.425, 1.893), (9.133, 1.512),
                  (9.149, 1.501), (7.427, 6.337)]
@@ -178,7 +179,7 @@ def test_localisation_view_marks_every_estimate_on_top_and_frames_everything(the
 
 
 def test_perspective_view_frames_every_object_and_the_tank(thesis_tank):
-    from acoustisim.viz.render import render_picture
+    from acoustisim.viz.snapshot import render_picture
 
     picture = render_picture(thesis_tank, camera="perspective", window_size=(900, 560))
     assert picture.image.shape == (560, 900, 3)
