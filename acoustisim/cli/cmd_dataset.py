@@ -33,7 +33,8 @@ def _generate(args: argparse.Namespace) -> int:
         print(
             f"{report.path}: {report.n_complete} / {report.n_samples} samples complete ({report.n_generated} made now"
             f"{repaired}, {report.n_skipped} already there) in {report.elapsed_s:.1f} s, "
-            f"{report.samples_per_s:.2f} samples/s {report.workers_text()} ({report.scheduler})"
+            f"{report.samples_per_s:.2f} samples/s {report.workers_text()}"
+            + ("" if report.scheduler == "in-process" else f" ({report.scheduler})")
         )
     return 0 if report.n_complete == report.n_samples else 1
 
