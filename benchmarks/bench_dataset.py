@@ -5,6 +5,7 @@ Usage
     python benchmarks/bench_dataset.py [--samples 24] [--spec examples/dataset_spec.toml]
     python benchmarks/bench_dataset.py --memory 10000 --tiny   # driver/worker RSS over 10k samples, ~5 min
     python benchmarks/bench_dataset.py --memory 10000 --csv /tmp/rss.csv   # the default spec: ~75 min
+    python benchmarks/bench_dataset.py --crossover [--sizes 4 8 16 32 64] [--repeats 3]   # ~10 min
 
 Default mode, all measured in this run on the same samples of the spec:
   - baseline: build + simulate each sample in a plain Python loop (no Dask, no Zarr), run
@@ -33,6 +34,17 @@ Speed-up of 2 workers over 1 (goal >= 1.8x), two ways:
     driver: the "workers busy" column shows whether they did. (On a loaded machine the
     measured assignment of tasks to workers follows the CPU share the OS gave each, so it
     is replayed rather than taken as measured.)
+
+Crossover mode: when does a cluster pay for its start-up? For each dataset size N, the wall
+time of the whole ``generate`` call as a user sees it (first line to return) in three modes:
+in this process (``--workers 0``); a LocalCluster of 2 workers started and closed by the call
+(``--workers 2``, the default on a 2-core machine); and a running ``dask scheduler`` with two
+``dask worker`` processes on this machine (``--scheduler ADDRESS``), started once by the
+benchmark beforehand (its start-up, and the first run on cold workers that imports the
+simulator in each, are printed apart). Medians of ``--repeats`` runs; a straight line
+T = a + b N fitted to each mode's medians gives its fixed cost a and its cost per sample b, and
+the crossover N* = (a_cluster - a_in_process) / (b_in_process - b_cluster): below N* samples the
+plain in-process run finishes first.
 
 Memory mode: generates N samples of the spec on a LocalCluster of ``--workers`` workers (as
 ``generate --workers N`` starts it) and samples the resident set size of the driver and of
@@ -318,6 +330,128 @@ def throughput(spec_path: Path, n: int, workdir: Path) -> None:
     print(f"benchmark wall time {time.perf_counter() - t_start:.0f} s")
 
 
+def _start_dask_cluster(workdir: Path, n_workers: int) -> tuple[str, list, float]:
+    """A ``dask scheduler`` and ``n_workers`` ``dask worker`` processes (one thread each, with
+    their nannies, as a user starts them), in their own directory.
+
+    Returns
+    -------
+    address : str
+    processes : list of subprocess.Popen
+    startup_s : float
+        From launching the scheduler until every worker is connected.
+    """
+    import json
+    import subprocess
+
+    from distributed import Client
+
+    home = workdir / "cluster"
+    home.mkdir()
+    scheduler_file = home / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    quiet = dict(cwd=home, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    t0 = time.perf_counter()
+    processes = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
+                                   "--dashboard-address", ":0", "--scheduler-file", str(scheduler_file)], **quiet)]
+    try:
+        address = None
+        while address is None:  # the file appears before it is written whole
+            time.sleep(0.05)
+            try:
+                address = json.loads(scheduler_file.read_text())["address"]
+            except (OSError, ValueError, KeyError):
+                address = None
+        for _ in range(n_workers):
+            processes.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                                               "--nthreads", "1", "--dashboard-address", ":0"], **quiet))
+        with Client(address) as client:
+            client.wait_for_workers(n_workers, timeout=120)
+    except BaseException:
+        _stop(processes)
+        raise
+    return address, processes, time.perf_counter() - t0
+
+
+def _stop(processes: list) -> None:
+    import signal
+
+    for process in reversed(processes):
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=20)
+        except Exception:  # noqa: BLE001 - a process that ignores SIGTERM
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _fit_line(sizes: list[int], times: list[float]) -> tuple[float, float]:
+    """Least-squares a, b of T = a + b N."""
+    import numpy as np
+
+    b, a = np.polyfit(np.asarray(sizes, float), np.asarray(times, float), 1)
+    return float(a), float(b)
+
+
+def crossover(spec_path: Path, sizes: list[int], repeats: int, workdir: Path) -> None:
+    """Wall time of whole generate calls per mode and size; the fitted fixed and per-sample
+    costs and the crossover sizes (see the module docstring)."""
+    import signal
+
+    # A kill (SIGTERM) still stops the cluster started below (the finally clause).
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    base = load_spec(spec_path)
+    # This process's own first run: imports and numba's cache loads, not a per-run cost.
+    generate(dataclasses.replace(base, n_samples=2), workdir / "warm.zarr", workers=0, progress=False)
+    address, processes, cluster_startup = _start_dask_cluster(workdir, 2)
+    print(f"spec {spec_path.name}, chunks of {base.samples_per_chunk}, sizes {sizes}, {repeats} repeat(s); "
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at the start", flush=True)
+    print(f"dask scheduler + 2 dask workers: {cluster_startup:.1f} s from launch until both workers are connected",
+          flush=True)
+    modes = {"in-process": dict(workers=0), "LocalCluster(2)": dict(workers=2), "scheduler+2 workers": {}}
+    times: dict[str, dict[int, list[float]]] = {mode: {n: [] for n in sizes} for mode in modes}
+    startups: dict[str, list[float]] = {mode: [] for mode in modes}
+    run = 0
+    try:
+        # The first run on the fresh workers imports the simulator in each (once per worker life).
+        t0 = time.perf_counter()
+        generate(dataclasses.replace(base, n_samples=2), workdir / "cold.zarr", scheduler=address, progress=False)
+        print(f"first run on the cold workers (2 samples, imports in each worker): {time.perf_counter() - t0:.1f} s",
+              flush=True)
+        for _ in range(repeats):
+            for n in sizes:
+                spec = dataclasses.replace(base, n_samples=n)
+                for mode, kwargs in modes.items():
+                    run += 1
+                    out = workdir / f"run{run}.zarr"
+                    t0 = time.perf_counter()
+                    report = generate(spec, out, scheduler=address if not kwargs else None, progress=False, **kwargs)
+                    times[mode][n].append(time.perf_counter() - t0)
+                    startups[mode].append(report.startup_s)
+                    assert report.n_complete == n
+                    shutil.rmtree(out)
+    finally:
+        _stop(processes)
+    print(f"\n{'samples':>8s} " + " ".join(f"{mode:>20s}" for mode in modes) + "   (median wall s of the whole call)")
+    medians = {mode: [statistics.median(times[mode][n]) for n in sizes] for mode in modes}
+    for k, n in enumerate(sizes):
+        print(f"{n:8d} " + " ".join(f"{medians[mode][k]:20.2f}" for mode in modes))
+    fits = {mode: _fit_line(sizes, medians[mode]) for mode in modes}
+    for mode, (a, b) in fits.items():
+        print(f"{mode:>20s}: T = {a:5.2f} s + {b * 1e3:6.1f} ms x N (fit); start-up (planning, store, cluster, "
+              f"warm-up) median {statistics.median(startups[mode]):.2f} s")
+    a0, b0 = fits["in-process"]
+    for mode in list(modes)[1:]:
+        a, b = fits[mode]
+        if b >= b0:
+            print(f"{mode}: no crossover (no faster per sample than in-process here)")
+        else:
+            print(f"{mode}: faster than in-process above N* = {(a - a0) / (b0 - b):.0f} samples "
+                  f"({(a - a0):.1f} s more fixed cost, {(b0 - b) * 1e3:.0f} ms less per sample)")
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
+
+
 def memory(spec_path: Path | None, n: int, workdir: Path, workers: int, csv_path: Path | None,
            interval_s: float) -> None:
     """RSS over an ``n``-sample run of the spec at ``spec_path`` (None: :data:`TINY_SPEC`)."""
@@ -421,9 +555,14 @@ def main() -> None:
     parser.add_argument("--tiny", action="store_true", help="memory mode: the cheap TINY_SPEC instead of --spec")
     parser.add_argument("--csv", type=Path, default=None, help="memory mode: write the RSS samples to this CSV")
     parser.add_argument("--interval", type=float, default=5.0, help="memory mode: seconds between RSS samples")
+    parser.add_argument("--crossover", action="store_true", help="crossover mode: in-process vs clusters by size")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[4, 8, 16, 32, 64], help="crossover mode: sizes")
+    parser.add_argument("--repeats", type=int, default=3, help="crossover mode: runs per size and mode")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_dataset_") as tmp:
-        if args.memory:
+        if args.crossover:
+            crossover(args.spec, args.sizes, args.repeats, Path(tmp))
+        elif args.memory:
             memory(None if args.tiny else args.spec, args.memory, Path(tmp), args.workers, args.csv, args.interval)
         else:
             throughput(args.spec, args.samples, Path(tmp))

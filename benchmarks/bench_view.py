@@ -6,10 +6,11 @@ Usage
 
 Measured in this run, each the median of ``--repeats`` runs after one warm-up (the warm-up's
 time, which includes creating the first OpenGL context, is printed apart):
-  - baseline: the tank, objects, sonar and beam with no paths, off-screen to PNG;
+  - baseline: the tank, objects, sonar and beam with no paths, off-screen to a PNG picture
+    (the VTK render and the matplotlib composition: labels, axes, legend panel);
   - with paths: the same plus the ``--paths`` strongest rows of the solver's output for the
-    thesis tank drawn one by one (edge-diffraction elements not collapsed, so the count is
-    the number of polylines on screen), off-screen to PNG;
+    thesis tank drawn one by one (edge-diffraction elements not collapsed and no cap on the
+    diffuse rows, so the count is the number of polylines on screen), off-screen to PNG;
   - the layer building alone (NumPy/VTK geometry, no rendering);
   - the standalone HTML export of the same view.
 Printed: the medians, the paths' cost as a ratio to the baseline, and whether the 5 s goal
@@ -29,7 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from acoustisim.propagation import solve  # noqa: E402
-from acoustisim.viz.render import ViewOptions, build_layers, export_html, render_png  # noqa: E402
+from acoustisim.viz.render import ViewOptions, build_layers, export_html  # noqa: E402
+from acoustisim.viz.snapshot import render_png  # noqa: E402
 from scenes.builtin import builtin_scene  # noqa: E402
 
 GOAL_S = 5.0
@@ -65,21 +67,22 @@ def main() -> int:
     solve_s = time.perf_counter() - start
     if len(paths) < args.paths:
         print(f"the solver gave only {len(paths)} rows (< {args.paths}); drawing all of them")
-    options = ViewOptions(max_paths=args.paths, edge_elements=True)
+    options = ViewOptions(max_paths=args.paths, max_diffuse=None, edge_elements=True)
     drawn = sum(
-        int(layer.label.split("(")[-1].rstrip(")"))
+        int(layer.label.split("(")[-1].rstrip(")").replace(",", ""))
         for layer in build_layers(scene, paths, options=options)
         if layer.group == "paths"
     )
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         warm_base, base, base_cpu = _median_time(
-            lambda: render_png(out / "base.png", scene, None, window_size=size), args.repeats)
+            lambda: render_png(scene, out / "base.png", None, window_size=size, camera="top"), args.repeats)
         warm_full, full, full_cpu = _median_time(
-            lambda: render_png(out / "full.png", scene, paths, options=options, window_size=size), args.repeats)
+            lambda: render_png(scene, out / "full.png", paths, options=options, window_size=size, camera="top"),
+            args.repeats)
         _, layers_s, layers_cpu = _median_time(lambda: build_layers(scene, paths, options=options), args.repeats)
         _, html_s, html_cpu = _median_time(
-            lambda: export_html(out / "full.html", scene, paths, options=options), args.repeats)
+            lambda: export_html(scene, out / "full.html", paths, options=options), args.repeats)
         html_mb = (out / "full.html").stat().st_size / 1e6
 
     print(f"thesis tank: solver rows {len(paths)} (solve {solve_s:.2f} s, not counted); drawn paths {drawn}")

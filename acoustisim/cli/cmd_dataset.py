@@ -1,8 +1,9 @@
 """``acoustisim dataset``: generate, verify and describe synthetic datasets.
 
-- ``acoustisim dataset generate SPEC.toml --out DATA.zarr [--workers N] [--scheduler ADDRESS] [--json]``
+- ``acoustisim dataset generate SPEC.toml --out DATA.zarr [--workers N] [--scheduler ADDRESS] [--repair] [--json]``
   (running it again on the same ``--out`` resumes: only the unfinished chunks of samples are
-  made, see ``samples_per_chunk``)
+  made, see ``samples_per_chunk``; ``--repair`` first verifies the store and makes again the
+  samples that fail)
 - ``acoustisim dataset verify DATA.zarr [--json]``: exit 0 when complete and every checksum
   matches, 1 otherwise
 - ``acoustisim dataset info DATA.zarr [--json]``
@@ -26,14 +27,16 @@ def _generate(args: argparse.Namespace) -> int:
     check_output_folder(args.out, "--out")  # before the work: the store's folder takes new files
     spec = load_spec(args.spec)
     report = generate(spec, args.out, workers=args.workers, scheduler=args.scheduler,
-                      progress=not args.no_progress)
+                      progress=not args.no_progress, repair=args.repair)
     if args.json:
         print(json.dumps(report.as_dict()))
     else:
+        repaired = f", {report.n_repaired} of them repaired" if args.repair else ""
         print(
-            f"{report.path}: {report.n_complete} / {report.n_samples} samples complete ({report.n_generated} made now, "
-            f"{report.n_skipped} already there) in {report.elapsed_s:.1f} s, {report.samples_per_s:.2f} samples/s "
-            f"on {report.workers} worker(s) ({report.scheduler})"
+            f"{report.path}: {report.n_complete} / {report.n_samples} samples complete ({report.n_generated} made now"
+            f"{repaired}, {report.n_skipped} already there) in {report.elapsed_s:.1f} s, "
+            f"{report.samples_per_s:.2f} samples/s {report.workers_text()}"
+            + ("" if report.scheduler == "in-process" else f" ({report.scheduler})")
         )
     return 0 if report.n_complete == report.n_samples else 1
 
@@ -54,6 +57,13 @@ def _verify(args: argparse.Namespace) -> int:
             print(f"  missing: {shown}{more} (run the same generate command again to complete them)")
         for index, problem in report.corrupt[:20]:
             print(f"  sample {index}: {problem}")
+        if len(report.corrupt) > 20:
+            print(f"  ... and {len(report.corrupt) - 20} more corrupt samples")
+        if report.corrupt:
+            print(f"  to make them again: acoustisim dataset generate SPEC.toml --out {report.path} --repair")
+        if report.damaged_records:
+            print(f"  {len(report.damaged_records)} sample(s) with an unreadable completion or checksum record "
+                  "(made again by the same generate command)")
         if report.stray_files:
             print(f"  {len(report.stray_files)} stray *.partial file(s) from interrupted writes (harmless)")
     return 0 if report.ok else 1
@@ -83,7 +93,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     gen.add_argument("--workers", type=int, default=None, metavar="N",
                      help="worker processes of the local Dask cluster (default: CPU count; 0: no Dask, this process)")
     gen.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                     help="use a running dask.distributed scheduler (its workers must see --out)")
+                     help="use a running dask.distributed scheduler (its workers must see --out at the same "
+                          "absolute path; each is checked before any work)")
+    gen.add_argument("--repair", action="store_true",
+                     help="first verify the store and make again exactly the samples that fail (damaged chunks, "
+                          "checksum mismatches)")
     gen.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     gen.add_argument("--json", action="store_true", help="print the run's report as one JSON object")
     gen.set_defaults(run=_generate)

@@ -71,11 +71,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     names.required = True
     for name, module in modules.items():
         sub = names.add_parser(name, help=getattr(module, "SUMMARY", ""), description=getattr(module, "SUMMARY", ""))
-        sub.add_argument("--trials", type=int, default=None,
+        sub.add_argument("--trials", type=int, default=None, metavar="N",
                          help="the experiment's size (see its report; default: the experiment's own)")
-        sub.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
-        sub.add_argument("--out", default=None, help=f"output folder (default out/{name})")
-        sub.add_argument("--workers", type=int, default=None, help="worker processes (default: the usable cores)")
+        sub.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default 0)")
+        sub.add_argument("--out", default=None, metavar="DIR", help=f"output folder (default out/{name})")
+        sub.add_argument("--workers", type=int, default=None, metavar="N", help="worker processes (default: the usable cores)")
         sub.add_argument("--json", action="store_true", help="print one JSON object on stdout")
         sub.add_argument("--no-progress", action="store_true", help="no progress bar")
         add_arguments = getattr(module, "add_arguments", None)

@@ -2,7 +2,8 @@
 
 - ``acoustisim scene list [--json]``
 - ``acoustisim scene validate FILE_OR_NAME [--json]``
-- ``acoustisim scene show FILE_OR_NAME [--json]``
+- ``acoustisim scene show FILE_OR_NAME [--json | --toml]`` (``--toml``: the scene's file, a
+  starting point for your own: ``acoustisim scene show thesis-tank --toml > my-tank.toml``)
 
 A bad scene raises ``SceneFileError``: the main wrapper prints one line and exits with 2.
 """
@@ -72,7 +73,13 @@ def _show(args: argparse.Namespace) -> int:
     from scenes.scene_file import load_scene
     from scenes.summary import scene_summary
 
-    summary = scene_summary(load_scene(args.scene))
+    scene = load_scene(args.scene)
+    if args.toml:
+        from scenes.scene_file import scene_to_toml
+
+        print(scene_to_toml(scene), end="")
+        return 0
+    summary = scene_summary(scene)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -103,5 +110,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "show", help="objects, kinds, materials, bounds, triangle counts, sonar pose, sound speed"
     )
     show.add_argument("scene", metavar="FILE_OR_NAME", help="scene file (TOML) or built-in scene name")
-    show.add_argument("--json", action="store_true", help="print one JSON object on stdout, nothing else")
+    form = show.add_mutually_exclusive_group()
+    form.add_argument("--json", action="store_true", help="print one JSON object on stdout, nothing else")
+    form.add_argument("--toml", action="store_true",
+                      help="print the scene as a scene file (TOML; mesh paths absolute), e.g. to start your own")
     show.set_defaults(run=_show)

@@ -2,8 +2,8 @@
 
 ``acoustisim view FILE_OR_NAME [--ping PING.h5 [--ping-index I]] [--results RESULTS.json]
 [--png OUT.png] [--html OUT.html] [--camera top|side|sonar|perspective|targets] [--echo N|NAME]
-[--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--edge-elements] [--no-beam]
-[--size WxH] [--title TEXT]``
+[--no-paths] [--max-order N] [--channels LIST] [--max-paths N] [--max-diffuse N] [--edge-elements] [--no-beam]
+[--no-labels] [--size WxH] [--title TEXT]``
 
 Paths: the ping's true arrivals with ``--ping``, else traced now (``acoustisim.propagation``),
 unless ``--no-paths``. Rendering is off-screen when ``--png`` or ``--html`` is given; without
@@ -42,7 +42,8 @@ def _channels(text: str) -> tuple[int, ...]:
 
 def _run(args: argparse.Namespace) -> int:
     from acoustisim.viz.cameras import CAMERA_NAMES
-    from acoustisim.viz.render import ViewOptions, export_html, has_display, render_png, show_scene
+    from acoustisim.viz.render import ViewOptions, export_html, has_display, show_scene
+    from acoustisim.viz.snapshot import render_png
     from binsonar.files import atomic_output, check_output_file
     from scenes.scene_file import load_scene
 
@@ -70,15 +71,18 @@ def _run(args: argparse.Namespace) -> int:
 
         config = SolverConfig() if args.max_order is None else SolverConfig(max_order=args.max_order)
         paths = solve(scene, sonar, config)
-    options = ViewOptions(channels=args.channels, max_paths=args.max_paths or None, edge_elements=args.edge_elements,
-                          echo=args.echo, show_beam=not args.no_beam)
+    options = ViewOptions(channels=args.channels, max_paths=args.max_paths or None,
+                          max_diffuse=args.max_diffuse or None, edge_elements=args.edge_elements,
+                          echo=args.echo, show_beam=not args.no_beam, labels=not args.no_labels)
     common = dict(sonar=sonar, truths=truths, options=options, camera=args.camera, title=args.title,
                   window_size=args.size)
     written = []
     for option, path in outputs:
-        writer = render_png if option == "--png" else export_html
         with atomic_output(path, option) as temporary:  # the umask's mode; links and devices refused
-            writer(temporary, scene, paths, args.results, **common)
+            if option == "--png":
+                render_png(scene, temporary, paths, args.results, **common)
+            else:
+                export_html(scene, temporary, paths, args.results, **{**common, "window_size": args.size or (1200, 800)})
         written.append(path)
     if written:
         for path in written:
@@ -115,10 +119,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="receiver channels whose paths are drawn, e.g. centre or left,right (default all)")
     parser.add_argument("--max-paths", type=int_at_least(0), default=10_000, metavar="N",
                         help="draw only the N strongest paths (0: all; default 10000)")
+    parser.add_argument("--max-diffuse", type=int_at_least(0), default=400, metavar="N",
+                        help="of those, draw only the N strongest diffuse paths (0: all; default 400)")
     parser.add_argument("--edge-elements", action="store_true",
                         help="draw every edge-diffraction element instead of one line per edge arrival")
     parser.add_argument("--no-beam", action="store_true", help="hide the transmit beam cones")
-    parser.add_argument("--size", type=_size, default=(1200, 800), metavar="WxH",
-                        help="image or window size in pixels (default 1200x800)")
-    parser.add_argument("--title", help="title text (default: the scene's name)")
+    parser.add_argument("--no-labels", action="store_true", help="do not write the objects' names")
+    parser.add_argument("--size", type=_size, default=None, metavar="WxH",
+                        help="image or window size in pixels (default: a 1400 pixel wide PNG as tall as the view "
+                             "needs; a 1200x800 window or page)")
+    parser.add_argument("--title", metavar="TEXT", help="title text (default: the scene's name)")
     parser.set_defaults(run=_run)

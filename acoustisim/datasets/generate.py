@@ -40,6 +40,7 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
+from numpy.typing import NDArray
 
 from acoustisim.datasets.labels import Vocabularies, sample_arrays, vocabularies
 from acoustisim.datasets.sampling import SampleDescription, build_scene, draw_sample, plan_samples
@@ -53,6 +54,7 @@ from acoustisim.datasets.store import (
     DatasetStoreError,
     StoreShape,
     create_store,
+    store_seen_here,
 )
 from acoustisim.errors import InputError
 
@@ -124,6 +126,9 @@ class ChunkResult:
     costs : tuple of TaskCost
         Each task of the chunk, in the order they were submitted: one (simulate and write)
         or, for a chunk split into sample tasks, one per sample and then the write.
+    kept : tuple of int
+        Samples of the chunk that were already complete and verified, read back and
+        rewritten unchanged (a chunk being repaired); the others were simulated.
     """
 
     start: int
@@ -133,6 +138,12 @@ class ChunkResult:
     elapsed_s: float
     worker: int
     costs: tuple[TaskCost, ...] = ()
+    kept: tuple[int, ...] = ()
+
+    @property
+    def n_made(self) -> int:
+        """Samples simulated for this chunk."""
+        return len(self.checksums) - len(self.kept)
 
 
 @dataclass(frozen=True)
@@ -156,9 +167,17 @@ class GenerateReport:
     samples_per_s : float
         ``n_generated / elapsed_s``.
     workers : int
-        Worker processes used (0: in-process; the cluster's count with a scheduler).
+        Worker processes that ran tasks of this run (0: in-process). A worker that died and
+        was restarted counts twice: it is two processes.
     scheduler : str
         "in-process", "local-cluster" or the scheduler address.
+    workers_at_start, workers_at_end : int
+        Workers connected to the scheduler when the run started and when it ended.
+    workers_lost : int
+        Workers present at the start and gone at the end (died or removed during the run).
+    n_repaired : int
+        Samples found corrupt by ``repair=True`` and made again (they are part of
+        ``n_generated``).
     simulate_cpu_s : float
         Sum over the samples made by this run of the CPU time (s) their worker process spent
         building and simulating them (the rest of the run's CPU is the dataset machinery).
@@ -182,6 +201,10 @@ class GenerateReport:
     samples_per_s: float
     workers: int
     scheduler: str
+    workers_at_start: int = 0
+    workers_at_end: int = 0
+    workers_lost: int = 0
+    n_repaired: int = 0
     simulate_cpu_s: float = 0.0
     task_cpu_s: float = 0.0
     driver_cpu_s: float = 0.0
@@ -195,6 +218,19 @@ class GenerateReport:
         data = dataclasses.asdict(self)
         data.pop("task_cpu_list_s")
         return data
+
+    def workers_text(self) -> str:
+        """How many workers did the work, said honestly: e.g. "on 1 worker (2 at the start,
+        1 lost during the run)"."""
+        if self.scheduler == "in-process":
+            return "in this process (no Dask)"
+        text = f"on {self.workers} worker process{'es' if self.workers != 1 else ''}"
+        notes = []
+        if self.workers_at_start != self.workers or self.workers_lost or self.workers_at_end != self.workers_at_start:
+            notes.append(f"{self.workers_at_start} at the start, {self.workers_at_end} at the end")
+        if self.workers_lost:
+            notes.append(f"{self.workers_lost} lost during the run")
+        return text + (f" ({'; '.join(notes)})" if notes else "")
 
 
 def code_version() -> str:
@@ -306,17 +342,43 @@ def make_sample(spec: DatasetSpec, index: int, vocab: Vocabularies) -> SampleRes
     return simulate_rows(spec, draw_sample(spec, index), vocab)
 
 
-def write_chunk(writer: ChunkWriter, results: list[SampleResult]) -> ChunkResult:
-    """Write one chunk's simulated samples (data, then checksums, then completion flags)."""
+def write_chunk(writer: ChunkWriter, results: list[SampleResult], spec: DatasetSpec | None = None,
+                start: int | None = None, stop: int | None = None, vocab: Vocabularies | None = None) -> ChunkResult:
+    """Write one chunk (data, then checksums, then completion flags).
+
+    Parameters
+    ----------
+    writer : ChunkWriter
+    results : list of SampleResult
+        The simulated samples, in index order: the whole chunk, or (with ``start``/``stop``)
+        the samples of chunk ``[start, stop)`` that were not complete.
+    spec, start, stop, vocab : optional
+        Given for a chunk being completed or repaired: its other samples are read back when
+        they are complete and still match their checksum, else simulated here.
+    """
     import os
 
-    start, cpu_start = time.perf_counter(), time.process_time()
-    checksums = writer.write_chunk([r.arrays for r in results])
-    own = TaskCost(time.process_time() - cpu_start, time.perf_counter() - start, os.getpid())
-    costs = tuple(r.cost for r in results) + (own,)
-    return ChunkResult(results[0].arrays.index, tuple(int(c) for c in checksums),
-                       sum(r.simulate_cpu_s for r in results), sum(c.cpu_s for c in costs),
-                       sum(c.elapsed_s for c in costs), own.worker, costs)
+    t0, cpu_start = time.perf_counter(), time.process_time()
+    made = {r.arrays.index: r for r in results}
+    kept: dict[int, SampleArrays] = {}
+    if start is not None and stop is not None:
+        others = [i for i in range(start, stop) if i not in made]
+        kept = writer.read_verified(others)
+        missing = [i for i in others if i not in kept]
+        if missing:
+            if spec is None or vocab is None:
+                raise ValueError(f"samples {missing}: neither simulated nor stored (no spec to make them)")
+            for sample in plan_samples(spec, missing):
+                made[sample.index] = simulate_rows(spec, sample, vocab)
+    order = sorted([*made, *kept])
+    arrays = [made[i].arrays if i in made else kept[i] for i in order]
+    checksums = writer.write_chunk(arrays)
+    own = TaskCost(time.process_time() - cpu_start, time.perf_counter() - t0, os.getpid())
+    simulated = [made[i] for i in order if i in made]
+    costs = tuple(r.cost for r in simulated) + (own,)
+    return ChunkResult(order[0], tuple(int(c) for c in checksums),
+                       sum(r.simulate_cpu_s for r in simulated), sum(c.cpu_s for c in costs),
+                       sum(c.elapsed_s for c in costs), own.worker, costs, tuple(sorted(kept)))
 
 
 def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: ChunkWriter,
@@ -346,9 +408,14 @@ def make_chunk(spec: DatasetSpec, samples: list[SampleDescription], writer: Chun
     return dataclasses.replace(result, task_cpu_s=cost.cpu_s, elapsed_s=cost.elapsed_s, costs=(cost,))
 
 
-def make_chunk_range(spec: DatasetSpec, start: int, stop: int, writer: ChunkWriter, vocab: Vocabularies) -> ChunkResult:
+def make_chunk_range(spec: DatasetSpec, start: int, stop: int, writer: ChunkWriter, vocab: Vocabularies,
+                     partial: bool = False) -> ChunkResult:
     """The Dask task of one chunk: draw samples ``start`` to ``stop - 1`` again from their own
     seeds (the same as the driver's plan, by construction) and run :func:`make_chunk` on them.
+
+    With ``partial`` (a chunk some of whose samples are complete: a repair), the complete
+    samples that still match their checksum are read back and rewritten unchanged; only the
+    others are simulated.
 
     The task's arguments are then two integers besides the scattered spec, writer and
     vocabularies: nothing per sample goes through the scheduler. (Shipping the drawn samples
@@ -356,7 +423,14 @@ def make_chunk_range(spec: DatasetSpec, start: int, stop: int, writer: ChunkWrit
     sent to each worker, ``distributed.admin.low-level-log-length``, and every such batch then
     holds a chunk's samples.) Drawing costs well under 1 ms a sample.
     """
-    return make_chunk(spec, plan_samples(spec, range(start, stop)), writer, vocab)
+    if not partial:
+        return make_chunk(spec, plan_samples(spec, range(start, stop)), writer, vocab)
+    import os
+
+    t0, cpu_start = time.perf_counter(), time.process_time()
+    result = write_chunk(writer, [], spec, start, stop, vocab)
+    cost = TaskCost(time.process_time() - cpu_start, time.perf_counter() - t0, os.getpid())
+    return dataclasses.replace(result, task_cpu_s=cost.cpu_s, elapsed_s=cost.elapsed_s, costs=(cost,))
 
 
 def store_shape(spec: DatasetSpec) -> StoreShape:
@@ -448,13 +522,15 @@ class _Tally:
 
     def add(self, result: ChunkResult, worker: str | None = None, *, update_bar: bool = True) -> None:
         """Count a chunk; its tasks' costs go to the worker that ran each (all to ``worker`` if given)."""
-        n = len(result.checksums)
+        n = result.n_made
         self.n_samples += n
         self.simulate_cpu_s += result.simulate_cpu_s
         self.task_cpu_s += result.task_cpu_s
         self.task_cpu[result.start] = tuple(c.cpu_s for c in result.costs)
-        # A split chunk's samples count for the workers that simulated them; a chunk task's for its worker.
-        simulated_by = [c.worker for c in result.costs[:n]] if len(result.costs) > n else [result.worker] * n
+        # A split chunk (its sample tasks, then the write) counts its samples for the workers
+        # that simulated them; a chunk task's for its worker.
+        split = len(result.costs) == n + 1
+        simulated_by = [c.worker for c in result.costs[:n]] if split else [result.worker] * n
         for cost in result.costs:
             self._busy(worker or str(cost.worker), cost.cpu_s, cost.elapsed_s, 0)
         for pid in simulated_by:
@@ -470,9 +546,10 @@ class _Tally:
 
 
 def _run_in_process(spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
-                    vocab: Vocabularies, tally: _Tally) -> None:
+                    vocab: Vocabularies, tally: _Tally, complete: NDArray[np.bool_] | None = None) -> None:
     for start, stop in chunks:
-        tally.add(make_chunk_range(spec, start, stop, writer, vocab), "in-process")
+        partial = complete is not None and bool(complete[start:stop].any())
+        tally.add(make_chunk_range(spec, start, stop, writer, vocab, partial), "in-process")
 
 
 def split_tail(n_chunks: int, n_workers: int) -> int:
@@ -490,11 +567,13 @@ def split_tail(n_chunks: int, n_workers: int) -> int:
 
 
 def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
-                   vocab: Vocabularies, tally: _Tally, n_workers: int) -> None:
+                   vocab: Vocabularies, tally: _Tally, n_workers: int,
+                   complete: NDArray[np.bool_] | None = None) -> None:
     """Run the tasks of ``chunks`` (``(start, stop)`` sample ranges), at most ``2 x n_workers``
     chunks in flight; each future is released as soon as it has finished and its result is
     counted. The last :func:`split_tail` chunks run as one task per sample and one writing
-    the chunk.
+    the chunk. ``complete`` (the store's flags) marks chunks being repaired: only their
+    incomplete samples are simulated, the others are read back by the task that writes.
 
     The scheduler then holds a few tasks per worker, and everything it logs per task
     (transitions, messages to the workers, one event per submit: all bounded deques of
@@ -518,13 +597,19 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]]
             return
         start, stop = chunk
         stamp = time.monotonic_ns()
+        partial = complete is not None and bool(complete[start:stop].any())
         if k < first_split:
-            future = client.submit(make_chunk_range, spec_f, start, stop, writer_f, vocab_f, pure=False,
+            future = client.submit(make_chunk_range, spec_f, start, stop, writer_f, vocab_f, partial, pure=False,
                                    key=f"dataset-chunk-{start}-{stamp}")
         else:
-            samples = client.map(make_sample, [spec_f] * (stop - start), range(start, stop), [vocab_f] * (stop - start),
-                                 pure=False, key=[f"dataset-sample-{i}-{stamp}" for i in range(start, stop)])
-            future = client.submit(write_chunk, writer_f, samples, pure=False, key=f"dataset-write-{start}-{stamp}")
+            todo = [i for i in range(start, stop) if not (partial and complete[i])]
+            samples = client.map(make_sample, [spec_f] * len(todo), todo, [vocab_f] * len(todo),
+                                 pure=False, key=[f"dataset-sample-{i}-{stamp}" for i in todo])
+            if partial:
+                future = client.submit(write_chunk, writer_f, samples, spec_f, start, stop, vocab_f, pure=False,
+                                       key=f"dataset-write-{start}-{stamp}")
+            else:
+                future = client.submit(write_chunk, writer_f, samples, pure=False, key=f"dataset-write-{start}-{stamp}")
             del samples  # the scheduler keeps them until the write has run, then forgets them
         range_of[future.key] = chunk
         futures.add(future)
@@ -545,10 +630,12 @@ def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]]
             if future.status != "finished":
                 exc = future.exception()
                 start, stop = range_of.get(future.key, (0, 0))
+                if isinstance(exc, InputError):  # e.g. a worker that cannot see the store: one line, exit 2
+                    raise type(exc)(f"samples {start}-{stop - 1}: {exc}") from None
                 raise RuntimeError(f"task of samples {start}-{stop - 1} failed: {type(exc).__name__}: {exc} "
                                    "(chunks completed so far are recorded; rerun to resume)") from exc
             start, stop = range_of.pop(future.key, (0, 0))
-            tally.bar.update(stop - start)
+            tally.bar.update(stop - start if complete is None else int((~complete[start:stop]).sum()))
             finished.append(future)
             submit_next()
             if len(finished) >= GATHER_BATCH:
@@ -607,6 +694,46 @@ def _local_cluster(workers: int) -> Any:
         )
 
 
+def check_workers_see_store(client: Any, store: DatasetStore) -> None:
+    """Ask every worker of ``client`` whether it sees ``store`` at its absolute path.
+
+    Raises
+    ------
+    DatasetStoreError
+        One line naming the first worker that does not, and what it sees instead, before any
+        task runs (a worker with another working directory or on another machine would
+        otherwise write its chunks somewhere else and the run would never complete).
+    """
+    seen = client.run(store_seen_here, str(store.root), store.store_id)
+    for address, problem in sorted(seen.items()):
+        if problem:
+            raise DatasetStoreError(f"worker {address}: {problem}")
+
+
+def _worker_addresses(client: Any) -> set[str]:
+    return set(client.scheduler_info()["workers"])
+
+
+def repair_store(store: DatasetStore) -> tuple[int, ...]:
+    """Find the samples of ``store`` that fail :func:`~acoustisim.datasets.verify.verify`
+    (unreadable or not matching their checksum), clear their completion flags so that the
+    next run makes them again, and remove stray ``*.partial`` files of interrupted writes.
+
+    Returns
+    -------
+    tuple of int
+        The samples marked for remaking.
+    """
+    from acoustisim.datasets.verify import verify
+
+    report = verify(store.path)
+    bad = tuple(sorted({i for i, _ in report.corrupt}))
+    store.mark_incomplete(bad)
+    for stray in report.stray_files:
+        (store.root / stray).unlink(missing_ok=True)
+    return bad
+
+
 def generate(
     spec: DatasetSpec,
     out: str | Path,
@@ -615,14 +742,17 @@ def generate(
     scheduler: str | None = None,
     client: Any = None,
     progress: bool = True,
+    repair: bool = False,
 ) -> GenerateReport:
-    """Generate (or resume) a dataset.
+    """Generate (or resume, or repair) a dataset.
 
     Parameters
     ----------
     spec : DatasetSpec
     out : path
-        The Zarr store directory (created, or resumed when it exists).
+        The Zarr store directory (created, or resumed when it exists). It is resolved to an
+        absolute path here: the workers open the store at that path, and each one checks that
+        it sees this store there before any task runs.
     workers : int, optional
         Worker processes of the local cluster (default: the machine's CPU count); 0 runs the
         tasks in this process without Dask. Ignored with ``scheduler`` or ``client``.
@@ -632,30 +762,38 @@ def generate(
         An existing client (takes precedence over ``scheduler``).
     progress : bool
         Show a progress bar with rate and ETA on stderr.
+    repair : bool
+        First verify the complete samples (:func:`~acoustisim.datasets.verify.verify`) and make
+        again exactly those that fail (a damaged chunk file, a checksum mismatch); the other
+        samples of their chunks are read back and rewritten unchanged.
 
     Raises
     ------
     SpecError
         Before any work, for an impossible spec (e.g. placements).
     DatasetStoreError
-        If ``out`` exists and is not a store of this spec.
+        If ``out`` exists and is not a store of this spec, or a worker cannot see the store.
     """
     from tqdm import tqdm
 
     t_start = time.perf_counter()
     if workers is not None and workers < 0:
         raise InputError(f"--workers = {workers}: must be >= 0")
+    out = Path(out).expanduser().resolve()
     plan_samples(spec)  # raises SpecError before any work (each task draws its samples again)
     vocab = vocabularies(spec)
     store = open_or_create(spec, out, vocab)
+    repaired = repair_store(store) if repair else ()
+    complete = store.complete_mask()
     chunks = store.chunks_to_do()
-    n_todo = sum(stop - start for start, stop in chunks)
+    n_todo = int((~complete).sum())
     writer = store.writer()
 
     own_cluster = None
     own_client = None
     mode = "in-process"
-    n_workers = 0
+    at_start: set[str] = set()
+    at_end: set[str] = set()
     try:
         if client is None and chunks and (scheduler is not None or workers != 0):
             from distributed import Client
@@ -679,8 +817,13 @@ def generate(
         elif client is not None:
             mode = str(client.scheduler.address)
         if client is not None:
-            n_workers = len(client.scheduler_info()["workers"])
-            client.run(warm_up_worker)
+            at_start = _worker_addresses(client)
+            if chunks and not at_start:
+                raise InputError(f"{mode}: no worker is connected to this scheduler (start `dask worker {mode}` "
+                                 "processes that see --out)")
+            if chunks:
+                check_workers_see_store(client, store)
+                client.run(warm_up_worker)
         startup = time.perf_counter() - t_start
         bar = tqdm(total=spec.n_samples, initial=spec.n_samples - n_todo, unit="sample", desc=spec.name,
                    disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
@@ -688,11 +831,13 @@ def generate(
         t_run, cpu_run = time.perf_counter(), time.process_time()
         try:
             if client is None:
-                _run_in_process(spec, chunks, writer, vocab, tally)
+                _run_in_process(spec, chunks, writer, vocab, tally, complete)
             else:
-                _run_on_client(client, spec, chunks, writer, vocab, tally, n_workers)
+                _run_on_client(client, spec, chunks, writer, vocab, tally, len(at_start), complete)
         finally:
             bar.close()
+            if client is not None:
+                at_end = _worker_addresses(client)
         elapsed = time.perf_counter() - t_run
         driver_cpu = time.process_time() - cpu_run
     finally:
@@ -703,9 +848,12 @@ def generate(
 
     summary = dataset_card_summary(store, spec)
     n_complete = summary["counts"]["n_complete"]
+    n_workers = 0 if mode == "in-process" else len(tally.by_worker)
     store.update_card(status="complete" if n_complete == spec.n_samples else "incomplete", **summary,
-                      last_run={"workers": n_workers, "scheduler": mode, "n_generated": tally.n_samples,
-                                "elapsed_s": elapsed, "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
+                      last_run={"workers": n_workers, "workers_at_start": len(at_start), "workers_at_end": len(at_end),
+                                "workers_lost": len(at_start - at_end), "scheduler": mode,
+                                "n_generated": tally.n_samples, "n_repaired": len(repaired), "elapsed_s": elapsed,
+                                "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
     return GenerateReport(
         path=str(out),
         n_samples=spec.n_samples,
@@ -717,6 +865,10 @@ def generate(
         samples_per_s=tally.n_samples / elapsed if elapsed > 0 else float("nan"),
         workers=n_workers,
         scheduler=mode,
+        workers_at_start=len(at_start),
+        workers_at_end=len(at_end),
+        workers_lost=len(at_start - at_end),
+        n_repaired=len(repaired),
         simulate_cpu_s=tally.simulate_cpu_s,
         task_cpu_s=tally.task_cpu_s,
         driver_cpu_s=driver_cpu,
@@ -725,6 +877,6 @@ def generate(
     )
 
 
-__all__ = ["ChunkResult", "GenerateReport", "SampleResult", "SpecError", "TaskCost", "code_version", "generate",
-           "make_chunk", "make_chunk_range", "make_sample", "simulate_rows", "simulate_sample", "split_tail",
-           "write_chunk"]
+__all__ = ("ChunkResult", "GenerateReport", "SampleResult", "SpecError", "TaskCost", "check_workers_see_store",
+           "code_version", "generate", "make_chunk", "make_chunk_range", "make_sample", "repair_store",
+           "simulate_rows", "simulate_sample", "split_tail", "write_chunk")

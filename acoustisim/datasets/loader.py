@@ -4,7 +4,8 @@ Neither imports torch. :class:`WaveformDataset` has ``__len__`` and ``__getitem_
 numpy arrays, which ``torch.utils.data.DataLoader`` accepts as is (its default collate turns
 them into tensors).
 
-Only samples recorded complete are served (an interrupted dataset is usable as it stands).
+Only samples recorded complete are served (an interrupted dataset is usable as it stands):
+:func:`open_dataset` gives them as an ``xarray.Dataset``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,44 @@ from typing import Any, Iterator
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.datasets.store import OBJECT_FIELDS, SAMPLE_FIELDS, DatasetStore
+from acoustisim.datasets.store import OBJECT_FIELDS, SAMPLE_FIELDS, DatasetStore, DatasetStoreError
+
+
+def open_dataset(path: str | Path) -> Any:
+    """The store as an ``xarray.Dataset`` of its complete samples only.
+
+    ``xarray.open_zarr(path)`` shows every sample slot of the store: a sample not yet made
+    (an interrupted or running generation) holds the arrays' fill values there (waveforms of
+    zeros, NaN labels, an empty ``scene_json``) and ``complete == 0``. This function keeps the
+    samples whose ``complete`` flag is 1; the ``sample`` coordinate keeps their indices in the
+    store. The arrays stay lazy (dask), as ``open_zarr`` gives them.
+
+    Parameters
+    ----------
+    path : path
+        The store directory.
+
+    Returns
+    -------
+    xarray.Dataset
+        Attributes: the root attributes (the dataset card) plus ``n_samples_in_store``.
+
+    Raises
+    ------
+    DatasetStoreError
+        When ``path`` is not a dataset store of this layout.
+    """
+    import xarray as xr
+
+    store = DatasetStore(path, mode="r")
+    complete = store.complete_mask()
+    try:
+        dataset = xr.open_zarr(str(store.root))
+    except Exception as exc:  # noqa: BLE001 - any failure to open is a bad store for the user
+        raise DatasetStoreError(f"{store.path}: cannot open with xarray: {exc}") from None
+    dataset = dataset.isel(sample=np.flatnonzero(complete))
+    dataset.attrs["n_samples_in_store"] = int(complete.size)
+    return dataset
 
 
 class DatasetReader:
@@ -58,6 +96,12 @@ class DatasetReader:
     def read(self, positions: NDArray[np.int64] | list[int]) -> dict[str, NDArray[Any]]:
         """The samples at these positions (0..len-1 among the complete samples), as a batch.
 
+        Raises
+        ------
+        DatasetCorruptError
+            When a chunk holding one of the samples cannot be decoded (the message names the
+            samples and the array, and the commands that find and repair them).
+
         Returns
         -------
         dict
@@ -72,8 +116,12 @@ class DatasetReader:
         undo = np.argsort(order)
         sorted_index = index[order]
         s = self.store
-        batch = {name: np.asarray(s.array(name).oindex[sorted_index])[undo]
-                 for name in ("waveforms", "pose", "sample_values", "objects", "arrivals")}
+        batch = {}
+        for name in ("waveforms", "pose", "sample_values", "objects", "arrivals"):
+            try:
+                batch[name] = np.asarray(s.array(name).oindex[sorted_index])[undo]
+            except Exception as exc:  # noqa: BLE001 - a chunk that cannot be decoded is damaged
+                raise s.corrupt_error(sorted_index, name, exc) from None
         values = batch["sample_values"]
         if self.volts:
             scale = values[:, SAMPLE_FIELDS.index("volts_per_code")].astype(np.float32)

@@ -354,8 +354,16 @@ def _sonar_overrides(reader: _Reader) -> tuple[tuple[str, Any], ...]:
 
         dataclasses.replace(default_sonar(), **dict(overrides))
     except (ValueError, TypeError) as exc:
-        raise SpecError(f"{reader.key('')[:-1]}: {exc}") from None
+        raise SpecError(_section_message(reader, exc)) from None
     return tuple(overrides)
+
+
+def _section_message(reader: _Reader, exc: Exception) -> str:
+    """``file: section.key ...: problem`` from a constructor's error, naming the section once
+    (the constructors already write ``section.key`` in their messages)."""
+    text = str(exc)
+    prefix = f"{reader.section}."
+    return _where(reader.source, text if text.startswith(prefix) else f"{reader.section}: {text}")
 
 
 def _solver_options(reader: _Reader) -> tuple[tuple[str, Any], ...]:
@@ -372,8 +380,61 @@ def _solver_options(reader: _Reader) -> tuple[tuple[str, Any], ...]:
     try:
         SolverConfig(**dict(options))
     except (ValueError, TypeError) as exc:
-        raise SpecError(f"{reader.key('')[:-1]}: {exc}") from None
+        raise SpecError(_section_message(reader, exc)) from None
     return tuple(options)
+
+
+def bounding_radius_m(obj: ObjectSpec) -> float:
+    """Radius (m) of the bounding sphere (posts and edges: bounding circle in plan) of the
+    smallest object ``obj`` can draw, as :mod:`acoustisim.datasets.sampling` places it."""
+    low = {key: r.low for key, r in obj.ranges}
+    if obj.kind in ("sphere", "post"):
+        return low["radius_m"]
+    if obj.kind == "cylinder":
+        return math.hypot(low["radius_m"], 0.5 * low["length_m"])
+    if obj.kind == "plate":
+        return 0.5 * math.sqrt(low["width_m"] ** 2 + low["height_m"] ** 2 + low["thickness_m"] ** 2)
+    # Edge: the prism's triangle (apex at the edge, two sides of size_m), circle about its centroid.
+    size = low["size_m"]
+    radii = []
+    for angle in (obj.range("interior_angle_deg").low, obj.range("interior_angle_deg").high):
+        half = math.radians(angle) / 2.0
+        vertices = np.array([[0.0, 0.0], [size * math.cos(half), size * math.sin(half)],
+                             [size * math.cos(half), -size * math.sin(half)]])
+        radii.append(float(np.linalg.norm(vertices - vertices.mean(axis=0), axis=1).max()))
+    return min(radii)
+
+
+def check_objects_fit(objects: tuple[ObjectSpec, ...], tank: TankSpec, placement: PlacementSpec,
+                      source: str = "") -> None:
+    """Refuse an object that cannot fit in the smallest tank even at its smallest size.
+
+    Placement would otherwise try ``placement.max_tries`` poses and blame that key.
+
+    Raises
+    ------
+    SpecError
+        Naming the object's size key and its value, the room it needs and the room there is.
+    """
+    clear = placement.wall_clearance_m
+    for index, obj in enumerate(objects):
+        if obj.count.high == 0:
+            continue
+        radius = bounding_radius_m(obj)
+        need = 2.0 * (radius + clear)
+        limits = [("length_m", tank.length_m.low), ("width_m", tank.width_m.low)]
+        if obj.kind not in ("post", "edge"):  # posts and edges run from the floor to the surface
+            limits.append(("water_depth_m", tank.water_depth_m.low))
+        key = next(k for k, _ in OBJECT_KINDS[obj.kind] if k != "interior_angle_deg")
+        for name, available in limits:
+            if need > available:
+                value = obj.range(key)
+                shown = value.low if value.low == value.high else [value.low, value.high]
+                raise SpecError(
+                    f"{_where(source, f'objects[{index}].{key}')} = {shown!r}: even the smallest {obj.kind} "
+                    f"drawn (bounding radius {radius:.3g} m) needs {need:.3g} m of water across with "
+                    f"placement.wall_clearance_m = {clear:g}, more than the smallest tank's "
+                    f"tank.{name} = {available:g} m")
 
 
 def _object_spec(table: Any, index: int, source: str) -> ObjectSpec:
@@ -492,6 +553,7 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
     if not isinstance(objects_raw, list):
         raise SpecError(f"{_where(source, 'objects')} = {objects_raw!r}: expected an array of tables [[objects]]")
     objects = tuple(_object_spec(table, i, source) for i, table in enumerate(objects_raw))
+    check_objects_fit(objects, tank, placement, source)
 
     return DatasetSpec(
         name=name,

@@ -126,7 +126,49 @@ SAMPLE_ARRAYS: tuple[str, ...] = ("waveforms", "pose", "sample_values", "objects
 
 
 class DatasetStoreError(InputError):
-    """A path that is not a usable dataset store (or one made from another spec)."""
+    """A path that is not a usable dataset store (or one made from another spec, or one a
+    worker cannot see)."""
+
+
+class DatasetCorruptError(DatasetStoreError):
+    """Stored samples that cannot be read back (a damaged chunk file); the message names the
+    store, the samples and the array, and says how to repair them (``problem``: the short
+    reason alone)."""
+
+    problem: str = ""
+
+
+def card_store_id(card: Mapping[str, Any]) -> str:
+    """A store's identity from its card: ``store_id`` (stores made before it existed: their
+    creation time and name)."""
+    return str(card.get("store_id") or f"{card.get('created_utc')}/{card.get('name')}")
+
+
+def store_seen_here(root: str, store_id: str) -> str:
+    """What this process sees at ``root``: "" when it is the store ``store_id``, else the
+    reason, one line (run on every Dask worker before any task, see
+    :func:`acoustisim.datasets.generate.generate`).
+
+    Reads the root ``zarr.json`` directly (no Zarr import: the check must be cheap).
+    """
+    try:
+        metadata = json.loads(Path(root, "zarr.json").read_text(encoding="utf-8"))
+        card = metadata["attributes"][CARD_KEY]
+    except (OSError, ValueError, KeyError, TypeError):
+        return store_missing_message(root)
+    if card_store_id(card) != store_id:
+        return (f"{root}: process {os.getpid()} sees another dataset store at this path (store_id "
+                f"{card_store_id(card)}, expected {store_id}); every Dask worker must see the same --out")
+    return ""
+
+
+def store_missing_message(root: str | Path) -> str:
+    """The one line a process that cannot see a store prints (see :meth:`ChunkWriter.check_visible`)."""
+    import socket
+
+    return (f"{root}: no dataset store here as seen by the process {os.getpid()} on host {socket.gethostname()} "
+            f"(working directory {os.getcwd()}); every Dask worker must see --out at this same absolute path "
+            "(a shared file system)")
 
 
 @dataclass(frozen=True)
@@ -292,7 +334,7 @@ def create_store(
     coord("sample_field", SAMPLE_FIELDS)
     coord("object_field", OBJECT_FIELDS)
     coord("arrival_field", ARRIVAL_FIELDS)
-    group.attrs[CARD_KEY] = json.loads(json.dumps(card))
+    group.attrs[CARD_KEY] = json.loads(json.dumps({"store_id": uuid.uuid4().hex, **card}))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "consolidated metadata is not part of the v3 spec"
         zarr.consolidate_metadata(str(path))
@@ -310,12 +352,50 @@ class ChunkWriter:
     Attributes
     ----------
     arrays : tuple of zarr.Array
-        The :data:`SAMPLE_ARRAYS`, then ``checksum``, then ``complete``.
+        The :data:`SAMPLE_ARRAYS`, then ``checksum``, then ``complete``, opened at the
+        store's absolute path (a relative one would be resolved against each worker's own
+        working directory).
     shape : StoreShape
+    root : str
+        Absolute path of the store (checked before every write).
     """
 
     arrays: tuple[Any, ...]
     shape: StoreShape
+    root: str = ""
+
+    def check_visible(self) -> None:
+        """Raise :class:`DatasetStoreError` (one line) when this process cannot see the store.
+
+        Zarr would otherwise create the chunk directories wherever the path points in this
+        process (a worker on another machine or with another working directory) and the
+        samples would never reach the store.
+        """
+        if not os.path.isfile(os.path.join(self.root, "zarr.json")):
+            raise DatasetStoreError(store_missing_message(self.root))
+
+    def read_verified(self, indices: list[int]) -> dict[int, SampleArrays]:
+        """The samples among ``indices`` recorded complete whose stored bytes still match their
+        recorded checksum, read back as :class:`SampleArrays` (what a chunk rewrite keeps).
+
+        A sample that cannot be read or does not match is left out (it is simulated again).
+        """
+        if not indices:
+            return {}
+        checksum, complete = self.arrays[-2], self.arrays[-1]
+        kept: dict[int, SampleArrays] = {}
+        for index in indices:
+            try:
+                if not int(complete[index]):
+                    continue
+                recorded = int(checksum[index])
+                values = {name: arr[index] for name, arr in zip(SAMPLE_ARRAYS, self.arrays)}
+            except Exception:  # noqa: BLE001 - an unreadable sample is simply made again
+                continue
+            values = {name: (str(v) if name == "scene_json" else np.asarray(v)) for name, v in values.items()}
+            if sample_checksum(values) == recorded:
+                kept[index] = SampleArrays(index=index, **values)
+        return kept
 
     def write_chunk(self, samples: list[SampleArrays]) -> NDArray[np.uint64]:
         """Write one whole chunk of samples, then its checksums, then its completion flags.
@@ -338,6 +418,8 @@ class ChunkWriter:
 
         from zarr.core.sync import sync
 
+        if self.root:
+            self.check_visible()
         start = samples[0].index if samples else -1
         if not samples or start < 0 or self.shape.chunk_of(start) != (start, start + len(samples)) or [
                 s.index for s in samples] != list(range(start, start + len(samples))):
@@ -375,10 +457,12 @@ class DatasetStore:
     def __init__(self, path: str | Path, mode: str = "r") -> None:
         zarr = _zarr()
         self.path = Path(path)
-        if not (self.path / "zarr.json").is_file():
+        self.root = self.path.expanduser().resolve()
+        """Absolute path: what the arrays are opened with, so that they pickle to any process."""
+        if not (self.root / "zarr.json").is_file():
             raise DatasetStoreError(f"{self.path}: not a dataset store (no zarr.json)")
         try:
-            self.group = zarr.open_group(str(self.path), mode=mode)
+            self.group = zarr.open_group(str(self.root), mode=mode)
         except Exception as exc:  # noqa: BLE001 - any failure to open is a bad path for the user
             raise DatasetStoreError(f"{self.path}: cannot open as a Zarr group: {exc}") from None
         if CARD_KEY not in self.group.attrs:
@@ -419,17 +503,64 @@ class DatasetStore:
         return StoreShape(w[0], w[1], w[3], self.group["objects"].shape[1], self.group["arrivals"].shape[1],
                           int(waveforms.chunks[0]))
 
+    def _per_sample_record(self, name: str, dtype: Any) -> tuple[NDArray[Any], tuple[int, ...]]:
+        """A 1-D per-sample array read whole, or chunk by chunk when a chunk file is damaged:
+        the samples of an unreadable chunk read as 0 (not complete / no checksum) and are
+        returned as the second element."""
+        arr = self.group[name]
+        try:
+            return np.asarray(arr[:], dtype=dtype), ()
+        except Exception:  # noqa: BLE001 - find the damaged chunks below
+            pass
+        out = np.zeros(arr.shape[0], dtype=dtype)
+        bad: list[int] = []
+        for start in self.shape.chunk_starts():
+            stop = self.shape.chunk_of(start)[1]
+            try:
+                out[start:stop] = np.asarray(arr[start:stop], dtype=dtype)
+            except Exception:  # noqa: BLE001 - a damaged chunk of the record
+                bad.extend(range(start, stop))
+        return out, tuple(bad)
+
     def complete_mask(self) -> NDArray[np.bool_]:
-        """(n_samples,) bool: samples recorded as complete."""
-        return np.asarray(self.group["complete"][:]).astype(bool)
+        """(n_samples,) bool: samples recorded as complete (a damaged chunk of the record
+        counts as not complete: those samples are made again on resume)."""
+        return self._per_sample_record("complete", np.uint8)[0].astype(bool)
+
+    def unreadable_records(self) -> tuple[int, ...]:
+        """Samples whose ``complete`` or ``checksum`` chunk cannot be read."""
+        return tuple(sorted(set(self._per_sample_record("complete", np.uint8)[1])
+                            | set(self._per_sample_record("checksum", np.uint64)[1])))
 
     def checksums(self) -> NDArray[np.uint64]:
-        """(n_samples,) recorded checksums (0 where not complete)."""
-        return np.asarray(self.group["checksum"][:], dtype=np.uint64)
+        """(n_samples,) recorded checksums (0 where not complete or unreadable)."""
+        return self._per_sample_record("checksum", np.uint64)[0]
+
+    def mark_incomplete(self, indices: list[int] | tuple[int, ...]) -> None:
+        """Clear the completion flags of these samples (each chunk file of ``complete``
+        rewritten atomically), so that the next run makes them again."""
+        if not len(indices):
+            return
+        flags = self.group["complete"]
+        for start in sorted({self.shape.chunk_of(int(i))[0] for i in indices}):
+            stop = self.shape.chunk_of(start)[1]
+            try:
+                current = np.asarray(flags[start:stop], dtype=np.uint8)
+            except Exception:  # noqa: BLE001 - a damaged record chunk: rewrite it as all incomplete
+                current = np.zeros(stop - start, dtype=np.uint8)
+            mine = [int(i) - start for i in indices if start <= int(i) < stop]
+            current[mine] = 0
+            flags[start:stop] = current
+
+    @property
+    def store_id(self) -> str:
+        """The store's identity for the workers' visibility check (:func:`card_store_id`)."""
+        return card_store_id(self.card)
 
     def writer(self) -> ChunkWriter:
-        """Handles for the workers."""
-        return ChunkWriter(tuple(self.group[name] for name in (*SAMPLE_ARRAYS, "checksum", "complete")), self.shape)
+        """Handles for the workers (arrays opened at the store's absolute path)."""
+        return ChunkWriter(tuple(self.group[name] for name in (*SAMPLE_ARRAYS, "checksum", "complete")), self.shape,
+                           str(self.root))
 
     def chunks_to_do(self) -> list[tuple[int, int]]:
         """``(start, stop)`` of every chunk with a sample not recorded complete (resume)."""
@@ -439,9 +570,30 @@ class DatasetStore:
                 if not complete[start:start + shape.chunk_samples].all()]
 
     def read_sample(self, index: int) -> dict[str, Any]:
-        """One sample's arrays as stored (numpy), keyed by :data:`SAMPLE_ARRAYS`."""
+        """One sample's arrays as stored (numpy), keyed by :data:`SAMPLE_ARRAYS`.
+
+        Raises
+        ------
+        DatasetCorruptError
+            When a chunk holding the sample cannot be decoded.
+        """
         out: dict[str, Any] = {}
         for name in SAMPLE_ARRAYS:
-            value = self.group[name][index]
+            try:
+                value = self.group[name][index]
+            except Exception as exc:  # noqa: BLE001 - any decode failure is a damaged chunk
+                raise self.corrupt_error([index], name, exc) from None
             out[name] = str(value) if name == "scene_json" else np.asarray(value)
         return out
+
+    def corrupt_error(self, indices: Any, array: str, exc: BaseException) -> DatasetCorruptError:
+        """The error for samples whose chunk of ``array`` cannot be read."""
+        indices = [int(i) for i in np.atleast_1d(indices)]
+        shown = ", ".join(str(i) for i in indices[:8]) + (" ..." if len(indices) > 8 else "")
+        detail = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+        error = DatasetCorruptError(
+            f"{self.path}: sample(s) {shown}: the {array!r} chunk cannot be read ({detail}); "
+            f"`acoustisim dataset verify {self.path}` lists the damaged samples and "
+            f"`acoustisim dataset generate SPEC.toml --out {self.path} --repair` makes them again")
+        error.problem = f"the {array!r} chunk cannot be read ({detail})"
+        return error

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from acoustisim.datasets.store import SAMPLE_ARRAYS, DatasetStore, sample_checksum
+from acoustisim.datasets.store import SAMPLE_ARRAYS, DatasetCorruptError, DatasetStore, sample_checksum
 
 VERIFY_BLOCK = 64
 """Samples read per call, rounded down to whole chunks (at least one); a failing block is
@@ -30,6 +30,10 @@ class VerifyReport:
         Complete samples whose chunks cannot be read or do not match the recorded checksum.
     stray_files : tuple of str
         Temporary ``*.partial`` files left by writes interrupted by a kill (harmless).
+    damaged_records : tuple of int
+        Samples whose chunk of the ``complete`` or ``checksum`` record cannot be read (they
+        count as missing, or as corrupt when only the checksum is lost, and are made again
+        on resume).
     """
 
     path: str
@@ -38,6 +42,7 @@ class VerifyReport:
     missing: tuple[int, ...]
     corrupt: tuple[tuple[int, str], ...]
     stray_files: tuple[str, ...]
+    damaged_records: tuple[int, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -59,8 +64,8 @@ def _read_block(store: DatasetStore, start: int, stop: int) -> dict[str, Any]:
 def _check_one(store: DatasetStore, index: int, expected: int) -> str | None:
     try:
         values = store.read_sample(index)
-    except Exception as exc:  # noqa: BLE001 - any decode failure is corruption to report
-        return f"unreadable: {type(exc).__name__}: {exc}"
+    except DatasetCorruptError as exc:
+        return f"unreadable: {exc.problem or exc}"
     got = sample_checksum(values)
     return None if got == expected else f"checksum {got:016x} != recorded {expected:016x}"
 
@@ -106,4 +111,5 @@ def verify(path: str | Path) -> VerifyReport:
         missing=tuple(int(i) for i in np.flatnonzero(~complete)),
         corrupt=tuple(corrupt),
         stray_files=stray,
+        damaged_records=store.unreadable_records(),
     )

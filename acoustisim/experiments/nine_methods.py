@@ -47,12 +47,12 @@ METHODS: tuple[str, ...] = tuple(f"seed-{k}" for k in range(1, 10))
 
 def add_arguments(parser: Any) -> None:
     """``--pings-per-position``, ``--min-range``, ``--max-range``, ``--max-bearing``."""
-    parser.add_argument("--pings-per-position", type=int, default=4,
+    parser.add_argument("--pings-per-position", type=int, default=4, metavar="N",
                         help="pings recorded at each position (default 4); --trials is the total number of pings (68)")
-    parser.add_argument("--min-range", type=float, default=2.0, help="nearest range (m, default 2)")
-    parser.add_argument("--max-range", type=float, default=5.0, help="farthest range (m, default 5)")
-    parser.add_argument("--max-bearing", type=float, default=3.0, help="bearings drawn in +/- this (deg, default 3)")
-    parser.add_argument("--timing-repeats", type=int, default=3,
+    parser.add_argument("--min-range", type=float, default=2.0, metavar="M", help="nearest range (m, default 2)")
+    parser.add_argument("--max-range", type=float, default=5.0, metavar="M", help="farthest range (m, default 5)")
+    parser.add_argument("--max-bearing", type=float, default=3.0, metavar="DEG", help="bearings drawn in +/- this (deg, default 3)")
+    parser.add_argument("--timing-repeats", type=int, default=3, metavar="N",
                         help="timed runs of each method per position after an untimed one; the median counts (default 3)")
     parser.add_argument("--no-reverberation", action="store_true",
                         help="leave out the diffuse (Lambert) reverberation of the floor, surface, walls and prism")
@@ -149,8 +149,10 @@ def time_ratios(summary: dict[str, Any]) -> dict[str, float]:
     return {f"seed-9/{m}": float(local / summary[m]["cpu_per_ping_s"]) for m in ("seed-4", "seed-8")}
 
 
-def _figure(summary: dict[str, Any], methods: tuple[str, ...], record_ms: float, samples: int) -> Any:
+def _figure(summary: dict[str, Any], methods: tuple[str, ...], record_ms: float, samples: int,
+            range_m: tuple[float, float]) -> Any:
     from acoustisim.experiments.figures import new_figure
+    from acoustisim.experiments.point_target import GATE_HALF_WIDTH_M
 
     fig, axes = new_figure(3, 1, row_height=2.2)
     labels = [m.replace("seed-", "") for m in methods]
@@ -163,11 +165,12 @@ def _figure(summary: dict[str, Any], methods: tuple[str, ...], record_ms: float,
     axes[0, 0].bar(x, rate, color=colours)
     axes[0, 0].set_ylabel("correct detection\nrate (%)")
     axes[0, 0].set_ylim(0, 105)
-    axes[0, 0].set_title("Nine detection combinations, edge at 2-5 m (cf. seed figs. 4-15 to 4-17)", fontsize=10)
+    axes[0, 0].set_title(f"Nine detection combinations, edge at {range_m[0]:g}-{range_m[1]:g} m "
+                         "(cf. seed figs. 4-15 to 4-17)", fontsize=10)
     axes[1, 0].bar(x, tpp, color=colours)
     axes[1, 0].set_ylabel("processing CPU time\nper ping (ms)")
     axes[1, 0].set_title(f"each method on the whole {record_ms:g} ms record ({samples:,} samples per channel), "
-                         "echo search in the +/-0.1 m range gate", fontsize=8)
+                         f"echo search in the +/-{GATE_HALF_WIDTH_M:g} m range gate", fontsize=8)
     axes[2, 0].bar(x, err, color=colours)
     axes[2, 0].set_yscale("log")
     axes[2, 0].set_ylabel("median |range\nerror| (mm)")
@@ -231,7 +234,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
         "simulate_cpu_s_per_ping": float(sum(g["simulate_cpu_s"] for g in groups) / total),
         "summary": summary, "groups": groups,
     }
-    report.add_figure(_figure(summary, METHODS, record_s * 1e3, samples), "nine_methods.png",
+    report.add_figure(_figure(summary, METHODS, record_s * 1e3, samples, (lo, hi)), "nine_methods.png",
                       f"Correct-detection rate (range error < 1 cm), processing CPU time per ping (each method on the "
                       f"whole {record_s * 1e3:g} ms record, {samples:,} samples per channel) and median range error "
                       f"of the seed's nine combinations")
@@ -240,8 +243,11 @@ def run(config: ExperimentConfig) -> ExperimentReport:
              s["range_error_rms_correct_m"] * 1e3] for m, s in summary.items()]
     report.add_section(
         f"{total} pings at {n_groups} positions ({per} per position) between {lo:g} and {hi:g} m, bearings within "
-        f"+/-{max_bearing:g} deg; single-waveform methods give one estimate per ping, averaging methods one per "
-        f"position. Wall time {wall_s:.1f} s.")
+        f"+/-{max_bearing:g} deg, "
+        + ("with the tank's diffuse (Lambert) reverberation" if reverberation else "without diffuse reverberation "
+           "(--no-reverberation)")
+        + f"; single-waveform methods give one estimate per ping, averaging methods one per position. Wall time "
+        f"{wall_s:.1f} s.")
     report.add_section(
         f"Timing: every method processes the whole acquired record, t = 0 to the sonar's record length "
         f"{record_s * 1e3:g} ms ({samples:,} samples per channel per ping, 3 channels), as the seed timed its "

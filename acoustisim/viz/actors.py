@@ -27,44 +27,66 @@ from acoustisim.viz.layers import RGBA_ARRAY, Layer
 
 RGB = tuple[float, float, float]
 
-KIND_COLORS: Mapping[PathKind, RGB] = MappingProxyType({
-    PathKind.DIRECT: (0.17, 0.63, 0.17),
-    PathKind.SPECULAR: (0.12, 0.47, 0.71),
-    PathKind.EDGE: (1.0, 0.5, 0.05),
-    PathKind.DIFFUSE: (0.58, 0.40, 0.74),
+# The palette: Okabe & Ito's eight colours, distinguishable with every common colour-vision
+# deficiency (Okabe M., Ito K., "Color Universal Design", 2008), one meaning each, plus greys.
+OKABE_ITO: Mapping[str, RGB] = MappingProxyType({
+    "black": (0.0, 0.0, 0.0),
+    "orange": (0.902, 0.624, 0.0),
+    "sky blue": (0.337, 0.706, 0.914),
+    "bluish green": (0.0, 0.620, 0.451),
+    "yellow": (0.941, 0.894, 0.259),
+    "blue": (0.0, 0.447, 0.698),
+    "vermillion": (0.835, 0.369, 0.0),
+    "reddish purple": (0.800, 0.475, 0.655),
 })
-"""Colour of each path kind (matplotlib's tab10 green, blue, orange, purple)."""
 
-CHANNEL_COLORS: tuple[RGB, RGB, RGB] = ((0.84, 0.15, 0.16), (0.85, 0.65, 0.0), (0.17, 0.63, 0.17))
-"""Left (port red), centre (gold, the transmitter), right (starboard green)."""
+KIND_COLORS: Mapping[PathKind, RGB] = MappingProxyType({
+    PathKind.DIRECT: OKABE_ITO["black"],
+    PathKind.SPECULAR: OKABE_ITO["blue"],
+    PathKind.EDGE: OKABE_ITO["vermillion"],
+    PathKind.DIFFUSE: (0.75, 0.75, 0.75),
+})
+"""Colour of each path kind: the discrete echoes in strong colours, the diffuse reverberation
+(thousands of weak rays) in grey."""
+
+PATH_DRAW_ORDER: tuple[PathKind, ...] = (PathKind.DIFFUSE, PathKind.SPECULAR, PathKind.EDGE, PathKind.DIRECT)
+"""Order the path layers are drawn in (translucent lines: the later on top): the diffuse
+background first, so that it never covers an echo's path."""
+
+CHANNEL_COLORS: tuple[RGB, RGB, RGB] = (OKABE_ITO["orange"], OKABE_ITO["bluish green"], OKABE_ITO["sky blue"])
+"""Left, centre (the transmitter), right: the transducers and their time-of-flight ellipses."""
 
 MATERIAL_COLORS: Mapping[str, RGB] = MappingProxyType({
-    "concrete": (0.74, 0.74, 0.70),
-    "glass": (0.55, 0.82, 0.88),
-    "pvc": (0.80, 0.30, 0.12),
-    "pvc-pipe-air": (0.86, 0.40, 0.18),
-    "pvc-pipe-water": (0.70, 0.25, 0.10),
-    "steel": (0.40, 0.45, 0.52),
-    "steel-machined": (0.55, 0.60, 0.66),
-    "aluminium": (0.68, 0.70, 0.74),
+    # Dark, low-saturation tones: objects must stand out on the light tank floor and must not
+    # be mistaken for the palette's meanings (paths, receivers, beam, estimates).
+    "concrete": (0.62, 0.62, 0.58),
+    "glass": (0.45, 0.62, 0.66),
+    "pvc": (0.48, 0.40, 0.33),
+    "pvc-pipe-air": (0.54, 0.45, 0.36),
+    "pvc-pipe-water": (0.42, 0.34, 0.28),
+    "steel": (0.28, 0.31, 0.36),
+    "steel-machined": (0.36, 0.40, 0.46),
+    "aluminium": (0.52, 0.55, 0.60),
     "rubber": (0.15, 0.15, 0.15),
-    "sand": (0.84, 0.74, 0.50),
-    "rigid": (0.50, 0.50, 0.55),
-    "pressure-release": (0.60, 0.80, 1.00),
-    "air": (0.60, 0.80, 1.00),
+    "sand": (0.70, 0.62, 0.44),
+    "rigid": (0.35, 0.35, 0.40),
+    "pressure-release": (0.50, 0.66, 0.80),
+    "air": (0.50, 0.66, 0.80),
 })
 
-DIFFUSE_OPACITY_SCALE = 0.3
+DIFFUSE_OPACITY_SCALE = 0.25
 """Opacity factor of diffuse paths relative to discrete echoes of the same amplitude."""
 
 EDGE_GROUP_WEIGHT = 20.0
 """With edge elements drawn one by one, a diffraction's opacity is spread as if over this many lines."""
 
-ESTIMATE_COLOR: RGB = (0.89, 0.10, 0.76)
-TRUTH_COLOR: RGB = (0.09, 0.75, 0.81)
-BEAM_COLOR: RGB = (0.95, 0.75, 0.10)
-WALL_COLOR: RGB = (0.45, 0.62, 0.82)
-SURFACE_COLOR: RGB = (0.55, 0.85, 1.00)
+ESTIMATE_COLOR: RGB = OKABE_ITO["yellow"]
+"""Estimates: yellow markers with a black outline (and yellow error ellipsoids)."""
+TRUTH_COLOR: RGB = OKABE_ITO["black"]
+BEAM_COLOR: RGB = OKABE_ITO["reddish purple"]
+SIDE_LOBE_COLOR: RGB = (0.86, 0.62, 0.76)
+WALL_COLOR: RGB = (0.62, 0.72, 0.82)
+SURFACE_COLOR: RGB = (0.70, 0.85, 0.95)
 OUTLINE_COLOR: RGB = (0.15, 0.25, 0.40)
 
 
@@ -119,29 +141,6 @@ def _orthonormal_frame(axis: NDArray[np.float64]) -> tuple[NDArray[np.float64], 
     return e2, np.cross(axis, e2)
 
 
-def cone_mesh(apex_m: NDArray[np.float64], axis: NDArray[np.float64], half_angle_deg: float, length_m: float,
-              resolution: int = 72) -> pv.PolyData:
-    """An open cone surface: apex at ``apex_m``, opening along unit ``axis``, slant to the plane at
-    ``length_m`` along the axis.
-
-    Returns
-    -------
-    pyvista.PolyData
-        ``resolution`` triangles sharing the apex.
-    """
-    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    e2, e3 = _orthonormal_frame(axis)
-    phi = np.linspace(0.0, 2.0 * math.pi, resolution, endpoint=False)
-    radius = length_m * math.tan(math.radians(half_angle_deg))
-    ring = (np.asarray(apex_m) + length_m * axis)[None, :] + radius * (
-        np.cos(phi)[:, None] * e2[None, :] + np.sin(phi)[:, None] * e3[None, :]
-    )
-    points = np.vstack([np.asarray(apex_m, dtype=float)[None, :], ring])
-    i = np.arange(resolution)
-    faces = np.column_stack([np.full(resolution, 3), np.zeros(resolution, int), 1 + i, 1 + (i + 1) % resolution])
-    return pv.PolyData(points, faces.ravel())
-
-
 def ellipsoid_mesh(center_m: NDArray[np.float64], axes: NDArray[np.float64], resolution: int = 48) -> pv.PolyData:
     """An ellipsoid x = center + axes @ u over the unit sphere u.
 
@@ -187,12 +186,15 @@ def tank_layers(scene: Scene) -> list[Layer]:
 
 def object_layers(scene: Scene) -> list[Layer]:
     """One opaque layer per object ("object:<name>"), coloured by material; the legend names each
-    material once."""
+    material once, with the objects made of it ("pvc: post-1, post-2")."""
+    by_material: dict[str, list[str]] = {}
+    for obj in scene.objects:
+        by_material.setdefault(obj.material.name, []).append(obj.name)
     layers = []
     seen: set[str] = set()
     for obj in scene.objects:
         material = obj.material.name
-        label = "" if material in seen else f"{material}"
+        label = "" if material in seen else f"{material}: {', '.join(by_material[material])}"
         seen.add(material)
         layers.append(Layer(f"object:{obj.name}", pv.wrap(obj.mesh), material_color(material), 1.0, "surface",
                             label=label, group="object"))
@@ -227,23 +229,60 @@ def sonar_layers(sonar: SonarHead) -> list[Layer]:
     return layers
 
 
+def cone_lines(apex_m: NDArray[np.float64], axis: NDArray[np.float64], half_angle_deg: float,
+               bounds: NDArray[np.float64], n_generators: int = 4, resolution: int = 72) -> pv.PolyData:
+    """A cone drawn as lines: ``n_generators`` straight generators from the apex to where they
+    leave ``bounds`` (2, 3) (m), and the rim circle where the axis leaves it (clipped to
+    ``bounds``).
+
+    Lines instead of a surface: a translucent cone covers whatever lies in the beam (the
+    targets). With 4 generators in the head's horizontal and vertical planes, a top or side
+    view shows the beam's wedge and its axis.
+    """
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    apex = np.asarray(apex_m, dtype=float)
+    horizontal = np.cross(np.array([0.0, 0.0, 1.0]), axis)
+    e2 = horizontal / np.linalg.norm(horizontal) if np.linalg.norm(horizontal) > 1e-9 else _orthonormal_frame(axis)[0]
+    e3 = np.cross(axis, e2)
+    tan = math.tan(math.radians(half_angle_deg))
+    points, lines = [], []
+    for phi in np.linspace(0.0, 2.0 * math.pi, n_generators, endpoint=False):
+        direction = axis + tan * (math.cos(phi) * e2 + math.sin(phi) * e3)
+        direction /= np.linalg.norm(direction)
+        length = _ray_box_exit(apex, direction, bounds)
+        if math.isfinite(length) and length > 0:
+            lines.append([2, len(points), len(points) + 1])
+            points += [apex, apex + length * direction]
+    axial = _ray_box_exit(apex, axis, bounds)
+    if math.isfinite(axial) and axial > 0:
+        phi = np.linspace(0.0, 2.0 * math.pi, resolution + 1)
+        ring = (apex + axial * axis)[None, :] + axial * tan * (np.cos(phi)[:, None] * e2 + np.sin(phi)[:, None] * e3)
+        inside = np.all((ring >= bounds[0] - 1e-9) & (ring <= bounds[1] + 1e-9), axis=1)
+        for k in np.flatnonzero(inside[:-1] & inside[1:]):  # arcs of the rim inside the box
+            lines.append([2, len(points), len(points) + 1])
+            points += [ring[k], ring[k + 1]]
+    if not lines:
+        return pv.PolyData()
+    return pv.PolyData(np.asarray(points, dtype=float), lines=np.asarray(lines).ravel())
+
+
 def beam_layers(sonar: SonarHead, sound_speed_m_s: float, bounds: NDArray[np.float64]) -> list[Layer]:
-    """The transmit beam's -3 dB cone and first side-lobe cone, from the piston formula, clipped
-    to ``bounds`` (2, 3) (m)."""
+    """The transmit beam's -3 dB cone and first side-lobe cone, from the piston formula, drawn
+    as lines (:func:`cone_lines`) inside ``bounds`` (2, 3) (m)."""
     angles = piston_beam_angles(sonar.piston_radius_m, sonar.centre_frequency_hz, sound_speed_m_s)
     apex = sonar.transmitter_position
     axis = sonar.boresight
-    length = _ray_box_exit(apex, axis, bounds)
-    if not math.isfinite(length) or length <= 0:
+    main = cone_lines(apex, axis, angles.half_power_deg, bounds)
+    if main.n_points == 0:
         return []
     layers = [
-        Layer("beam-3db", _clip_to_box(cone_mesh(apex, axis, angles.half_power_deg, length), bounds), BEAM_COLOR,
-              0.35, "surface", label=f"beam -3 dB ({angles.half_power_deg:.1f} deg)", group="beam"),
+        Layer("beam-3db", main, BEAM_COLOR, 1.0, "lines", line_width=1.6,
+              label=f"transmit beam, -3 dB ({angles.half_power_deg:.1f} deg)", group="beam"),
     ]
     if angles.side_lobe_deg is not None and angles.side_lobe_db is not None:
         layers.append(
-            Layer("beam-side-lobe", _clip_to_box(cone_mesh(apex, axis, angles.side_lobe_deg, length), bounds),
-                  (0.85, 0.55, 0.10), 0.06, "surface",
+            Layer("beam-side-lobe", cone_lines(apex, axis, angles.side_lobe_deg, bounds), SIDE_LOBE_COLOR, 1.0,
+                  "lines", line_width=1.0,
                   label=f"1st side lobe ({angles.side_lobe_deg:.1f} deg, {angles.side_lobe_db:.1f} dB)", group="beam")
         )
     return layers
@@ -297,7 +336,8 @@ def path_polylines(paths: Paths, sonar: SonarHead) -> tuple[NDArray[np.float64],
 
 
 def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0, 1, 2), max_paths: int | None = 10_000,
-                dynamic_range_db: float = 40.0, edge_elements: bool = False) -> list[Layer]:
+                dynamic_range_db: float = 40.0, edge_elements: bool = False,
+                max_diffuse: int | None = 400) -> list[Layer]:
     """One merged line layer per path kind ("paths-direct", "paths-specular", "paths-edge",
     "paths-diffuse"), opacity fading with amplitude.
 
@@ -318,6 +358,11 @@ def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0,
         Draw every discretised element of an edge diffraction (a fan along the edge) instead of
         one polyline per arrival through its least-time point, with the group's amplitude
         (:meth:`Paths.arrivals`).
+    max_diffuse : int or None
+        Of the diffuse rows, draw only this many strongest (None: all). The diffuse rows are a
+        random sample of the scattering (the solver's thousands of rays): a few hundred show
+        the fan; thousands, all starting at the transmitter, paint a solid area over the
+        targets and the echoes. The legend gives both counts.
     """
     if len(paths) == 0:
         return []
@@ -335,6 +380,15 @@ def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0,
     if len(selected) == 0:
         return []
     kinds = np.asarray(selected["kind"], dtype=int)
+    total = {kind: int(np.count_nonzero(kinds == kind)) for kind in PathKind}
+    diffuse = np.flatnonzero(kinds == PathKind.DIFFUSE)
+    if max_diffuse is not None and diffuse.size > max_diffuse:
+        weakest = diffuse[np.argsort(-amplitude[diffuse], kind="stable")[max_diffuse:]]
+        mask = np.ones(len(selected), dtype=bool)
+        mask[weakest] = False
+        selected = selected.select(mask)
+        amplitude = amplitude[mask]
+        kinds = kinds[mask]
     echoes = amplitude[kinds != PathKind.DIRECT]
     reference = float(echoes.max()) if echoes.size and echoes.max() > 0 else float(max(amplitude.max(), 1e-300))
     alpha = path_opacity(amplitude, reference, dynamic_range_db)
@@ -350,7 +404,7 @@ def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0,
         alpha = np.where(kinds == PathKind.EDGE, alpha * np.minimum(1.0, EDGE_GROUP_WEIGHT / group_size), alpha)
     points, segments, segment_row = path_polylines(selected, sonar)
     layers = []
-    for kind in PathKind:
+    for kind in PATH_DRAW_ORDER:
         seg_mask = kinds[segment_row] == kind
         if not np.any(seg_mask):
             continue
@@ -364,8 +418,10 @@ def path_layers(paths: Paths, sonar: SonarHead, *, channels: Sequence[int] = (0,
         rgba[:, 3] = np.round(alpha[segment_row[seg_mask]] * 255).astype(np.uint8)
         mesh.cell_data[RGBA_ARRAY] = rgba
         n_rows = int(np.count_nonzero(kinds == kind))
-        layers.append(Layer(f"paths-{kind.label}", mesh, KIND_COLORS[kind], 1.0, "lines", line_width=1.2,
-                            label=f"{kind.label} paths ({n_rows})", group="paths"))
+        count = f"{n_rows:,}" if n_rows == total[kind] else f"{n_rows:,} strongest of {total[kind]:,}"
+        layers.append(Layer(f"paths-{kind.label}", mesh, KIND_COLORS[kind], 1.0, "lines",
+                            line_width=0.8 if kind == PathKind.DIFFUSE else 1.3,
+                            label=f"{kind.label} paths ({count})", group="paths"))
     return layers
 
 
@@ -558,7 +614,7 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
     layers: list[Layer] = []
     if estimates:
         positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
-        layers.append(Layer("estimates", pv.PolyData(positions), ESTIMATE_COLOR, 1.0, "points", point_size=10.0,
+        layers.append(Layer("estimates", pv.PolyData(positions), ESTIMATE_COLOR, 1.0, "points", point_size=11.0,
                             label=f"estimates ({len(estimates)})", group="estimate"))
         axes_list = []
         for est in estimates:
@@ -580,7 +636,7 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
                 ax = np.where(norms[None, :] < floor, np.eye(3) * floor, ax)
                 meshes.append(ellipsoid_mesh(np.asarray(center, dtype=float), mag * ax, 32))
             scale = "" if mag == 1.0 else f" x{mag:g}"
-            layers.append(Layer("estimate-ellipsoids", pv.merge(meshes), ESTIMATE_COLOR, 0.35, "surface",
+            layers.append(Layer("estimate-ellipsoids", pv.merge(meshes), (0.80, 0.70, 0.05), 0.55, "surface",
                                 label=f"{n_sigma:g}-sigma error ellipsoids{scale}", group="estimate"))
     if truths:
         truth_positions = np.array([t.position_m for t in truths], dtype=float).reshape(-1, 3)
@@ -588,7 +644,7 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
         # in front) leaves a frame of truth around it.
         layers.append(Layer("truth", pv.PolyData(truth_positions), TRUTH_COLOR, 1.0, "points", point_size=17.0,
                             flat_points=True,
-                            label=f"truth ({len(truths)})", group="truth"))
+                            label=f"true positions ({len(truths)})", group="truth"))
         if estimates:
             positions = np.array([e.position_m for e in estimates], dtype=float).reshape(-1, 3)
             distance = np.linalg.norm(positions[:, None, :] - truth_positions[None, :, :], axis=2)
@@ -599,5 +655,5 @@ def estimate_layers(estimates: Sequence[EstimateMarker], truths: Sequence[TruthM
                 n = matched.size
                 lines = np.column_stack([np.full(n, 2), np.arange(n), n + np.arange(n)]).ravel()
                 layers.append(Layer("estimate-errors", pv.PolyData(points, lines=lines), (0.2, 0.2, 0.2), 1.0,
-                                    "lines", line_width=2.0, group="estimate"))
+                                    "lines", line_width=1.5, group="estimate"))
     return layers

@@ -62,7 +62,7 @@ def camera_preset(name: str, bounds: NDArray[np.float64], *, aspect: float = 1.5
         "sonar": just behind and above the head, looking along its boresight.
         "perspective": from above the x = 0, y = 0 corner's side, looking at the centre.
         "targets": the top view of ``bounds`` as given (the caller passes the region around the
-        sonar and the targets).
+        sonar, the estimates and the true targets).
     bounds : ndarray, shape (2, 3)
         Region to frame (m).
     aspect : float
@@ -80,24 +80,17 @@ def camera_preset(name: str, bounds: NDArray[np.float64], *, aspect: float = 1.5
     bounds = np.asarray(bounds, dtype=float)
     centre = bounds.mean(axis=0)
     extent = bounds[1] - bounds[0]
-    if name == "targets":
-        scale = 0.5 * margin * max(extent[1], extent[0] / aspect)
-        return CameraPreset(name, _t(centre + np.array([0.0, 0.0, 4.0 * np.linalg.norm(extent)])), _t(centre),
-                            (0.0, 1.0, 0.0), True, scale)
-    if name in ("top", "side"):
-        # Plan (x right, y up) or elevation (x right, z up). When the region is flatter than the
-        # window, it is placed near the top edge, leaving the bottom for the legend.
-        vertical = 1 if name == "top" else 2
+    if name in ("top", "side", "targets"):
+        # Plan (x right, y up) or elevation (x right, z up), centred on the region.
+        vertical = 2 if name == "side" else 1
         scale = 0.5 * margin * max(extent[vertical], extent[0] / aspect)
-        look = centre.copy()
-        look[vertical] -= max(0.0, scale - 0.5 * margin * extent[vertical] - 0.02 * scale)
         offset = np.zeros(3)
-        if name == "top":
-            offset[2] = 4.0 * np.linalg.norm(extent)
-        else:
+        if name == "side":
             offset[1] = -4.0 * np.linalg.norm(extent)
-        up = (0.0, 1.0, 0.0) if name == "top" else (0.0, 0.0, 1.0)
-        return CameraPreset(name, _t(look + offset), _t(look), up, True, scale)
+        else:
+            offset[2] = 4.0 * np.linalg.norm(extent)
+        up = (0.0, 0.0, 1.0) if name == "side" else (0.0, 1.0, 0.0)
+        return CameraPreset(name, _t(centre + offset), _t(centre), up, True, scale)
     if name == "sonar":
         if sonar is None:
             raise InputError("camera 'sonar' needs a sonar")
@@ -117,9 +110,7 @@ def camera_preset(name: str, bounds: NDArray[np.float64], *, aspect: float = 1.5
         right = np.cross(-direction, np.array([0.0, 0.0, 1.0]))
         up = np.cross(right, -direction)
         up /= np.linalg.norm(up)
-        # Look a little below and right of the centre: the region moves up-left, clear of the
-        # legend in the lower-right corner.
-        look = centre - 0.12 * radius * up + 0.08 * radius * right / np.linalg.norm(right)
+        look = centre
         eye = look + distance * direction
         return CameraPreset(name, _t(eye), _t(look), _t(up), False, 1.0, view_angle)
     raise InputError(f"camera: unknown preset {name!r}; choose one of {', '.join(CAMERA_NAMES)}")

@@ -13,10 +13,10 @@ acoustisim view thesis-tank --camera perspective --png "$out/thesis-tank-perspec
 # A validation scene: the free-field cylinder, its specular and edge paths and the
 # time-of-flight ellipsoids of its first echo.
 acoustisim view free-cylinder --camera perspective --echo 0 --png "$out/free-cylinder-paths.png"
-# A localisation result: simulate a ping of the thesis tank, localise, show estimates
-# (2-sigma error ellipsoids, magnified) against the truth.
+# A localisation result: simulate a ping of the thesis tank, localise, show every estimate
+# (numbered, 2-sigma error ellipsoids magnified) against the truth.
 acoustisim simulate thesis-tank -o "$tmp/ping.h5" --seed 1 >/dev/null
 binsonar localize "$tmp/ping.h5" --json > "$tmp/results.json"
 acoustisim view thesis-tank --ping "$tmp/ping.h5" --results "$tmp/results.json" --camera targets \
-    --no-paths --no-beam --size 1200x600 --title "thesis-tank: binsonar localize estimates vs truth" \
+    --no-paths --no-beam --title "thesis-tank: binsonar localize estimates vs truth" \
     --png "$out/thesis-tank-localisation.png"

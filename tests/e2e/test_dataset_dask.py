@@ -175,3 +175,110 @@ def test_the_scheduler_logs_no_samples_per_task(client, tmp_path: Path) -> None:
     # A task's message is ~1.1 kB with its sample range; with its 4 drawn samples instead, as
     # before, 2.9-3.5 kB with this spec (checked).
     assert sizes and max(sizes) < 2000, sizes
+
+
+def test_workers_check_they_see_the_store_before_any_task(client, tmp_path: Path) -> None:
+    """Every worker is asked whether it sees the store at its absolute path; one that does not
+    is named in one line (here the store moved after it was opened)."""
+    from acoustisim.datasets.generate import check_workers_see_store
+    from acoustisim.datasets.store import DatasetStoreError
+
+    out = tmp_path / "seen.zarr"
+    generate(loads_spec(small_spec(name="seen", n_samples=1, seed=3)), out, workers=0, progress=False)
+    store = DatasetStore(out)
+    check_workers_see_store(client, store)  # all see it: no error
+    out.rename(tmp_path / "elsewhere.zarr")
+    with pytest.raises(DatasetStoreError, match=r"^worker tcp://[^ ]+: .*seen\.zarr: no dataset store here as seen by "
+                                                r"the process \d+ on host") as caught:
+        check_workers_see_store(client, store)
+    assert len(str(caught.value).splitlines()) == 1
+
+
+def test_a_relative_out_reaches_workers_in_another_directory(client, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """The workers run in another working directory than the driver; a relative --out still
+    lands in the driver's directory (it is sent to them as an absolute path)."""
+    worker_dirs = set(client.run(os.getcwd).values())
+    monkeypatch.chdir(tmp_path)
+    assert str(tmp_path) not in worker_dirs  # the situation of the bug: the paths differ
+    spec = loads_spec(small_spec(name="rel", n_samples=4, seed=2))
+    report = generate(spec, "rel.zarr", client=client, progress=False)
+    assert report.n_complete == 4 and report.path == str(tmp_path / "rel.zarr")
+    assert all(not Path(d, "rel.zarr").exists() for d in worker_dirs)
+
+
+@pytest.mark.slow
+def test_real_scheduler_relative_out_and_a_killed_worker(tmp_path: Path) -> None:
+    """As a user runs it: ``dask scheduler`` and two ``dask worker`` processes (no nanny, in
+    their own directory), ``generate --scheduler`` from another directory with a relative
+    --out; then a second dataset during which one worker is killed (SIGKILL): the run still
+    completes on the other, and the report says how many workers there were at the start and
+    at the end."""
+    import json
+
+    scheduler_file = tmp_path / "scheduler.json"
+    worker_dir = tmp_path / "workers"
+    driver_dir = tmp_path / "driver"
+    worker_dir.mkdir()
+    driver_dir.mkdir()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    processes = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
+                                   "--dashboard-address", ":0", "--scheduler-file", str(scheduler_file)],
+                                  cwd=worker_dir, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                  start_new_session=True)]
+    try:
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(scheduler_file.read_text())["address"]
+        for _ in range(2):
+            processes.append(subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1", "--no-nanny",
+                 "--dashboard-address", ":0"], cwd=worker_dir, env=env, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL, start_new_session=True))
+        from distributed import Client
+
+        with Client(address, timeout="30s") as probe:
+            probe.wait_for_workers(2, timeout=60)
+        spec_file = driver_dir / "spec.toml"
+        spec_file.write_text(SPEC)
+        command = [sys.executable, "-m", "acoustisim.cli.main", "dataset", "generate", "spec.toml", "--out",
+                   "rel.zarr", "--scheduler", address, "--no-progress"]
+        done = subprocess.run(command, cwd=driver_dir, env=env, capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        assert "16 / 16 samples complete" in done.stdout and "on 2 worker processes" in done.stdout
+        assert not (worker_dir / "rel.zarr").exists()
+
+        # Kill one worker once the second run has made a chunk.
+        spec_file.write_text(SPEC.replace('name = "tiny-dask"', 'name = "kill"'))
+        run = subprocess.Popen(command[:-4] + ["kill.zarr", "--scheduler", address, "--no-progress", "--json"],
+                               cwd=driver_dir, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        flags = driver_dir / "kill.zarr" / "complete" / "c"
+        deadline = time.monotonic() + 120
+        while not (flags.exists() and any(flags.iterdir())) and time.monotonic() < deadline and run.poll() is None:
+            time.sleep(0.05)
+        assert run.poll() is None, "the run ended before the kill"
+        os.killpg(processes[1].pid, signal.SIGKILL)
+        out, err = run.communicate(timeout=300)
+        assert run.returncode == 0, err
+        report = json.loads(out)
+        assert report["n_complete"] == 16
+        assert (report["workers_at_start"], report["workers_at_end"], report["workers_lost"]) == (2, 1, 1)
+    finally:
+        for process in reversed(processes):
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def test_a_scheduler_without_workers_is_refused_in_one_line(client, tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tasks on a scheduler with no worker would wait for ever: the run stops first (the
+    scheduler's worker list is emptied here; a real empty one gives the same set)."""
+    import acoustisim.datasets.generate as generation
+    from acoustisim.errors import InputError
+
+    monkeypatch.setattr(generation, "_worker_addresses", lambda c: set())
+    with pytest.raises(InputError, match="no worker is connected to this scheduler"):
+        generate(loads_spec(small_spec(name="none", n_samples=1, seed=1)), tmp_path / "n.zarr", client=client,
+                 progress=False)

@@ -123,8 +123,9 @@ def test_verify_passes_then_catches_a_corrupted_chunk(dataset: tuple[object, Pat
 
 def test_resume_skips_complete_chunks_and_redoes_unrecorded_ones(dataset: tuple[object, Path], tmp_path: Path) -> None:
     """Clear the completion of samples 3 and 4 and scramble sample 3's waveforms (as a kill
-    after the data write but before the flags would leave them): resuming redoes exactly
-    their chunks, [2, 3] and [4], and the store then equals the uninterrupted one."""
+    after the data write but before the flags would leave them): resuming rewrites their
+    chunks, [2, 3] and [4], simulating exactly samples 3 and 4 (sample 2, complete and
+    matching its checksum, is read back), and the store then equals the uninterrupted one."""
     import shutil
 
     spec, out = dataset
@@ -135,7 +136,7 @@ def test_resume_skips_complete_chunks_and_redoes_unrecorded_ones(dataset: tuple[
     store.array("waveforms")[3] = np.ones_like(store.array("waveforms")[3])
     assert store.chunks_to_do() == [(2, 4), (4, 5)]
     report = generate(spec, copy, workers=0, progress=False)
-    assert (report.n_skipped, report.n_generated, report.n_complete) == (2, 3, 5)
+    assert (report.n_skipped, report.n_generated, report.n_complete) == (3, 2, 5)
     a, b = DatasetStore(out), DatasetStore(copy)
     for k in range(spec.n_samples):
         for name, value in a.read_sample(k).items():
@@ -249,3 +250,168 @@ def test_cli_info_verify_and_bad_spec(dataset: tuple[object, Path], tmp_path: Pa
     assert "objects[1].kind" in err and "'donut'" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x.zarr").exists()
     assert main(["dataset", "info", str(tmp_path)]) == 2  # not a store
+
+
+def _assert_same_store(a: Path, b: Path, n: int) -> None:
+    sa, sb = DatasetStore(a), DatasetStore(b)
+    for k in range(n):
+        for name, value in sa.read_sample(k).items():
+            np.testing.assert_array_equal(sb.read_sample(k)[name], value, err_msg=f"sample {k} {name}")
+    np.testing.assert_array_equal(sa.checksums(), sb.checksums())
+
+
+def _damage_chunk_file(path: Path) -> None:
+    """Cut a chunk file in half: its Zstandard frame no longer decodes (a flipped byte may
+    decode to other values instead, which the checksum catches; see the pose edits)."""
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def test_repair_remakes_exactly_the_samples_that_fail_verification(dataset: tuple[object, Path], tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """Damage the waveform chunk of samples 0 and 1 (undecodable: both fail) and change
+    sample 3's pose (decodes, checksum differs: only sample 3 fails, sample 2 of the same
+    chunk is fine). A plain rerun sees a complete store and changes nothing; ``--repair``
+    simulates exactly samples 0, 1 and 3, and the store equals the undamaged one."""
+    import shutil
+
+    from acoustisim.cli.main import main
+    from acoustisim.datasets.verify import verify
+
+    spec, out = dataset
+    copy = tmp_path / "repair.zarr"
+    shutil.copytree(out, copy)
+    _damage_chunk_file(copy / "waveforms" / "c" / "0" / "0" / "0" / "0")
+    DatasetStore(copy, mode="r+").array("pose")[3] = np.zeros(6)
+    (copy / "pose" / "c" / "stray.partial").write_bytes(b"x")  # what a killed write leaves
+    before = verify(copy)
+    assert sorted(i for i, _ in before.corrupt) == [0, 1, 3] and before.stray_files
+    assert generate(spec, copy, workers=0, progress=False).n_generated == 0  # resume alone does not look
+
+    spec_file = tmp_path / "tiny.toml"
+    spec_file.write_text(SPEC)
+    assert main(["dataset", "generate", str(spec_file), "--out", str(copy), "--workers", "0", "--repair",
+                 "--no-progress", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert (report["n_repaired"], report["n_generated"], report["n_complete"]) == (3, 3, 5)
+    after = verify(copy)
+    assert after.ok and not after.stray_files
+    _assert_same_store(out, copy, spec.n_samples)
+
+
+def test_repair_remakes_samples_whose_completion_record_is_damaged(dataset: tuple[object, Path],
+                                                                   tmp_path: Path) -> None:
+    """An undecodable chunk of ``complete`` counts its samples as not complete (verify says
+    which), and the next run makes them again."""
+    import shutil
+
+    from acoustisim.datasets.verify import verify
+
+    spec, out = dataset
+    copy = tmp_path / "flags.zarr"
+    shutil.copytree(out, copy)
+    (copy / "complete" / "c" / "1").write_bytes(b"\x00not zstd")
+    report = verify(copy)
+    assert report.missing == (2, 3) and report.damaged_records == (2, 3) and not report.ok
+    again = generate(spec, copy, workers=0, progress=False)
+    assert (again.n_generated, again.n_complete) == (2, 5)
+    assert verify(copy).ok
+    _assert_same_store(out, copy, spec.n_samples)
+
+
+def test_verify_cli_names_the_repair_command(dataset: tuple[object, Path], tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    import shutil
+
+    from acoustisim.cli.main import main
+
+    _, out = dataset
+    copy = tmp_path / "v.zarr"
+    shutil.copytree(out, copy)
+    _damage_chunk_file(copy / "arrivals" / "c" / "2" / "0" / "0")
+    assert main(["dataset", "verify", str(copy)]) == 1
+    text = capsys.readouterr().out
+    assert "sample 4: unreadable: the 'arrivals' chunk cannot be read" in text
+    assert f"--out {copy.resolve()} --repair" in text
+
+
+def test_reader_raises_a_typed_error_naming_the_damaged_samples(dataset: tuple[object, Path], tmp_path: Path) -> None:
+    import shutil
+
+    from acoustisim.datasets.loader import DatasetReader, WaveformDataset
+    from acoustisim.datasets.store import DatasetCorruptError, DatasetStoreError
+
+    _, out = dataset
+    copy = tmp_path / "r.zarr"
+    shutil.copytree(out, copy)
+    _damage_chunk_file(copy / "waveforms" / "c" / "1" / "0" / "0" / "0")
+    reader = DatasetReader(copy)
+    reader.read([0, 1])  # other chunks still read
+    with pytest.raises(DatasetCorruptError, match=r"sample\(s\) 2, 3: the 'waveforms' chunk cannot be read") as caught:
+        reader.read([3, 2])
+    assert isinstance(caught.value, DatasetStoreError) and isinstance(caught.value, ValueError)
+    assert "--repair" in str(caught.value) and len(str(caught.value).splitlines()) == 1
+    with pytest.raises(DatasetCorruptError, match="sample"):
+        WaveformDataset(copy)[2]
+    with pytest.raises(DatasetCorruptError, match=r"sample\(s\) 2: the 'waveforms'"):
+        DatasetStore(copy).read_sample(2)
+
+
+def test_open_dataset_gives_complete_samples_only(dataset: tuple[object, Path], tmp_path: Path) -> None:
+    """Raw ``xr.open_zarr`` shows unfinished samples with placeholder values (zeros, NaN) and
+    ``complete == 0``; :func:`open_dataset` keeps the complete samples, with their indices."""
+    import shutil
+
+    import xarray as xr
+
+    from acoustisim.datasets import open_dataset
+
+    spec, out = dataset
+    copy = tmp_path / "partial.zarr"
+    shutil.copytree(out, copy)
+    store = DatasetStore(copy, mode="r+")
+    store.array("complete")[2:4] = 0
+    raw = xr.open_zarr(copy)
+    assert raw.sizes["sample"] == 5 and raw.complete.values.tolist() == [1, 1, 0, 0, 1]
+    ds = open_dataset(copy)
+    assert ds.sample.values.tolist() == [0, 1, 4] and ds.attrs["n_samples_in_store"] == 5
+    assert ds.complete.values.all()
+    np.testing.assert_array_equal(ds.waveforms.sel(sample=4).values, raw.waveforms.isel(sample=4).values)
+    assert "dataset_card" in ds.attrs
+    from acoustisim.datasets.store import DatasetStoreError
+
+    with pytest.raises(DatasetStoreError, match="not a dataset store"):
+        open_dataset(tmp_path)
+
+
+def test_a_relative_out_is_made_absolute(dataset: tuple[object, Path], tmp_path: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The store's arrays are opened (and pickled to workers) at its absolute path."""
+    spec, _ = dataset
+    monkeypatch.chdir(tmp_path)
+    small = loads_spec(small_spec(name="tiny", n_samples=2, seed=11, samples_per_chunk=2))
+    report = generate(small, "rel.zarr", workers=0, progress=False)
+    assert report.path == str(tmp_path / "rel.zarr") and report.n_complete == 2
+    writer = DatasetStore("rel.zarr").writer()
+    assert writer.root == str(tmp_path / "rel.zarr")
+    assert all(str(arr.store.root).startswith(str(tmp_path)) for arr in writer.arrays)
+
+
+def test_a_writer_that_cannot_see_the_store_refuses_in_one_line(dataset: tuple[object, Path], tmp_path: Path) -> None:
+    import shutil
+
+    from acoustisim.datasets.store import DatasetStoreError, SampleArrays, store_seen_here
+
+    _, out = dataset
+    copy = tmp_path / "gone.zarr"
+    shutil.copytree(out, copy)
+    store = DatasetStore(copy, mode="r+")
+    writer = store.writer()
+    rows = [SampleArrays(index=i, **store.read_sample(i)) for i in (0, 1)]
+    assert store_seen_here(writer.root, store.store_id) == ""
+    assert "another dataset store" in store_seen_here(writer.root, "other-id")
+    copy.rename(tmp_path / "moved.zarr")
+    with pytest.raises(DatasetStoreError, match="no dataset store here as seen by the process") as caught:
+        writer.write_chunk(rows)
+    assert len(str(caught.value).splitlines()) == 1
+    assert not copy.exists()  # nothing was written at the missing path

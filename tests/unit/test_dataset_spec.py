@@ -92,6 +92,32 @@ def test_bad_specs_name_the_key(edit: tuple[str, str], key: str) -> None:
     message = str(info.value)
     assert key in message and message.startswith("bad.toml")
     assert "\n" not in message
+    section = key.split(".")[0]
+    assert f"{section}: {section}." not in message  # the section is named once
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        # A sphere wider than the 3 m tank at its smallest: its size is to blame, not placement.
+        (("radius_m = [0.02, 0.08]", "radius_m = [1.6, 2.0]"),
+         r"^bad\.toml: objects\[0\]\.radius_m = \[1\.6, 2\.0\]: even the smallest sphere drawn \(bounding radius "
+         r"1\.6 m\) needs 3\.3 m of water across .* tank\.width_m = 3 m$"),
+        # A horizontal cylinder 2 m long does not fit under 1 m of water (bounding sphere).
+        (("radius_m = [0.03, 0.06]\nlength_m = [0.1, 0.3]", "radius_m = [0.03, 0.06]\nlength_m = [2.0, 2.4]"),
+         r"^bad\.toml: objects\[3\]\.radius_m = .*tank\.water_depth_m = 1 m$"),
+    ],
+)
+def test_an_object_larger_than_the_tank_is_blamed_on_its_size(edit: tuple[str, str], message: str) -> None:
+    text = BASE.replace(*edit)
+    assert text != BASE
+    with pytest.raises(SpecError, match=message):
+        loads_spec(text, "bad.toml")
+
+
+def test_solver_errors_name_the_section_once() -> None:
+    with pytest.raises(SpecError, match=r"^bad\.toml: solver\.max_order = 0: must be"):
+        loads_spec(BASE.replace("max_order = 1", "max_order = 0"), "bad.toml")
 
 
 def test_impossible_placement_fails_before_any_work(tmp_path: Path) -> None:

@@ -66,3 +66,18 @@ def test_a_failing_sample_is_named_and_its_chunk_left_unwritten(tmp_path: Path) 
         make_chunk(spec, [samples[0], bad], store.writer(), vocabularies(spec))
     assert not store.complete_mask().any()
     assert not (tmp_path / "s.zarr" / "waveforms" / "c").exists()
+
+
+def test_the_report_counts_workers_honestly() -> None:
+    from acoustisim.datasets.generate import GenerateReport
+
+    base = dict(path="d.zarr", n_samples=4, n_skipped=0, n_generated=4, n_complete=4, elapsed_s=1.0,
+                startup_s=1.0, samples_per_s=4.0)
+    steady = GenerateReport(**base, workers=2, scheduler="local-cluster", workers_at_start=2, workers_at_end=2)
+    assert steady.workers_text() == "on 2 worker processes"
+    lost = GenerateReport(**base, workers=2, scheduler="tcp://h:8786", workers_at_start=2, workers_at_end=1,
+                          workers_lost=1)
+    assert lost.workers_text() == "on 2 worker processes (2 at the start, 1 at the end; 1 lost during the run)"
+    one = GenerateReport(**base, workers=1, scheduler="tcp://h:8786", workers_at_start=2, workers_at_end=2)
+    assert one.workers_text() == "on 1 worker process (2 at the start, 2 at the end)"
+    assert GenerateReport(**base, workers=0, scheduler="in-process").workers_text() == "in this process (no Dask)"
