@@ -67,16 +67,24 @@ def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
 
 
 def _specular_rows_function():
-    """``specular_rows(context, prepared, max_order)`` of the tree on the path: this tree's fast
-    engine, or the top-level module of a tree from before the engines were split (the
-    ``--before-tree`` side of the A/B)."""
+    """``specular_rows(context, prepared, max_order)`` of the tree on the path with the default
+    ``SolverConfig``'s other settings: this tree's fast engine, or the top-level module of a tree
+    from before the engines were split (the ``--before-tree`` side of the A/B). Trees that know
+    ``max_curved_per_path`` get the default's."""
     import importlib
+    import inspect
+
+    from acoustisim.propagation import SolverConfig
 
     for module in ("acoustisim.propagation.fast.specular", "acoustisim.propagation.specular"):
         try:
-            return importlib.import_module(module).specular_rows
+            specular_rows = importlib.import_module(module).specular_rows
         except ModuleNotFoundError:
             continue
+        if "max_curved_per_path" in inspect.signature(specular_rows).parameters:
+            knob = SolverConfig().max_curved_per_path
+            return lambda context, prepared, max_order: specular_rows(context, prepared, max_order, knob)
+        return specular_rows
     raise ModuleNotFoundError("no specular_rows in this tree")
 
 

@@ -1,0 +1,616 @@
+"""Compiled chains through two curved primitives (numba, cached on disk, GIL released).
+
+The compiled twins of :mod:`acoustisim.propagation.reference.pair_chains` and
+:mod:`acoustisim.propagation.reference.curved_pairs`, one loop iteration per candidate:
+
+1. :func:`pair_candidates`: the (before row, between sequence, after row, C1, C2) candidates of
+   one split, with the transmitter's image A, and C2 and the receiver's image B unfolded across
+   the mirrors between (the last first);
+2. :func:`joint_specular_points`: the joint Newton on the four tangent coordinates from given
+   starts (the alternating single-surface solves, made by the caller with
+   :func:`.curved_kernels.specular_points`), its stop rule applied per candidate, and the
+   validity tests;
+3. :func:`fill_pairs`: X2 folded back, the planar points back-traced on the three stretches,
+   the ray-tube amplitude, each valid chain written into the solve's
+   :class:`~.chain_kernels.PaddedChains`.
+
+Same formulas as the reference, not the same operation order everywhere (4x4 systems by
+Gaussian elimination, 2x2 matrices written out): the rows agree to round-off. No ``fastmath``;
+IEEE division (``error_model="numpy"``): degenerate candidates give NaN and are invalid, as in
+numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from acoustisim.propagation.curved import CurvedSet, SurfacePoints
+from acoustisim.propagation.fast.bundles import plain_tuple_arguments
+from acoustisim.propagation.fast.chain_kernels import (CURVED_KIND, ChainEnds, MirrorSide, PaddedChains,
+                                                       ReflectorLabels, write_mirror_slot, write_padding,
+                                                       write_receiver_tail, write_transmitter)
+from acoustisim.propagation.fast.mirror_kernels import MirrorArrays, backtrace_one
+
+
+class PairCandidates(NamedTuple):
+    """Candidates [before mirrors, C1, between mirrors, C2, after mirrors] of one split (n).
+
+    Attributes
+    ----------
+    before : ndarray of int64, shape (n,)
+        Row of the before side (a sequence from the transmitter).
+    between : ndarray of int64, shape (n,)
+        Row of the between sequences.
+    after_row : ndarray of int64, shape (n,)
+        Row of the after side (``sequence * r + receiver``).
+    first, second : ndarray of int64, shape (n,)
+        The curved reflectors C1 and C2.
+    source_image : ndarray, shape (n, 3)
+        A, the transmitter's last image (m).
+    receiver_image : ndarray, shape (n, 3)
+        B, the receiver's last image unfolded across the mirrors between (m).
+    second_centre : ndarray, shape (n, 3)
+        C2's centre unfolded across the mirrors between (m).
+    second_frame : ndarray, shape (n, 3, 3)
+        C2's frame rows unfolded across the mirrors between.
+    """
+
+    before: NDArray[np.int64]
+    between: NDArray[np.int64]
+    after_row: NDArray[np.int64]
+    first: NDArray[np.int64]
+    second: NDArray[np.int64]
+    source_image: NDArray[np.float64]
+    receiver_image: NDArray[np.float64]
+    second_centre: NDArray[np.float64]
+    second_frame: NDArray[np.float64]
+
+
+class JointSettings(NamedTuple):
+    """The joint Newton's limits: at most ``steps`` steps, stop once no point moves more than
+    ``tolerance_m``; stationary if every gradient component is below ``stationary``; a
+    cylinder's point may lie ``end_tolerance_m`` beyond its ends."""
+
+    steps: int
+    tolerance_m: float
+    stationary: float
+    end_tolerance_m: float
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _reflect_point(x: NDArray[np.float64], m: int, point: NDArray[np.float64], normal: NDArray[np.float64]) -> None:
+    """``x`` (3,) mirrored across mirror ``m``, in place."""
+    d = (x[0] - point[m, 0]) * normal[m, 0] + (x[1] - point[m, 1]) * normal[m, 1] + (x[2] - point[m, 2]) * normal[m, 2]
+    for k in range(3):
+        x[k] = x[k] - 2.0 * d * normal[m, k]
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _reflect_direction(v: NDArray[np.float64], m: int, normal: NDArray[np.float64]) -> None:
+    """``v`` (3,) mirrored as a direction across mirror ``m``, in place."""
+    d = v[0] * normal[m, 0] + v[1] * normal[m, 1] + v[2] * normal[m, 2]
+    for k in range(3):
+        v[k] = v[k] - 2.0 * d * normal[m, k]
+
+
+@plain_tuple_arguments
+@njit(cache=True, nogil=True, error_model="numpy")
+def pair_candidates(mirrors_fields: tuple, curved_fields: tuple, seen_by: NDArray[np.bool_], before_fields: tuple,
+                    between_sequences: NDArray[np.int64], after_fields: tuple, n_receivers: int) -> PairCandidates:
+    """The candidates of one split [n_before mirrors, C1, n_between mirrors, C2, n_after mirrors].
+
+    Every (before row, between sequence, after row, C1, C2) with valid images on both ends,
+    the mirrors next to each reflector allowed by ``seen_by`` (c, m), and C1 != C2 when no
+    mirror lies between, nested in that order
+    (:func:`acoustisim.propagation.reference.pair_chains.pair_candidates`); with B and C2
+    unfolded across the mirrors between.
+    """
+    mirrors = MirrorArrays(*mirrors_fields)
+    curved = CurvedSet(*curved_fields)
+    before, after = MirrorSide(*before_fields), MirrorSide(*after_fields)
+    n_refl = seen_by.shape[0]
+    n_before, n_after = before.sequences.shape[1], after.sequences.shape[1]
+    n_between = between_sequences.shape[1]
+    n_b = 0
+    for i in range(before.unfolded.shape[0]):
+        if before.unfolded[i]:
+            n_b += 1
+    n_a = 0
+    for i in range(after.unfolded.shape[0]):
+        if after.unfolded[i]:
+            n_a += 1
+    capacity = n_b * between_sequences.shape[0] * n_a * n_refl * n_refl
+    before_row = np.empty(capacity, dtype=np.int64)
+    between_row = np.empty(capacity, dtype=np.int64)
+    after_row = np.empty(capacity, dtype=np.int64)
+    first = np.empty(capacity, dtype=np.int64)
+    second = np.empty(capacity, dtype=np.int64)
+    source_image = np.empty((capacity, 3))
+    receiver_image = np.empty((capacity, 3))
+    second_centre = np.empty((capacity, 3))
+    second_frame = np.empty((capacity, 3, 3))
+    n = 0
+    for b in range(before.unfolded.shape[0]):
+        if not before.unfolded[b]:
+            continue
+        for m in range(between_sequences.shape[0]):
+            for a in range(after.unfolded.shape[0]):
+                if not after.unfolded[a]:
+                    continue
+                for r1 in range(n_refl):
+                    if n_before > 0 and not seen_by[r1, before.sequences[b, n_before - 1]]:
+                        continue
+                    if n_between > 0 and not seen_by[r1, between_sequences[m, 0]]:
+                        continue
+                    for r2 in range(n_refl):
+                        if n_between > 0:
+                            if not seen_by[r2, between_sequences[m, n_between - 1]]:
+                                continue
+                        elif r1 == r2:
+                            continue
+                        if n_after > 0 and not seen_by[r2, after.sequences[a // n_receivers, 0]]:
+                            continue
+                        before_row[n], between_row[n], after_row[n], first[n], second[n] = b, m, a, r1, r2
+                        for q in range(3):
+                            source_image[n, q] = before.images[b, n_before, q]
+                            receiver_image[n, q] = after.images[a, n_after, q]
+                            second_centre[n, q] = curved.centre[r2, q]
+                            for p in range(3):
+                                second_frame[n, p, q] = curved.frame[r2, p, q]
+                        for j in range(n_between - 1, -1, -1):
+                            mirror = between_sequences[m, j]
+                            _reflect_point(second_centre[n], mirror, mirrors.point, mirrors.normal)
+                            for p in range(3):
+                                _reflect_direction(second_frame[n, p], mirror, mirrors.normal)
+                            _reflect_point(receiver_image[n], mirror, mirrors.point, mirrors.normal)
+                        n += 1
+    return PairCandidates(before_row[:n], between_row[:n], after_row[:n], first[:n], second[:n], source_image[:n],
+                          receiver_image[:n], second_centre[:n], second_frame[:n])
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _unit_into(out: NDArray[np.float64], v0: float, v1: float, v2: float) -> float:
+    """``out`` (3,) = v / |v|; returns |v|."""
+    norm = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    out[0], out[1], out[2] = v0 / norm, v1 / norm, v2 / norm
+    return norm
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _surface_frame(curved: CurvedSet, row: int, x: NDArray[np.float64], normal: NDArray[np.float64],
+                   tangent: NDArray[np.float64], curvature: NDArray[np.float64], end_tolerance: float) -> bool:
+    """The local geometry of point ``x`` (3,) on primitive ``row`` of ``curved``: ``normal``
+    (3,), ``tangent`` (3, 2) = (e1, e2), ``curvature`` (2, 2) written; returns whether a
+    cylinder's point lies within its length
+    (:func:`acoustisim.propagation.reference.curved_pairs.surface_frame`)."""
+    sphere = curved.is_sphere[row]
+    centre, frame = curved.centre, curved.frame
+    radius = curved.radius[row]
+    r0, r1, r2 = x[0] - centre[row, 0], x[1] - centre[row, 1], x[2] - centre[row, 2]
+    g0, g1, g2 = frame[row, 2, 0], frame[row, 2, 1], frame[row, 2, 2]
+    along = 0.0 if sphere else r0 * g0 + r1 * g1 + r2 * g2
+    _unit_into(normal, r0 - along * g0, r1 - along * g1, r2 - along * g2)
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    if sphere:
+        h0, h1 = (1.0, 0.0) if abs(n0) < 0.9 else (0.0, 1.0)
+        t0, t1, t2 = n1 * 0.0 - n2 * h1, n2 * h0 - n0 * 0.0, n0 * h1 - n1 * h0
+    else:
+        t0, t1, t2 = g1 * n2 - g2 * n1, g2 * n0 - g0 * n2, g0 * n1 - g1 * n0
+    nt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
+    tangent[0, 0], tangent[1, 0], tangent[2, 0] = t0, t1, t2
+    if sphere:
+        tangent[0, 1], tangent[1, 1], tangent[2, 1] = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0
+    else:
+        tangent[0, 1], tangent[1, 1], tangent[2, 1] = g0, g1, g2
+    curvature[0, 0] = 1.0 / radius
+    curvature[1, 1] = 1.0 / radius if sphere else 0.0
+    curvature[0, 1] = 0.0
+    curvature[1, 0] = 0.0
+    return sphere or abs(along) <= 0.5 * curved.length[row] + end_tolerance
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _project(curved: CurvedSet, row: int, x: NDArray[np.float64]) -> None:
+    """``x`` (3,) moved radially onto primitive ``row`` of ``curved``, in place
+    (:func:`acoustisim.propagation.reference.curved_pairs.project`)."""
+    sphere = curved.is_sphere[row]
+    centre, frame = curved.centre, curved.frame
+    r0, r1, r2 = x[0] - centre[row, 0], x[1] - centre[row, 1], x[2] - centre[row, 2]
+    g0, g1, g2 = frame[row, 2, 0], frame[row, 2, 1], frame[row, 2, 2]
+    along = 0.0 if sphere else r0 * g0 + r1 * g1 + r2 * g2
+    m0, m1, m2 = r0 - along * g0, r1 - along * g1, r2 - along * g2
+    norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    radius = curved.radius[row]
+    x[0] = centre[row, 0] + along * g0 + radius * (m0 / norm)
+    x[1] = centre[row, 1] + along * g1 + radius * (m1 / norm)
+    x[2] = centre[row, 2] + along * g2 + radius * (m2 / norm)
+
+
+class JointScratch(NamedTuple):
+    """Work arrays of one joint solve (reused across candidates)."""
+
+    d: NDArray[np.float64]  # (3, 3) unit legs
+    r: NDArray[np.float64]  # (3,) leg lengths
+    projector: NDArray[np.float64]  # (3, 3, 3) (I - d d^T) / r of each leg
+    gradient: NDArray[np.float64]  # (4,)
+    hessian: NDArray[np.float64]  # (4, 4)
+    step: NDArray[np.float64]  # (4,)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gradient_and_hessian(a: NDArray[np.float64], x1: NDArray[np.float64], x2: NDArray[np.float64],
+                          b: NDArray[np.float64], normal: NDArray[np.float64], tangent: NDArray[np.float64],
+                          curvature: NDArray[np.float64], work: JointScratch) -> None:
+    """Gradient and Hessian of L in the tangent coordinates (into ``work``), as
+    :func:`acoustisim.propagation.reference.curved_pairs.path_gradient_and_hessian`;
+    ``normal`` (2, 3), ``tangent`` (2, 3, 2), ``curvature`` (2, 2, 2) of X1 and X2."""
+    d, r, projector = work.d, work.r, work.projector
+    r[0] = _unit_into(d[0], x1[0] - a[0], x1[1] - a[1], x1[2] - a[2])
+    r[1] = _unit_into(d[1], x2[0] - x1[0], x2[1] - x1[1], x2[2] - x1[2])
+    r[2] = _unit_into(d[2], b[0] - x2[0], b[1] - x2[1], b[2] - x2[2])
+    for leg in range(3):
+        for i in range(3):
+            for j in range(3):
+                projector[leg, i, j] = ((1.0 if i == j else 0.0) - d[leg, i] * d[leg, j]) / r[leg]
+    for p in range(2):  # X1 (legs 0, 1), X2 (legs 1, 2)
+        coefficient = 0.0
+        for k in range(3):
+            coefficient += (d[p + 1, k] - d[p, k]) * normal[p, k]
+        for i in range(2):
+            g = 0.0
+            for k in range(3):
+                g += tangent[p, k, i] * (d[p, k] - d[p + 1, k])
+            work.gradient[2 * p + i] = g
+            for j in range(2):
+                h = 0.0
+                for k in range(3):
+                    for m in range(3):
+                        h += tangent[p, k, i] * (projector[p, k, m] + projector[p + 1, k, m]) * tangent[p, m, j]
+                work.hessian[2 * p + i, 2 * p + j] = h + coefficient * curvature[p, i, j]
+    for i in range(2):
+        for j in range(2):
+            h = 0.0
+            for k in range(3):
+                for m in range(3):
+                    h += tangent[0, k, i] * projector[1, k, m] * tangent[1, m, j]
+            work.hessian[i, 2 + j] = -h
+            work.hessian[2 + j, i] = -h
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _solve4(hessian: NDArray[np.float64], gradient: NDArray[np.float64], step: NDArray[np.float64]) -> None:
+    """``step`` = ``hessian``^-1 ``gradient`` by Gaussian elimination with partial pivoting
+    (``hessian`` overwritten); 0 if a pivot is 0 or anything is not finite."""
+    a = hessian
+    for i in range(4):
+        step[i] = gradient[i]
+    for col in range(4):
+        pivot = col
+        for row in range(col + 1, 4):
+            if abs(a[row, col]) > abs(a[pivot, col]):
+                pivot = row
+        if not abs(a[pivot, col]) > 0.0 or not math.isfinite(a[pivot, col]):
+            step[:] = 0.0
+            return
+        if pivot != col:
+            for k in range(4):
+                a[col, k], a[pivot, k] = a[pivot, k], a[col, k]
+            step[col], step[pivot] = step[pivot], step[col]
+        for row in range(col + 1, 4):
+            factor = a[row, col] / a[col, col]
+            for k in range(col, 4):
+                a[row, k] -= factor * a[col, k]
+            step[row] -= factor * step[col]
+    for row in range(3, -1, -1):
+        total = step[row]
+        for k in range(row + 1, 4):
+            total -= a[row, k] * step[k]
+        step[row] = total / a[row, row]
+    for i in range(4):
+        if not math.isfinite(step[i]):
+            step[:] = 0.0
+            return
+
+
+@plain_tuple_arguments
+@njit(cache=True, nogil=True, error_model="numpy")
+def joint_specular_points(first_fields: tuple, second_fields: tuple, candidates_fields: tuple,
+                          first_start: NDArray[np.float64], second_start: NDArray[np.float64], settings_fields: tuple
+                          ) -> tuple[SurfacePoints, SurfacePoints, NDArray[np.bool_]]:
+    """Joint specular points X1 on C1 and X2 on the unfolded C2 of each candidate (n), from the
+    starts (n, 3), as :func:`acoustisim.propagation.reference.curved_pairs.pair_specular_points`
+    (each candidate stops as soon as its own points stop moving). ``first`` and ``second`` are
+    :class:`CurvedSet` bundles with one row per candidate (C1, and C2 unfolded)."""
+    candidates = PairCandidates(*candidates_fields)
+    settings = JointSettings(*settings_fields)
+    n = first_start.shape[0]
+    # C1 and the unfolded C2 of each candidate as its own primitive row
+    first = CurvedSet(*first_fields)
+    second = CurvedSet(*second_fields)
+    point = np.empty((2, n, 3))
+    normal = np.empty((2, n, 3))
+    tangent = np.empty((2, n, 3, 2))
+    curvature = np.empty((2, n, 2, 2))
+    valid = np.empty(n, dtype=np.bool_)
+    work = JointScratch(np.empty((3, 3)), np.empty(3), np.empty((3, 3, 3)), np.empty(4), np.empty((4, 4)),
+                        np.empty(4))
+    x = np.empty((2, 3))
+    nrm = np.empty((2, 3))
+    tan = np.empty((2, 3, 2))
+    kur = np.empty((2, 2, 2))
+    for i in range(n):
+        a, b = candidates.source_image[i], candidates.receiver_image[i]
+        for k in range(3):
+            x[0, k], x[1, k] = first_start[i, k], second_start[i, k]
+        for _ in range(settings.steps):
+            _surface_frame(first, i, x[0], nrm[0], tan[0], kur[0], settings.end_tolerance_m)
+            _surface_frame(second, i, x[1], nrm[1], tan[1], kur[1], settings.end_tolerance_m)
+            _gradient_and_hessian(a, x[0], x[1], b, nrm, tan, kur, work)
+            _solve4(work.hessian, work.gradient, work.step)
+            moved = 0.0
+            for p in range(2):
+                s0, s1 = work.step[2 * p], work.step[2 * p + 1]
+                norm = math.sqrt(s0 * s0 + s1 * s1)
+                limit = 0.5 * (first.radius[i] if p == 0 else second.radius[i])
+                scale = min(1.0, limit / (norm if norm > 0 else 1.0))
+                s0, s1 = s0 * scale, s1 * scale
+                for k in range(3):
+                    x[p, k] = x[p, k] - (tan[p, k, 0] * s0 + tan[p, k, 1] * s1)
+                moved = max(moved, math.sqrt(s0 * s0 + s1 * s1))
+            _project(first, i, x[0])
+            _project(second, i, x[1])
+            if not moved > settings.tolerance_m:
+                break
+        within = _surface_frame(first, i, x[0], nrm[0], tan[0], kur[0], settings.end_tolerance_m)
+        within = _surface_frame(second, i, x[1], nrm[1], tan[1], kur[1], settings.end_tolerance_m) and within
+        _gradient_and_hessian(a, x[0], x[1], b, nrm, tan, kur, work)
+        ok = within
+        for k in range(4):
+            ok = ok and abs(work.gradient[k]) <= settings.stationary
+        lit_a, lit_x2, lit_x1, lit_b = 0.0, 0.0, 0.0, 0.0
+        for k in range(3):
+            lit_a += (a[k] - x[0, k]) * nrm[0, k]
+            lit_x2 += (x[1, k] - x[0, k]) * nrm[0, k]
+            lit_x1 += (x[0, k] - x[1, k]) * nrm[1, k]
+            lit_b += (b[k] - x[1, k]) * nrm[1, k]
+        valid[i] = ok and lit_a > 0.0 and lit_x2 > 0.0 and lit_x1 > 0.0 and lit_b > 0.0
+        for p in range(2):
+            for k in range(3):
+                point[p, i, k] = x[p, k]
+                normal[p, i, k] = nrm[p, k]
+                tangent[p, i, k, 0], tangent[p, i, k, 1] = tan[p, k, 0], tan[p, k, 1]
+            curvature[p, i] = kur[p]
+    zero = np.zeros(n)
+    first_points = SurfacePoints(point[0], normal[0], valid, np.ascontiguousarray(tangent[0, :, :, 0]),
+                                 np.ascontiguousarray(tangent[0, :, :, 1]), curvature[0, :, 0, 0].copy(),
+                                 curvature[0, :, 1, 1].copy(), zero)
+    second_points = SurfacePoints(point[1], normal[1], valid, np.ascontiguousarray(tangent[1, :, :, 0]),
+                                  np.ascontiguousarray(tangent[1, :, :, 1]), curvature[1, :, 0, 0].copy(),
+                                  curvature[1, :, 1, 1].copy(), zero)
+    return first_points, second_points, valid
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _basis(d0: float, d1: float, d2: float) -> tuple[float, float, float, float, float, float]:
+    """An orthonormal basis (w1, w2) of the plane normal to the unit vector d, as
+    :func:`acoustisim.propagation.reference.curved_pairs.transverse_basis`."""
+    h0, h1 = (1.0, 0.0) if abs(d0) < 0.9 else (0.0, 1.0)
+    c0, c1, c2 = d1 * 0.0 - d2 * h1, d2 * h0 - d0 * 0.0, d0 * h1 - d1 * h0
+    norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    w0, w1, w2 = c0 / norm, c1 / norm, c2 / norm
+    return w0, w1, w2, d1 * w2 - d2 * w1, d2 * w0 - d0 * w2, d0 * w1 - d1 * w0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _reflect_tube(q: NDArray[np.float64], w: NDArray[np.float64], d: NDArray[np.float64], x: SurfacePoints, i: int,
+                  leg: NDArray[np.float64]) -> float:
+    """One reflection of the ray tube at specular point ``i`` of ``x`` and the leg after it:
+    the incident curvature ``q`` (q00, q01, q11) in basis ``w`` (w1, w2 as six numbers) along
+    unit ``d`` becomes the curvature at the leg's end in the outgoing basis (``q``, ``w``, ``d``
+    updated in place); returns the spreading factor det(I + r q_r)^(-1/2) of the leg (``leg``:
+    its vector)."""
+    r = math.sqrt(leg[0] * leg[0] + leg[1] * leg[1] + leg[2] * leg[2])
+    o0, o1, o2 = leg[0] / r, leg[1] / r, leg[2] / r
+    e10, e11, e12 = x.e1[i, 0], x.e1[i, 1], x.e1[i, 2]
+    e20, e21, e22 = x.e2[i, 0], x.e2[i, 1], x.e2[i, 2]
+    # T_i = W_i^T E
+    t00 = w[0] * e10 + w[1] * e11 + w[2] * e12
+    t01 = w[0] * e20 + w[1] * e21 + w[2] * e22
+    t10 = w[3] * e10 + w[4] * e11 + w[5] * e12
+    t11 = w[3] * e20 + w[4] * e21 + w[5] * e22
+    cos_theta = -(d[0] * x.normal[i, 0] + d[1] * x.normal[i, 1] + d[2] * x.normal[i, 2])
+    # S = T_i^T q T_i + 2 cos(theta) K
+    q00, q01, q11 = q[0], q[1], q[2]
+    u00, u01 = q00 * t00 + q01 * t10, q00 * t01 + q01 * t11
+    u10, u11 = q01 * t00 + q11 * t10, q01 * t01 + q11 * t11
+    s00 = t00 * u00 + t10 * u10 + 2.0 * cos_theta * x.k11[i]
+    s01 = t00 * u01 + t10 * u11 + 2.0 * cos_theta * x.k12[i]
+    s11 = t01 * u01 + t11 * u11 + 2.0 * cos_theta * x.k22[i]
+    _basis_into(w, o0, o1, o2)
+    # T_r = W_r^T E, inverted
+    v00 = w[0] * e10 + w[1] * e11 + w[2] * e12
+    v01 = w[0] * e20 + w[1] * e21 + w[2] * e22
+    v10 = w[3] * e10 + w[4] * e11 + w[5] * e12
+    v11 = w[3] * e20 + w[4] * e21 + w[5] * e22
+    det = v00 * v11 - v01 * v10
+    i00, i01, i10, i11 = v11 / det, -v01 / det, -v10 / det, v00 / det
+    # q_r = T_r^-T S T_r^-1
+    m00, m01 = s00 * i00 + s01 * i10, s00 * i01 + s01 * i11
+    m10, m11 = s01 * i00 + s11 * i10, s01 * i01 + s11 * i11
+    q00 = i00 * m00 + i10 * m10
+    q01 = i00 * m01 + i10 * m11
+    q11 = i01 * m01 + i11 * m11
+    # spreading over the leg, and the curvature at its end, q (I + r q)^-1
+    a00, a01, a11 = 1.0 + r * q00, r * q01, 1.0 + r * q11
+    spread = a00 * a11 - a01 * a01
+    q[0] = (q00 * a11 - q01 * a01) / spread
+    q[1] = (q01 * a00 - q00 * a01) / spread
+    q[2] = (q11 * a00 - q01 * a01) / spread
+    d[0], d[1], d[2] = o0, o1, o2
+    return 1.0 / math.sqrt(spread)
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _basis_into(w: NDArray[np.float64], d0: float, d1: float, d2: float) -> None:
+    """An orthonormal basis (w1, w2) of the plane normal to the unit vector d into ``w`` (6,),
+    as :func:`acoustisim.propagation.reference.curved_pairs.transverse_basis`."""
+    h0, h1 = (1.0, 0.0) if abs(d0) < 0.9 else (0.0, 1.0)
+    c0, c1, c2 = d1 * 0.0 - d2 * h1, d2 * h0 - d0 * 0.0, d0 * h1 - d1 * h0
+    norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    w0, w1, w2 = c0 / norm, c1 / norm, c2 / norm
+    w[0], w[1], w[2] = w0, w1, w2
+    w[3], w[4], w[5] = d1 * w2 - d2 * w1, d2 * w0 - d0 * w2, d0 * w1 - d1 * w0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _ray_tube(a: NDArray[np.float64], b: NDArray[np.float64], first: SurfacePoints, second: SurfacePoints, i: int,
+              tube: NDArray[np.float64]) -> float:
+    """Deschamps' ray-tube pressure factor of A -> X1 -> X2 -> B of candidate ``i`` (unfolded
+    frame), as :func:`acoustisim.propagation.reference.curved_pairs.ray_tube_amplitude`;
+    ``tube`` (15,) is work space."""
+    q, w, d, leg = tube[0:3], tube[3:9], tube[9:12], tube[12:15]
+    for k in range(3):
+        d[k] = first.point[i, k] - a[k]
+    r0 = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    d[0], d[1], d[2] = d[0] / r0, d[1] / r0, d[2] / r0
+    _basis_into(w, d[0], d[1], d[2])
+    q[0], q[1], q[2] = 1.0 / r0, 0.0, 1.0 / r0
+    amplitude = 1.0 / r0
+    for k in range(3):
+        leg[k] = second.point[i, k] - first.point[i, k]
+    amplitude *= _reflect_tube(q, w, d, first, i, leg)
+    for k in range(3):
+        leg[k] = b[k] - second.point[i, k]
+    amplitude *= _reflect_tube(q, w, d, second, i, leg)
+    return amplitude
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _write_curved_slot(row: int, slot: int, r: int, normal: NDArray[np.float64], reflectors: ReflectorLabels,
+                       out: PaddedChains) -> None:
+    out.surface[row, slot] = reflectors.surface[r]
+    out.patch[row, slot] = reflectors.patch[r]
+    out.normal[row, slot, 0] = normal[0]
+    out.normal[row, slot, 1] = normal[1]
+    out.normal[row, slot, 2] = normal[2]
+    out.kind[row, slot] = CURVED_KIND
+    out.material[row, slot] = r
+
+
+class PairLayout(NamedTuple):
+    """Chain numbering of one split: ``chain_base + (((before * between_count + between) *
+    after_count + after) * reflector_count + C1) * reflector_count + C2``."""
+
+    chain_base: int
+    between_count: int
+    after_count: int
+    reflector_count: int
+
+
+@plain_tuple_arguments
+@njit(cache=True, nogil=True, error_model="numpy")
+def fill_pairs(mirrors_fields: tuple, before_fields: tuple, between_sequences: NDArray[np.int64], after_fields: tuple,
+               n_receivers: int, candidates_fields: tuple, first_fields: tuple, second_fields: tuple, valid: NDArray[np.bool_],
+               reflectors_fields: tuple, layout_fields: tuple, ends_fields: tuple, out_fields: tuple, cursor: int) -> int:
+    """The chains of one split's ``candidates`` through their joint specular points (``first``,
+    ``second``: X1 and the unfolded X2) that are ``valid`` and whose planar points back-trace
+    validly on the three stretches, written from row ``cursor`` of ``out`` with their length
+    |X1 - A| + |X2 - X1| + |B - X2| and ray-tube amplitude. Returns the next free row."""
+    mirrors = MirrorArrays(*mirrors_fields)
+    before, after = MirrorSide(*before_fields), MirrorSide(*after_fields)
+    candidates = PairCandidates(*candidates_fields)
+    first, second = SurfacePoints(*first_fields), SurfacePoints(*second_fields)
+    reflectors = ReflectorLabels(*reflectors_fields)
+    layout = PairLayout(*layout_fields)
+    ends = ChainEnds(*ends_fields)
+    out = PaddedChains(*out_fields)
+    n_before, n_after = before.sequences.shape[1], after.sequences.shape[1]
+    n_between = between_sequences.shape[1]
+    order = n_before + n_between + n_after + 2
+    slot_first, slot_second = n_before, n_before + n_between + 1
+    receivers = ends.receivers
+    between_images = np.empty((1, n_between + 1, 3))
+    x2 = np.empty(3)
+    n2 = np.empty(3)
+    tube = np.empty(15)
+    for i in range(candidates.before.shape[0]):
+        if not valid[i]:
+            continue
+        b, m, a = candidates.before[i], candidates.between[i], candidates.after_row[i]
+        r1, r2 = candidates.first[i], candidates.second[i]
+        sequence_after = a // n_receivers
+        for k in range(3):
+            x2[k] = second.point[i, k]
+            n2[k] = second.normal[i, k]
+        for j in range(n_between):
+            _reflect_point(x2, between_sequences[m, j], mirrors.point, mirrors.normal)
+            _reflect_direction(n2, between_sequences[m, j], mirrors.normal)
+        row = cursor
+        x10, x11, x12 = first.point[i, 0], first.point[i, 1], first.point[i, 2]
+        ok = backtrace_one(mirrors, before.images, b, before.sequences, b, False, x10, x11, x12, out.vertices, row,
+                           1, 1)
+        if not ok:
+            continue
+        ok = backtrace_one(mirrors, after.images, a, after.sequences, sequence_after, True, x2[0], x2[1], x2[2],
+                           out.vertices, row, order, -1)
+        if not ok:
+            continue
+        if n_between > 0:
+            # X1's images across the mirrors between, each in front of the next mirror
+            between_images[0, 0, 0], between_images[0, 0, 1], between_images[0, 0, 2] = x10, x11, x12
+            for j in range(n_between):
+                mirror = between_sequences[m, j]
+                height = ((between_images[0, j, 0] - mirrors.point[mirror, 0]) * mirrors.normal[mirror, 0]
+                          + (between_images[0, j, 1] - mirrors.point[mirror, 1]) * mirrors.normal[mirror, 1]
+                          + (between_images[0, j, 2] - mirrors.point[mirror, 2]) * mirrors.normal[mirror, 2])
+                ok = ok and height > 0.0
+                for k in range(3):
+                    between_images[0, j + 1, k] = between_images[0, j, k] - 2.0 * height * mirrors.normal[mirror, k]
+            if not ok:
+                continue
+            ok = backtrace_one(mirrors, between_images, 0, between_sequences, m, False, x2[0], x2[1], x2[2],
+                               out.vertices, row, slot_first + 2, 1)
+            if not ok:
+                continue
+        cursor += 1
+        rx = a % n_receivers
+        out.order[row] = order
+        write_transmitter(row, ends, out)
+        out.vertices[row, slot_first + 1, 0] = x10
+        out.vertices[row, slot_first + 1, 1] = x11
+        out.vertices[row, slot_first + 1, 2] = x12
+        out.vertices[row, slot_second + 1, 0] = x2[0]
+        out.vertices[row, slot_second + 1, 1] = x2[1]
+        out.vertices[row, slot_second + 1, 2] = x2[2]
+        write_receiver_tail(row, order + 1, receivers[rx, 0], receivers[rx, 1], receivers[rx, 2], out)
+        for q in range(n_before):
+            write_mirror_slot(row, q, before.sequences[b, q], mirrors, out)
+        for q in range(n_between):
+            write_mirror_slot(row, slot_first + 1 + q, between_sequences[m, q], mirrors, out)
+        for q in range(n_after):
+            write_mirror_slot(row, slot_second + 1 + q, after.sequences[sequence_after, q], mirrors, out)
+        _write_curved_slot(row, slot_first, r1, first.normal[i], reflectors, out)
+        _write_curved_slot(row, slot_second, r2, n2, reflectors, out)
+        write_padding(row, order, out)
+        src, dst = candidates.source_image[i], candidates.receiver_image[i]
+        y0, y1, y2 = second.point[i, 0], second.point[i, 1], second.point[i, 2]
+        e0, e1, e2 = x10 - src[0], x11 - src[1], x12 - src[2]
+        f0, f1, f2 = y0 - x10, y1 - x11, y2 - x12
+        g0, g1, g2 = dst[0] - y0, dst[1] - y1, dst[2] - y2
+        out.length[row] = (math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) + math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+                           + math.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
+        out.spreading[row] = _ray_tube(src, dst, first, second, i, tube)
+        out.channel[row] = rx
+        out.chain[row] = layout.chain_base + (((b * layout.between_count + m) * layout.after_count + sequence_after)
+                                              * layout.reflector_count + r1) * layout.reflector_count + r2
+    return cursor
+
+
+__all__ = ("JointScratch", "JointSettings", "PairCandidates", "PairLayout", "fill_pairs", "joint_specular_points",
+           "pair_candidates")
