@@ -11,8 +11,8 @@ The compiled twins of :mod:`acoustisim.propagation.reference.pair_chains` and
    :func:`.curved_kernels.specular_points`), its stop rule applied per candidate, and the
    validity tests;
 3. :func:`fill_pairs`: X2 folded back, the planar points back-traced on the three stretches,
-   the ray-tube amplitude, each valid chain written into the solve's
-   :class:`~.chain_kernels.PaddedChains`.
+   the ray-tube amplitude (:func:`ray_tube_factors` evaluates it alone), each valid chain
+   written into the solve's :class:`~.chain_kernels.PaddedChains`.
 
 Same formulas as the reference, not the same operation order everywhere (4x4 systems by
 Gaussian elimination, 2x2 matrices written out): the rows agree to round-off. No ``fastmath``;
@@ -74,12 +74,14 @@ class PairCandidates(NamedTuple):
 class JointSettings(NamedTuple):
     """The joint Newton's limits: at most ``steps`` steps, stop once no point moves more than
     ``tolerance_m``; stationary if every gradient component is below ``stationary``; a
-    cylinder's point may lie ``end_tolerance_m`` beyond its ends."""
+    cylinder's point may lie ``end_tolerance_m`` beyond its ends; incidence cosines at least
+    ``min_cosine``."""
 
     steps: int
     tolerance_m: float
     stationary: float
     end_tolerance_m: float
+    min_cosine: float
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
@@ -379,7 +381,13 @@ def joint_specular_points(first_fields: tuple, second_fields: tuple, candidates_
             lit_x2 += (x[1, k] - x[0, k]) * nrm[0, k]
             lit_x1 += (x[0, k] - x[1, k]) * nrm[1, k]
             lit_b += (b[k] - x[1, k]) * nrm[1, k]
-        valid[i] = ok and lit_a > 0.0 and lit_x2 > 0.0 and lit_x1 > 0.0 and lit_b > 0.0
+        # not grazing: the incidence cosines (work.d holds the unit legs at the final points)
+        cos1, cos2 = 0.0, 0.0
+        for k in range(3):
+            cos1 -= work.d[0, k] * nrm[0, k]
+            cos2 -= work.d[1, k] * nrm[1, k]
+        valid[i] = (ok and lit_a > 0.0 and lit_x2 > 0.0 and lit_x1 > 0.0 and lit_b > 0.0
+                    and cos1 >= settings.min_cosine and cos2 >= settings.min_cosine)
         for p in range(2):
             for k in range(3):
                 point[p, i, k] = x[p, k]
@@ -413,8 +421,8 @@ def _reflect_tube(q: NDArray[np.float64], w: NDArray[np.float64], d: NDArray[np.
     """One reflection of the ray tube at specular point ``i`` of ``x`` and the leg after it:
     the incident curvature ``q`` (q00, q01, q11) in basis ``w`` (w1, w2 as six numbers) along
     unit ``d`` becomes the curvature at the leg's end in the outgoing basis (``q``, ``w``, ``d``
-    updated in place); returns the spreading factor det(I + r q_r)^(-1/2) of the leg (``leg``:
-    its vector)."""
+    updated in place); returns the spreading factor det(I + r q_r)^(-1/2) = |cos| / sqrt(det M)
+    of the leg (``leg``: its vector), without inverting T_r (see the reference's Method)."""
     r = math.sqrt(leg[0] * leg[0] + leg[1] * leg[1] + leg[2] * leg[2])
     o0, o1, o2 = leg[0] / r, leg[1] / r, leg[2] / r
     e10, e11, e12 = x.e1[i, 0], x.e1[i, 1], x.e1[i, 2]
@@ -433,27 +441,25 @@ def _reflect_tube(q: NDArray[np.float64], w: NDArray[np.float64], d: NDArray[np.
     s01 = t00 * u01 + t10 * u11 + 2.0 * cos_theta * x.k12[i]
     s11 = t01 * u01 + t11 * u11 + 2.0 * cos_theta * x.k22[i]
     _basis_into(w, o0, o1, o2)
-    # T_r = W_r^T E, inverted
+    # T_r = W_r^T E (det = +-cos(theta)), and M = T_r^T T_r + r S
     v00 = w[0] * e10 + w[1] * e11 + w[2] * e12
     v01 = w[0] * e20 + w[1] * e21 + w[2] * e22
     v10 = w[3] * e10 + w[4] * e11 + w[5] * e12
     v11 = w[3] * e20 + w[4] * e21 + w[5] * e22
-    det = v00 * v11 - v01 * v10
-    i00, i01, i10, i11 = v11 / det, -v01 / det, -v10 / det, v00 / det
-    # q_r = T_r^-T S T_r^-1
-    m00, m01 = s00 * i00 + s01 * i10, s00 * i01 + s01 * i11
-    m10, m11 = s01 * i00 + s11 * i10, s01 * i01 + s11 * i11
-    q00 = i00 * m00 + i10 * m10
-    q01 = i00 * m01 + i10 * m11
-    q11 = i01 * m01 + i11 * m11
-    # spreading over the leg, and the curvature at its end, q (I + r q)^-1
-    a00, a01, a11 = 1.0 + r * q00, r * q01, 1.0 + r * q11
-    spread = a00 * a11 - a01 * a01
-    q[0] = (q00 * a11 - q01 * a01) / spread
-    q[1] = (q01 * a00 - q00 * a01) / spread
-    q[2] = (q11 * a00 - q01 * a01) / spread
+    m00 = (v00 * v00 + v10 * v10) + r * s00
+    m01 = (v00 * v01 + v10 * v11) + r * s01
+    m11 = (v01 * v01 + v11 * v11) + r * s11
+    det = m00 * m11 - m01 * m01
+    cos_out = abs(o0 * x.normal[i, 0] + o1 * x.normal[i, 1] + o2 * x.normal[i, 2])
+    # the curvature at the leg's end, (I - T_r M^-1 T_r^T) / r
+    n00, n01, n11 = m11 / det, -m01 / det, m00 / det
+    a0, a1 = n00 * v00 + n01 * v01, n01 * v00 + n11 * v01
+    b0, b1 = n00 * v10 + n01 * v11, n01 * v10 + n11 * v11
+    q[0] = (1.0 - (v00 * a0 + v01 * a1)) / r
+    q[1] = -(v00 * b0 + v01 * b1) / r
+    q[2] = (1.0 - (v10 * b0 + v11 * b1)) / r
     d[0], d[1], d[2] = o0, o1, o2
-    return 1.0 / math.sqrt(spread)
+    return cos_out / math.sqrt(det)
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
@@ -489,6 +495,22 @@ def _ray_tube(a: NDArray[np.float64], b: NDArray[np.float64], first: SurfacePoin
         leg[k] = b[k] - second.point[i, k]
     amplitude *= _reflect_tube(q, w, d, second, i, leg)
     return amplitude
+
+
+@plain_tuple_arguments
+@njit(cache=True, nogil=True, error_model="numpy")
+def ray_tube_factors(rows: NDArray[np.int64], a: NDArray[np.float64], b: NDArray[np.float64], first_fields: tuple,
+                     second_fields: tuple) -> NDArray[np.float64]:
+    """The ray-tube factors (r,) of candidates ``rows`` (r,) of sources ``a``, receivers ``b``
+    (n, 3) and joint specular points ``first``, ``second`` (n of them): what :func:`fill_pairs`
+    writes as each chain's spreading."""
+    first, second = SurfacePoints(*first_fields), SurfacePoints(*second_fields)
+    out = np.empty(rows.shape[0])
+    tube = np.empty(15)
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        out[k] = _ray_tube(a[i], b[i], first, second, i, tube)
+    return out
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
@@ -613,4 +635,4 @@ def fill_pairs(mirrors_fields: tuple, before_fields: tuple, between_sequences: N
 
 
 __all__ = ("JointScratch", "JointSettings", "PairCandidates", "PairLayout", "fill_pairs", "joint_specular_points",
-           "pair_candidates")
+           "pair_candidates", "ray_tube_factors")

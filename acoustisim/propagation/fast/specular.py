@@ -29,8 +29,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, PAIR_NEWTON_STEPS, PAIR_NEWTON_TOLERANCE_M,
-                                          PAIR_STATIONARY_TOLERANCE, CurvedSet, SurfacePoints)
+from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, PAIR_MIN_COSINE, PAIR_NEWTON_STEPS,
+                                          PAIR_NEWTON_TOLERANCE_M, PAIR_STATIONARY_TOLERANCE, CurvedSet,
+                                          SurfacePoints)
 from acoustisim.propagation.fast.chain_kernels import (MIRROR_KIND, SMOOTH_KIND, ChainEnds, MaterialCodes, MirrorSide,
                                                        MixedCandidates, PaddedChains, ReflectorLabels, chain_legs,
                                                        duplicate_keys, fill_mixed, fill_planar, incidence_cosines,
@@ -225,7 +226,7 @@ def pair_chains(pose: Pose, prepared: PreparedScene, max_order: int, chain_base:
     second_start = specular_points(second, rows, start, every.receiver_image).point
     first_start = specular_points(first, rows, every.source_image, second_start).point
     settings = JointSettings(PAIR_NEWTON_STEPS, PAIR_NEWTON_TOLERANCE_M, PAIR_STATIONARY_TOLERANCE,
-                             CYLINDER_END_TOLERANCE_M)
+                             CYLINDER_END_TOLERANCE_M, PAIR_MIN_COSINE)
     x1, x2, valid = joint_specular_points(first, second, every, first_start, second_start, settings)
     chains = allocate(int(np.count_nonzero(valid)), max_order)
     labels = ReflectorLabels(np.array([r.surface for r in prepared.curved], dtype=np.int64),

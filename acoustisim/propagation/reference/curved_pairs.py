@@ -61,15 +61,23 @@ Method
    :data:`~acoustisim.propagation.curved.PAIR_NEWTON_STEPS` steps).
 3. A solution is kept if it is stationary (every gradient component below
    :data:`~acoustisim.propagation.curved.PAIR_STATIONARY_TOLERANCE`), each point is lit from
-   both of its neighbours (A and X2 in front of X1's tangent plane, X1 and B in front of X2's),
-   and a cylinder's point lies within its length (plus
-   :data:`~acoustisim.propagation.curved.CYLINDER_END_TOLERANCE_M`).
-4. The amplitude by the ray tube (:func:`ray_tube_amplitude`).
+   both of its neighbours (A and X2 in front of X1's tangent plane, X1 and B in front of X2's)
+   and not grazing (incidence cosine at least
+   :data:`~acoustisim.propagation.curved.PAIR_MIN_COSINE`), and a cylinder's point lies within
+   its length (plus :data:`~acoustisim.propagation.curved.CYLINDER_END_TOLERANCE_M`).
+4. The amplitude by the ray tube (:func:`ray_tube_amplitude`), each reflection evaluated without
+   inverting T_r (whose determinant is cos(theta): near grazing its inverse would multiply
+   round-off by 1 / cos^2): with S = T_r^T q_r T_r and M = T_r^T T_r + s S, the leg of length s
+   after it spreads the wave by det(I + s q_r)^(-1/2) = |cos(theta)| / sqrt(det M) and leaves
+   the curvature q_r (I + s q_r)^-1 = (I - T_r M^-1 T_r^T) / s at its end. For one reflection
+   this is the Hessian form of :mod:`.curved` (M = s H).
 
 Accuracy
 --------
 Geometric optics at each reflection: terms of order 1 / (k a) neglected (about 1e-4 for the
-thesis posts at 500 kHz), no creeping waves, no diffraction by a cylinder's ends (a point
+thesis posts at 500 kHz), no creeping waves, reflections within 0.06 degrees of grazing dropped
+(:data:`~acoustisim.propagation.curved.PAIR_MIN_COSINE`; GO fails well before, in the Fock
+transition region, where it is kept as for single reflections), no diffraction by a cylinder's ends (a point
 within the length reflects fully, one beyond it not at all), and the second surface must be in
 the far field of nothing: GO holds as long as each Fresnel zone fits on its surface. For two
 convex bodies the stationary path of a given sequence is a minimum of L (the Hessian is the
@@ -86,8 +94,9 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, PAIR_NEWTON_STEPS, PAIR_NEWTON_TOLERANCE_M,
-                                          PAIR_STATIONARY_TOLERANCE, CurvedSet, SurfacePoints)
+from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, PAIR_MIN_COSINE, PAIR_NEWTON_STEPS,
+                                          PAIR_NEWTON_TOLERANCE_M, PAIR_STATIONARY_TOLERANCE, CurvedSet,
+                                          SurfacePoints)
 from acoustisim.propagation.reference.curved import specular_points
 
 
@@ -224,6 +233,10 @@ def pair_specular_points(first: CurvedSet, second: CurvedSet, a: NDArray[np.floa
         stationary = np.all(np.abs(gradient) <= PAIR_STATIONARY_TOLERANCE, axis=1)
         lit = ((_dot(a - x1, p1.normal) > 0.0) & (_dot(x2 - x1, p1.normal) > 0.0)
                & (_dot(x1 - x2, p2.normal) > 0.0) & (_dot(b - x2, p2.normal) > 0.0))
+        # not grazing: the incidence cosines (the leg arriving at each point)
+        d0, _ = _unit(x1 - a)
+        d1, _ = _unit(x2 - x1)
+        lit &= (-_dot(d0, p1.normal) >= PAIR_MIN_COSINE) & (-_dot(d1, p2.normal) >= PAIR_MIN_COSINE)
     valid = stationary & lit & p1.valid & p2.valid
     return p1._replace(valid=valid), p2._replace(valid=valid), valid
 
@@ -249,16 +262,14 @@ def ray_tube_amplitude(source: NDArray[np.float64], reflections: Sequence[Surfac
     amplitude = 1.0 / r
     for x, (d_out, r_out) in zip(reflections, legs[1:]):
         tangent = _tangent(x)
-        incident = np.einsum("nki,nkj->nij", basis, tangent)  # W_i^T E
-        basis = transverse_basis(d_out)
-        inverse = np.linalg.inv(np.einsum("nki,nkj->nij", basis, tangent))  # (W_r^T E)^-1
-        cos_theta = -_dot(d, x.normal)
+        incident = np.einsum("nki,nkj->nij", basis, tangent)  # T_i = W_i^T E
         matched = (np.einsum("nki,nkl,nlj->nij", incident, curvature, incident)
-                   + 2.0 * cos_theta[:, None, None] * _curvature(x))
-        curvature = np.einsum("nki,nkl,nlj->nij", inverse, matched, inverse)
-        spread = np.eye(2) + r_out[:, None, None] * curvature
-        amplitude = amplitude / np.sqrt(np.linalg.det(spread))
-        curvature = curvature @ np.linalg.inv(spread)
+                   - 2.0 * _dot(d, x.normal)[:, None, None] * _curvature(x))  # S = T_r^T q_r T_r
+        basis = transverse_basis(d_out)
+        outgoing = np.einsum("nki,nkj->nij", basis, tangent)  # T_r = W_r^T E, det = +-cos(theta)
+        m = np.einsum("nki,nkj->nij", outgoing, outgoing) + r_out[:, None, None] * matched
+        amplitude = amplitude * np.abs(_dot(d_out, x.normal)) / np.sqrt(np.linalg.det(m))
+        curvature = (np.eye(2) - outgoing @ np.linalg.solve(m, np.swapaxes(outgoing, 1, 2))) / r_out[:, None, None]
         d = d_out
     return amplitude
 
