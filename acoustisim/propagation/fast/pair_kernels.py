@@ -100,6 +100,21 @@ def _reflect_direction(v: NDArray[np.float64], m: int, normal: NDArray[np.float6
         v[k] = v[k] - 2.0 * d * normal[m, k]
 
 
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _coaxial(curved: CurvedSet, r: int, centre: NDArray[np.float64], axis: NDArray[np.float64]) -> bool:
+    """Whether cylinder ``r``'s image (``centre``, ``axis``) lies on its own axis line (within
+    1e-9 m and 1e-12 rad): an object's side and its image's face away from each other wherever
+    the points are (a post across the floor or the surface), so no path joins them lit."""
+    if curved.is_sphere[r]:
+        return False
+    g0, g1, g2 = curved.frame[r, 2, 0], curved.frame[r, 2, 1], curved.frame[r, 2, 2]
+    c0, c1, c2 = g1 * axis[2] - g2 * axis[1], g2 * axis[0] - g0 * axis[2], g0 * axis[1] - g1 * axis[0]
+    o0, o1, o2 = centre[0] - curved.centre[r, 0], centre[1] - curved.centre[r, 1], centre[2] - curved.centre[r, 2]
+    along = o0 * g0 + o1 * g1 + o2 * g2
+    o0, o1, o2 = o0 - along * g0, o1 - along * g1, o2 - along * g2
+    return math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) < 1e-12 and math.sqrt(o0 * o0 + o1 * o1 + o2 * o2) < 1e-9
+
+
 @plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
 def pair_candidates(mirrors_fields: tuple, curved_fields: tuple, seen_by: NDArray[np.bool_], before_fields: tuple,
@@ -110,7 +125,9 @@ def pair_candidates(mirrors_fields: tuple, curved_fields: tuple, seen_by: NDArra
     the mirrors next to each reflector allowed by ``seen_by`` (c, m), and C1 != C2 when no
     mirror lies between, nested in that order
     (:func:`acoustisim.propagation.reference.pair_chains.pair_candidates`); with B and C2
-    unfolded across the mirrors between.
+    unfolded across the mirrors between. An object unfolded onto its own axis (:func:`_coaxial`)
+    is left out: the reference finds it invalid, and its degenerate start would take every
+    Newton step.
     """
     mirrors = MirrorArrays(*mirrors_fields)
     curved = CurvedSet(*curved_fields)
@@ -170,34 +187,25 @@ def pair_candidates(mirrors_fields: tuple, curved_fields: tuple, seen_by: NDArra
                             for p in range(3):
                                 _reflect_direction(second_frame[n, p], mirror, mirrors.normal)
                             _reflect_point(receiver_image[n], mirror, mirrors.point, mirrors.normal)
+                        if r1 == r2 and _coaxial(curved, r1, second_centre[n], second_frame[n, 2]):
+                            continue
                         n += 1
     return PairCandidates(before_row[:n], between_row[:n], after_row[:n], first[:n], second[:n], source_image[:n],
                           receiver_image[:n], second_centre[:n], second_frame[:n])
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
-def _unit_into(out: NDArray[np.float64], v0: float, v1: float, v2: float) -> float:
-    """``out`` (3,) = v / |v|; returns |v|."""
-    norm = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    out[0], out[1], out[2] = v0 / norm, v1 / norm, v2 / norm
-    return norm
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _surface_frame(curved: CurvedSet, row: int, x: NDArray[np.float64], normal: NDArray[np.float64],
-                   tangent: NDArray[np.float64], curvature: NDArray[np.float64], end_tolerance: float) -> bool:
-    """The local geometry of point ``x`` (3,) on primitive ``row`` of ``curved``: ``normal``
-    (3,), ``tangent`` (3, 2) = (e1, e2), ``curvature`` (2, 2) written; returns whether a
-    cylinder's point lies within its length
-    (:func:`acoustisim.propagation.reference.curved_pairs.surface_frame`)."""
-    sphere = curved.is_sphere[row]
-    centre, frame = curved.centre, curved.frame
-    radius = curved.radius[row]
-    r0, r1, r2 = x[0] - centre[row, 0], x[1] - centre[row, 1], x[2] - centre[row, 2]
-    g0, g1, g2 = frame[row, 2, 0], frame[row, 2, 1], frame[row, 2, 2]
+def _surface_frame(sphere: bool, c0: float, c1: float, c2: float, g0: float, g1: float, g2: float, x0: float,
+                   x1: float, x2: float) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+    """The local geometry of point x on a sphere (centre c) or a cylinder (centre c, axis g):
+    the outward normal, e1, e2 (sphere: any tangent pair; cylinder: around, along the axis) and
+    the axial coordinate (0 on a sphere), as
+    :func:`acoustisim.propagation.reference.curved_pairs.surface_frame`."""
+    r0, r1, r2 = x0 - c0, x1 - c1, x2 - c2
     along = 0.0 if sphere else r0 * g0 + r1 * g1 + r2 * g2
-    _unit_into(normal, r0 - along * g0, r1 - along * g1, r2 - along * g2)
-    n0, n1, n2 = normal[0], normal[1], normal[2]
+    m0, m1, m2 = r0 - along * g0, r1 - along * g1, r2 - along * g2
+    norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    n0, n1, n2 = m0 / norm, m1 / norm, m2 / norm
     if sphere:
         h0, h1 = (1.0, 0.0) if abs(n0) < 0.9 else (0.0, 1.0)
         t0, t1, t2 = n1 * 0.0 - n2 * h1, n2 * h0 - n0 * 0.0, n0 * h1 - n1 * h0
@@ -205,93 +213,60 @@ def _surface_frame(curved: CurvedSet, row: int, x: NDArray[np.float64], normal: 
         t0, t1, t2 = g1 * n2 - g2 * n1, g2 * n0 - g0 * n2, g0 * n1 - g1 * n0
     nt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
     t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
-    tangent[0, 0], tangent[1, 0], tangent[2, 0] = t0, t1, t2
     if sphere:
-        tangent[0, 1], tangent[1, 1], tangent[2, 1] = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0
+        u0, u1, u2 = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0
     else:
-        tangent[0, 1], tangent[1, 1], tangent[2, 1] = g0, g1, g2
-    curvature[0, 0] = 1.0 / radius
-    curvature[1, 1] = 1.0 / radius if sphere else 0.0
-    curvature[0, 1] = 0.0
-    curvature[1, 0] = 0.0
-    return sphere or abs(along) <= 0.5 * curved.length[row] + end_tolerance
+        u0, u1, u2 = g0, g1, g2
+    return n0, n1, n2, t0, t1, t2, u0, u1, u2, along
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _project(curved: CurvedSet, row: int, x: NDArray[np.float64]) -> None:
-    """``x`` (3,) moved radially onto primitive ``row`` of ``curved``, in place
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _project(sphere: bool, c0: float, c1: float, c2: float, g0: float, g1: float, g2: float, radius: float,
+             x0: float, x1: float, x2: float) -> tuple[float, float, float]:
+    """Point x moved radially onto the sphere or cylinder
     (:func:`acoustisim.propagation.reference.curved_pairs.project`)."""
-    sphere = curved.is_sphere[row]
-    centre, frame = curved.centre, curved.frame
-    r0, r1, r2 = x[0] - centre[row, 0], x[1] - centre[row, 1], x[2] - centre[row, 2]
-    g0, g1, g2 = frame[row, 2, 0], frame[row, 2, 1], frame[row, 2, 2]
+    r0, r1, r2 = x0 - c0, x1 - c1, x2 - c2
     along = 0.0 if sphere else r0 * g0 + r1 * g1 + r2 * g2
     m0, m1, m2 = r0 - along * g0, r1 - along * g1, r2 - along * g2
     norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    radius = curved.radius[row]
-    x[0] = centre[row, 0] + along * g0 + radius * (m0 / norm)
-    x[1] = centre[row, 1] + along * g1 + radius * (m1 / norm)
-    x[2] = centre[row, 2] + along * g2 + radius * (m2 / norm)
+    return (c0 + along * g0 + radius * (m0 / norm), c1 + along * g1 + radius * (m1 / norm),
+            c2 + along * g2 + radius * (m2 / norm))
 
 
-class JointScratch(NamedTuple):
-    """Work arrays of one joint solve (reused across candidates)."""
-
-    d: NDArray[np.float64]  # (3, 3) unit legs
-    r: NDArray[np.float64]  # (3,) leg lengths
-    projector: NDArray[np.float64]  # (3, 3, 3) (I - d d^T) / r of each leg
-    gradient: NDArray[np.float64]  # (4,)
-    hessian: NDArray[np.float64]  # (4, 4)
-    step: NDArray[np.float64]  # (4,)
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _unit(v0: float, v1: float, v2: float) -> tuple[float, float, float, float]:
+    """v / |v| and |v|."""
+    norm = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    return v0 / norm, v1 / norm, v2 / norm, norm
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _gradient_and_hessian(a: NDArray[np.float64], x1: NDArray[np.float64], x2: NDArray[np.float64],
-                          b: NDArray[np.float64], normal: NDArray[np.float64], tangent: NDArray[np.float64],
-                          curvature: NDArray[np.float64], work: JointScratch) -> None:
-    """Gradient and Hessian of L in the tangent coordinates (into ``work``), as
-    :func:`acoustisim.propagation.reference.curved_pairs.path_gradient_and_hessian`;
-    ``normal`` (2, 3), ``tangent`` (2, 3, 2), ``curvature`` (2, 2, 2) of X1 and X2."""
-    d, r, projector = work.d, work.r, work.projector
-    r[0] = _unit_into(d[0], x1[0] - a[0], x1[1] - a[1], x1[2] - a[2])
-    r[1] = _unit_into(d[1], x2[0] - x1[0], x2[1] - x1[1], x2[2] - x1[2])
-    r[2] = _unit_into(d[2], b[0] - x2[0], b[1] - x2[1], b[2] - x2[2])
-    for leg in range(3):
-        for i in range(3):
-            for j in range(3):
-                projector[leg, i, j] = ((1.0 if i == j else 0.0) - d[leg, i] * d[leg, j]) / r[leg]
-    for p in range(2):  # X1 (legs 0, 1), X2 (legs 1, 2)
-        coefficient = 0.0
-        for k in range(3):
-            coefficient += (d[p + 1, k] - d[p, k]) * normal[p, k]
-        for i in range(2):
-            g = 0.0
-            for k in range(3):
-                g += tangent[p, k, i] * (d[p, k] - d[p + 1, k])
-            work.gradient[2 * p + i] = g
-            for j in range(2):
-                h = 0.0
-                for k in range(3):
-                    for m in range(3):
-                        h += tangent[p, k, i] * (projector[p, k, m] + projector[p + 1, k, m]) * tangent[p, m, j]
-                work.hessian[2 * p + i, 2 * p + j] = h + coefficient * curvature[p, i, j]
-    for i in range(2):
-        for j in range(2):
-            h = 0.0
-            for k in range(3):
-                for m in range(3):
-                    h += tangent[0, k, i] * projector[1, k, m] * tangent[1, m, j]
-            work.hessian[i, 2 + j] = -h
-            work.hessian[2 + j, i] = -h
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _point_terms(e: NDArray[np.float64], d_in: NDArray[np.float64], r_in: float, d_out: NDArray[np.float64],
+                 r_out: float, normal: NDArray[np.float64], k11: float, k22: float, gradient: NDArray[np.float64],
+                 hessian: NDArray[np.float64], offset: int) -> None:
+    """One point's gradient E^T (d_in - d_out) and Hessian block
+    E^T ((I - d_in d_in^T) / r_in + (I - d_out d_out^T) / r_out) E + ((d_out - d_in) . n) K
+    (E = ``e`` rows e1, e2; K diagonal) into ``gradient[offset:offset + 2]`` and ``hessian``."""
+    coefficient = ((d_out[0] - d_in[0]) * normal[0] + (d_out[1] - d_in[1]) * normal[1]
+                   + (d_out[2] - d_in[2]) * normal[2])
+    p0 = e[0, 0] * d_in[0] + e[0, 1] * d_in[1] + e[0, 2] * d_in[2]
+    p1 = e[1, 0] * d_in[0] + e[1, 1] * d_in[1] + e[1, 2] * d_in[2]
+    q0 = e[0, 0] * d_out[0] + e[0, 1] * d_out[1] + e[0, 2] * d_out[2]
+    q1 = e[1, 0] * d_out[0] + e[1, 1] * d_out[1] + e[1, 2] * d_out[2]
+    gradient[offset] = p0 - q0
+    gradient[offset + 1] = p1 - q1
+    both = 1.0 / r_in + 1.0 / r_out
+    hessian[offset, offset] = both - p0 * p0 / r_in - q0 * q0 / r_out + coefficient * k11
+    hessian[offset + 1, offset + 1] = both - p1 * p1 / r_in - q1 * q1 / r_out + coefficient * k22
+    off = -p0 * p1 / r_in - q0 * q1 / r_out
+    hessian[offset, offset + 1] = off
+    hessian[offset + 1, offset] = off
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _solve4(hessian: NDArray[np.float64], gradient: NDArray[np.float64], step: NDArray[np.float64]) -> None:
-    """``step`` = ``hessian``^-1 ``gradient`` by Gaussian elimination with partial pivoting
-    (``hessian`` overwritten); 0 if a pivot is 0 or anything is not finite."""
-    a = hessian
-    for i in range(4):
-        step[i] = gradient[i]
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _solve4(a: NDArray[np.float64], step: NDArray[np.float64]) -> None:
+    """``step`` <- ``a``^-1 ``step`` by Gaussian elimination with partial pivoting (``a`` (4, 4)
+    overwritten); 0 if a pivot is 0 or anything is not finite (the reference's unsolvable rows)."""
     for col in range(4):
         pivot = col
         for row in range(col + 1, 4):
@@ -320,6 +295,15 @@ def _solve4(hessian: NDArray[np.float64], gradient: NDArray[np.float64], step: N
             return
 
 
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _clip(s0: float, s1: float, limit: float) -> tuple[float, float, float]:
+    """A tangent step scaled down to length <= ``limit``, and its length."""
+    norm = math.sqrt(s0 * s0 + s1 * s1)
+    scale = min(1.0, limit / (norm if norm > 0 else 1.0))
+    s0, s1 = s0 * scale, s1 * scale
+    return s0, s1, math.sqrt(s0 * s0 + s1 * s1)
+
+
 @plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
 def joint_specular_points(first_fields: tuple, second_fields: tuple, candidates_fields: tuple,
@@ -328,91 +312,121 @@ def joint_specular_points(first_fields: tuple, second_fields: tuple, candidates_
     """Joint specular points X1 on C1 and X2 on the unfolded C2 of each candidate (n), from the
     starts (n, 3), as :func:`acoustisim.propagation.reference.curved_pairs.pair_specular_points`
     (each candidate stops as soon as its own points stop moving). ``first`` and ``second`` are
-    :class:`CurvedSet` bundles with one row per candidate (C1, and C2 unfolded)."""
+    :class:`CurvedSet` bundles with one row per candidate (C1, and C2 unfolded).
+
+    One candidate at a time on scalars and small local arrays (bundle fields are unpacked once:
+    reading a tuple's array field inside the loop would cost a reference count each time).
+    """
+    sphere1, centre1, frame1, radius1, length1 = first_fields
+    sphere2, centre2, frame2, radius2, length2 = second_fields
     candidates = PairCandidates(*candidates_fields)
-    settings = JointSettings(*settings_fields)
+    source, receiver = candidates.source_image, candidates.receiver_image
+    steps, tolerance, stationary, end_tolerance, min_cosine = settings_fields
     n = first_start.shape[0]
-    # C1 and the unfolded C2 of each candidate as its own primitive row
-    first = CurvedSet(*first_fields)
-    second = CurvedSet(*second_fields)
     point = np.empty((2, n, 3))
     normal = np.empty((2, n, 3))
-    tangent = np.empty((2, n, 3, 2))
-    curvature = np.empty((2, n, 2, 2))
+    e1 = np.empty((2, n, 3))
+    e2 = np.empty((2, n, 3))
+    k11 = np.empty((2, n))
+    k22 = np.empty((2, n))
     valid = np.empty(n, dtype=np.bool_)
-    work = JointScratch(np.empty((3, 3)), np.empty(3), np.empty((3, 3, 3)), np.empty(4), np.empty((4, 4)),
-                        np.empty(4))
     x = np.empty((2, 3))
     nrm = np.empty((2, 3))
-    tan = np.empty((2, 3, 2))
-    kur = np.empty((2, 2, 2))
+    tangent = np.empty((2, 2, 3))  # point, (e1, e2), xyz
+    legs = np.empty((3, 3))
+    lengths = np.empty(3)
+    along = np.empty(2)
+    gradient = np.empty(4)
+    hessian = np.empty((4, 4))
+    step = np.empty(4)
     for i in range(n):
-        a, b = candidates.source_image[i], candidates.receiver_image[i]
+        sph = (sphere1[i], sphere2[i])
+        c = ((centre1[i, 0], centre1[i, 1], centre1[i, 2]), (centre2[i, 0], centre2[i, 1], centre2[i, 2]))
+        g = ((frame1[i, 2, 0], frame1[i, 2, 1], frame1[i, 2, 2]), (frame2[i, 2, 0], frame2[i, 2, 1], frame2[i, 2, 2]))
+        radius = (radius1[i], radius2[i])
+        k_along = (1.0 / radius[0] if sph[0] else 0.0, 1.0 / radius[1] if sph[1] else 0.0)
+        a0, a1, a2 = source[i, 0], source[i, 1], source[i, 2]
+        b0, b1, b2 = receiver[i, 0], receiver[i, 1], receiver[i, 2]
         for k in range(3):
             x[0, k], x[1, k] = first_start[i, k], second_start[i, k]
-        for _ in range(settings.steps):
-            _surface_frame(first, i, x[0], nrm[0], tan[0], kur[0], settings.end_tolerance_m)
-            _surface_frame(second, i, x[1], nrm[1], tan[1], kur[1], settings.end_tolerance_m)
-            _gradient_and_hessian(a, x[0], x[1], b, nrm, tan, kur, work)
-            _solve4(work.hessian, work.gradient, work.step)
+        for iteration in range(steps + 1):
+            for p in range(2):
+                (nrm[p, 0], nrm[p, 1], nrm[p, 2], tangent[p, 0, 0], tangent[p, 0, 1], tangent[p, 0, 2],
+                 tangent[p, 1, 0], tangent[p, 1, 1], tangent[p, 1, 2], along[p]) = _surface_frame(
+                    sph[p], c[p][0], c[p][1], c[p][2], g[p][0], g[p][1], g[p][2], x[p, 0], x[p, 1], x[p, 2])
+            legs[0, 0], legs[0, 1], legs[0, 2], lengths[0] = _unit(x[0, 0] - a0, x[0, 1] - a1, x[0, 2] - a2)
+            legs[1, 0], legs[1, 1], legs[1, 2], lengths[1] = _unit(x[1, 0] - x[0, 0], x[1, 1] - x[0, 1],
+                                                                   x[1, 2] - x[0, 2])
+            legs[2, 0], legs[2, 1], legs[2, 2], lengths[2] = _unit(b0 - x[1, 0], b1 - x[1, 1], b2 - x[1, 2])
+            _point_terms(tangent[0], legs[0], lengths[0], legs[1], lengths[1], nrm[0], 1.0 / radius[0], k_along[0],
+                         gradient, hessian, 0)
+            _point_terms(tangent[1], legs[1], lengths[1], legs[2], lengths[2], nrm[1], 1.0 / radius[1], k_along[1],
+                         gradient, hessian, 2)
+            if iteration == steps:
+                break  # the last pass only evaluates the gradient at the final points
+            for u in range(2):
+                for v in range(2):
+                    h = (tangent[0, u, 0] * tangent[1, v, 0] + tangent[0, u, 1] * tangent[1, v, 1]
+                         + tangent[0, u, 2] * tangent[1, v, 2])
+                    h -= ((tangent[0, u, 0] * legs[1, 0] + tangent[0, u, 1] * legs[1, 1] + tangent[0, u, 2] * legs[1, 2])
+                          * (tangent[1, v, 0] * legs[1, 0] + tangent[1, v, 1] * legs[1, 1]
+                             + tangent[1, v, 2] * legs[1, 2]))
+                    hessian[u, 2 + v] = -h / lengths[1]
+                    hessian[2 + v, u] = -h / lengths[1]
+            for k in range(4):
+                step[k] = gradient[k]
+            _solve4(hessian, step)
             moved = 0.0
             for p in range(2):
-                s0, s1 = work.step[2 * p], work.step[2 * p + 1]
-                norm = math.sqrt(s0 * s0 + s1 * s1)
-                limit = 0.5 * (first.radius[i] if p == 0 else second.radius[i])
-                scale = min(1.0, limit / (norm if norm > 0 else 1.0))
-                s0, s1 = s0 * scale, s1 * scale
-                for k in range(3):
-                    x[p, k] = x[p, k] - (tan[p, k, 0] * s0 + tan[p, k, 1] * s1)
-                moved = max(moved, math.sqrt(s0 * s0 + s1 * s1))
-            _project(first, i, x[0])
-            _project(second, i, x[1])
-            if not moved > settings.tolerance_m:
+                s0, s1, length = _clip(step[2 * p], step[2 * p + 1], 0.5 * radius[p])
+                moved = max(moved, length)
+                x[p, 0], x[p, 1], x[p, 2] = _project(
+                    sph[p], c[p][0], c[p][1], c[p][2], g[p][0], g[p][1], g[p][2], radius[p],
+                    x[p, 0] - (tangent[p, 0, 0] * s0 + tangent[p, 1, 0] * s1),
+                    x[p, 1] - (tangent[p, 0, 1] * s0 + tangent[p, 1, 1] * s1),
+                    x[p, 2] - (tangent[p, 0, 2] * s0 + tangent[p, 1, 2] * s1))
+            if not moved > tolerance:
+                # re-evaluate the frames and gradient at the final points, then stop
+                for p in range(2):
+                    (nrm[p, 0], nrm[p, 1], nrm[p, 2], tangent[p, 0, 0], tangent[p, 0, 1], tangent[p, 0, 2],
+                     tangent[p, 1, 0], tangent[p, 1, 1], tangent[p, 1, 2], along[p]) = _surface_frame(
+                        sph[p], c[p][0], c[p][1], c[p][2], g[p][0], g[p][1], g[p][2], x[p, 0], x[p, 1], x[p, 2])
+                legs[0, 0], legs[0, 1], legs[0, 2], lengths[0] = _unit(x[0, 0] - a0, x[0, 1] - a1, x[0, 2] - a2)
+                legs[1, 0], legs[1, 1], legs[1, 2], lengths[1] = _unit(x[1, 0] - x[0, 0], x[1, 1] - x[0, 1],
+                                                                       x[1, 2] - x[0, 2])
+                legs[2, 0], legs[2, 1], legs[2, 2], lengths[2] = _unit(b0 - x[1, 0], b1 - x[1, 1], b2 - x[1, 2])
+                _point_terms(tangent[0], legs[0], lengths[0], legs[1], lengths[1], nrm[0], 1.0 / radius[0],
+                             k_along[0], gradient, hessian, 0)
+                _point_terms(tangent[1], legs[1], lengths[1], legs[2], lengths[2], nrm[1], 1.0 / radius[1],
+                             k_along[1], gradient, hessian, 2)
                 break
-        within = _surface_frame(first, i, x[0], nrm[0], tan[0], kur[0], settings.end_tolerance_m)
-        within = _surface_frame(second, i, x[1], nrm[1], tan[1], kur[1], settings.end_tolerance_m) and within
-        _gradient_and_hessian(a, x[0], x[1], b, nrm, tan, kur, work)
-        ok = within
+        ok = (sph[0] or abs(along[0]) <= 0.5 * length1[i] + end_tolerance) and (
+            sph[1] or abs(along[1]) <= 0.5 * length2[i] + end_tolerance)
         for k in range(4):
-            ok = ok and abs(work.gradient[k]) <= settings.stationary
-        lit_a, lit_x2, lit_x1, lit_b = 0.0, 0.0, 0.0, 0.0
+            ok = ok and abs(gradient[k]) <= stationary
+        # lit from both neighbours, and not grazing (the incidence cosines of the arriving legs)
+        lit_a = (a0 - x[0, 0]) * nrm[0, 0] + (a1 - x[0, 1]) * nrm[0, 1] + (a2 - x[0, 2]) * nrm[0, 2]
+        lit_x2, lit_x1 = 0.0, 0.0
         for k in range(3):
-            lit_a += (a[k] - x[0, k]) * nrm[0, k]
             lit_x2 += (x[1, k] - x[0, k]) * nrm[0, k]
             lit_x1 += (x[0, k] - x[1, k]) * nrm[1, k]
-            lit_b += (b[k] - x[1, k]) * nrm[1, k]
-        # not grazing: the incidence cosines (work.d holds the unit legs at the final points)
-        cos1, cos2 = 0.0, 0.0
-        for k in range(3):
-            cos1 -= work.d[0, k] * nrm[0, k]
-            cos2 -= work.d[1, k] * nrm[1, k]
+        lit_b = (b0 - x[1, 0]) * nrm[1, 0] + (b1 - x[1, 1]) * nrm[1, 1] + (b2 - x[1, 2]) * nrm[1, 2]
+        cos1 = -(legs[0, 0] * nrm[0, 0] + legs[0, 1] * nrm[0, 1] + legs[0, 2] * nrm[0, 2])
+        cos2 = -(legs[1, 0] * nrm[1, 0] + legs[1, 1] * nrm[1, 1] + legs[1, 2] * nrm[1, 2])
         valid[i] = (ok and lit_a > 0.0 and lit_x2 > 0.0 and lit_x1 > 0.0 and lit_b > 0.0
-                    and cos1 >= settings.min_cosine and cos2 >= settings.min_cosine)
+                    and cos1 >= min_cosine and cos2 >= min_cosine)
         for p in range(2):
             for k in range(3):
                 point[p, i, k] = x[p, k]
                 normal[p, i, k] = nrm[p, k]
-                tangent[p, i, k, 0], tangent[p, i, k, 1] = tan[p, k, 0], tan[p, k, 1]
-            curvature[p, i] = kur[p]
+                e1[p, i, k] = tangent[p, 0, k]
+                e2[p, i, k] = tangent[p, 1, k]
+            k11[p, i] = 1.0 / radius[p]
+            k22[p, i] = k_along[p]
     zero = np.zeros(n)
-    first_points = SurfacePoints(point[0], normal[0], valid, np.ascontiguousarray(tangent[0, :, :, 0]),
-                                 np.ascontiguousarray(tangent[0, :, :, 1]), curvature[0, :, 0, 0].copy(),
-                                 curvature[0, :, 1, 1].copy(), zero)
-    second_points = SurfacePoints(point[1], normal[1], valid, np.ascontiguousarray(tangent[1, :, :, 0]),
-                                  np.ascontiguousarray(tangent[1, :, :, 1]), curvature[1, :, 0, 0].copy(),
-                                  curvature[1, :, 1, 1].copy(), zero)
+    first_points = SurfacePoints(point[0], normal[0], valid, e1[0], e2[0], k11[0], k22[0], zero)
+    second_points = SurfacePoints(point[1], normal[1], valid, e1[1], e2[1], k11[1], k22[1], zero)
     return first_points, second_points, valid
-
-
-@njit(cache=True, nogil=True, inline="always", error_model="numpy")
-def _basis(d0: float, d1: float, d2: float) -> tuple[float, float, float, float, float, float]:
-    """An orthonormal basis (w1, w2) of the plane normal to the unit vector d, as
-    :func:`acoustisim.propagation.reference.curved_pairs.transverse_basis`."""
-    h0, h1 = (1.0, 0.0) if abs(d0) < 0.9 else (0.0, 1.0)
-    c0, c1, c2 = d1 * 0.0 - d2 * h1, d2 * h0 - d0 * 0.0, d0 * h1 - d1 * h0
-    norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-    w0, w1, w2 = c0 / norm, c1 / norm, c2 / norm
-    return w0, w1, w2, d1 * w2 - d2 * w1, d2 * w0 - d0 * w2, d0 * w1 - d1 * w0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -634,5 +648,5 @@ def fill_pairs(mirrors_fields: tuple, before_fields: tuple, between_sequences: N
     return cursor
 
 
-__all__ = ("JointScratch", "JointSettings", "PairCandidates", "PairLayout", "fill_pairs", "joint_specular_points",
+__all__ = ("JointSettings", "PairCandidates", "PairLayout", "fill_pairs", "joint_specular_points",
            "pair_candidates", "ray_tube_factors")
