@@ -165,5 +165,5 @@ def reflect_primitives(curved: CurvedSet, plane_point: NDArray[np.float64],
 
 
 __all__ = ("CYLINDER_END_TOLERANCE_M", "CurvedSet", "NEWTON_STEPS", "NEWTON_TOLERANCE_RAD", "PAIR_MIN_COSINE",
-           "PAIR_NEWTON_STEPS", "PAIR_NEWTON_TOLERANCE_M", "PAIR_STATIONARY_TOLERANCE", "SurfacePoints", "cylinder_frame",
-           "reflect_primitives")
+           "PAIR_NEWTON_STEPS", "PAIR_NEWTON_TOLERANCE_M", "PAIR_STATIONARY_TOLERANCE", "SurfacePoints",
+           "cylinder_frame", "reflect_primitives")

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
 from acoustisim.medium import Medium
 from acoustisim.propagation import SolverConfig, prepare, solve

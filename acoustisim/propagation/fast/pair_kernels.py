@@ -368,9 +368,11 @@ def joint_specular_points(first_fields: tuple, second_fields: tuple, candidates_
                 for v in range(2):
                     h = (tangent[0, u, 0] * tangent[1, v, 0] + tangent[0, u, 1] * tangent[1, v, 1]
                          + tangent[0, u, 2] * tangent[1, v, 2])
-                    h -= ((tangent[0, u, 0] * legs[1, 0] + tangent[0, u, 1] * legs[1, 1] + tangent[0, u, 2] * legs[1, 2])
-                          * (tangent[1, v, 0] * legs[1, 0] + tangent[1, v, 1] * legs[1, 1]
-                             + tangent[1, v, 2] * legs[1, 2]))
+                    along_first = (tangent[0, u, 0] * legs[1, 0] + tangent[0, u, 1] * legs[1, 1]
+                                   + tangent[0, u, 2] * legs[1, 2])
+                    along_second = (tangent[1, v, 0] * legs[1, 0] + tangent[1, v, 1] * legs[1, 1]
+                                    + tangent[1, v, 2] * legs[1, 2])
+                    h -= along_first * along_second
                     hessian[u, 2 + v] = -h / lengths[1]
                     hessian[2 + v, u] = -h / lengths[1]
             for k in range(4):
@@ -539,6 +541,21 @@ def _write_curved_slot(row: int, slot: int, r: int, normal: NDArray[np.float64],
     out.material[row, slot] = r
 
 
+class PairSplit(NamedTuple):
+    """The mirror stretches of one split: the before side (sequences from the transmitter with
+    its images), the between sequences (s, n_between), the after side (sequences in path order
+    with each receiver's images read backwards, ``n_receivers`` rows per sequence)."""
+
+    before_sequences: NDArray[np.int64]
+    before_images: NDArray[np.float64]
+    before_unfolded: NDArray[np.bool_]
+    between_sequences: NDArray[np.int64]
+    after_sequences: NDArray[np.int64]
+    after_images: NDArray[np.float64]
+    after_unfolded: NDArray[np.bool_]
+    n_receivers: int
+
+
 class PairLayout(NamedTuple):
     """Chain numbering of one split: ``chain_base + (((before * between_count + between) *
     after_count + after) * reflector_count + C1) * reflector_count + C2``."""
@@ -551,15 +568,18 @@ class PairLayout(NamedTuple):
 
 @plain_tuple_arguments
 @njit(cache=True, nogil=True, error_model="numpy")
-def fill_pairs(mirrors_fields: tuple, before_fields: tuple, between_sequences: NDArray[np.int64], after_fields: tuple,
-               n_receivers: int, candidates_fields: tuple, first_fields: tuple, second_fields: tuple, valid: NDArray[np.bool_],
-               reflectors_fields: tuple, layout_fields: tuple, ends_fields: tuple, out_fields: tuple, cursor: int) -> int:
+def fill_pairs(mirrors_fields: tuple, split_fields: tuple, candidates_fields: tuple, first_fields: tuple,
+               second_fields: tuple, reflectors_fields: tuple, layout_fields: tuple, ends_fields: tuple,
+               out_fields: tuple, cursor: int) -> int:
     """The chains of one split's ``candidates`` through their joint specular points (``first``,
-    ``second``: X1 and the unfolded X2) that are ``valid`` and whose planar points back-trace
+    ``second``: X1 and the unfolded X2) that are valid and whose planar points back-trace
     validly on the three stretches, written from row ``cursor`` of ``out`` with their length
     |X1 - A| + |X2 - X1| + |B - X2| and ray-tube amplitude. Returns the next free row."""
     mirrors = MirrorArrays(*mirrors_fields)
-    before, after = MirrorSide(*before_fields), MirrorSide(*after_fields)
+    split = PairSplit(*split_fields)
+    before = MirrorSide(split.before_sequences, split.before_images, split.before_unfolded)
+    after = MirrorSide(split.after_sequences, split.after_images, split.after_unfolded)
+    between_sequences, n_receivers = split.between_sequences, split.n_receivers
     candidates = PairCandidates(*candidates_fields)
     first, second = SurfacePoints(*first_fields), SurfacePoints(*second_fields)
     reflectors = ReflectorLabels(*reflectors_fields)
@@ -575,6 +595,7 @@ def fill_pairs(mirrors_fields: tuple, before_fields: tuple, between_sequences: N
     x2 = np.empty(3)
     n2 = np.empty(3)
     tube = np.empty(15)
+    valid = first.valid
     for i in range(candidates.before.shape[0]):
         if not valid[i]:
             continue
@@ -648,5 +669,5 @@ def fill_pairs(mirrors_fields: tuple, before_fields: tuple, between_sequences: N
     return cursor
 
 
-__all__ = ("JointSettings", "PairCandidates", "PairLayout", "fill_pairs", "joint_specular_points",
+__all__ = ("JointSettings", "PairCandidates", "PairLayout", "PairSplit", "fill_pairs", "joint_specular_points",
            "pair_candidates", "ray_tube_factors")

@@ -38,8 +38,8 @@ from acoustisim.propagation.fast.chain_kernels import (MIRROR_KIND, SMOOTH_KIND,
                                                        mixed_candidates, occlusion_queries32, path_columns,
                                                        unblocked_chains, vertex_groups, write_rows)
 from acoustisim.propagation.fast.curved_kernels import go_factors, specular_points
-from acoustisim.propagation.fast.pair_kernels import (JointSettings, PairCandidates, PairLayout, fill_pairs,
-                                                      joint_specular_points, pair_candidates)
+from acoustisim.propagation.fast.pair_kernels import (JointSettings, PairCandidates, PairLayout, PairSplit,
+                                                      fill_pairs, joint_specular_points, pair_candidates)
 from acoustisim.propagation.fast.mirror_kernels import (MirrorArrays, backtrace_chains, mirror_arrays, unfold_chains,
                                                         unfold_reversed)
 from acoustisim.propagation.image_source import PlanarMirrors
@@ -235,10 +235,9 @@ def pair_chains(pose: Pose, prepared: PreparedScene, max_order: int, chain_base:
     for (n_before, n_between, n_after), split in zip(splits, candidates):
         hi = lo + split.first.size
         layout = PairLayout(chain_base, between[n_between].shape[0], after[n_after].sequences.shape[0], n_reflectors)
-        cursor = fill_pairs(arrays, before[n_before], between[n_between], after[n_after], n_receivers, split,
-                            SurfacePoints(*(field[lo:hi] for field in x1)),
-                            SurfacePoints(*(field[lo:hi] for field in x2)), valid[lo:hi], labels, layout, ends,
-                            chains, cursor)
+        sides_of_split = PairSplit(*before[n_before], between[n_between], *after[n_after], n_receivers)
+        cursor = fill_pairs(arrays, sides_of_split, split, SurfacePoints(*(field[lo:hi] for field in x1)),
+                            SurfacePoints(*(field[lo:hi] for field in x2)), labels, layout, ends, chains, cursor)
         chain_base += (before[n_before].sequences.shape[0] * between[n_between].shape[0]
                        * after[n_after].sequences.shape[0] * n_reflectors ** 2)
         lo = hi
