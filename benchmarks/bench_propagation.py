@@ -50,6 +50,7 @@ import numpy as np
 
 _FIGURES = {
     "specular_rows": "specular_rows alone (no solve overhead)",
+    "specular_rows one curved": "specular_rows alone, max_curved_per_path = 1 (no chains between two objects)",
     "specular": "specular only (direct + specular)",
     "edges": "edges only graded edges",
     "both": "both (direct + specular + edges) graded edges",
@@ -66,17 +67,26 @@ def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
     return float(np.median(times))
 
 
-def _specular_rows_function():
+def _specular_rows_function(max_curved_per_path: int | None = None):
     """``specular_rows(context, prepared, max_order)`` of the tree on the path: this tree's fast
     engine, or the top-level module of a tree from before the engines were split (the
-    ``--before-tree`` side of the A/B)."""
+    ``--before-tree`` side of the A/B). Trees that know ``max_curved_per_path`` get the given
+    value (None: the ``SolverConfig`` default); for trees that do not, a value other than None
+    gives None (no such figure)."""
     import importlib
+    import inspect
+
+    from acoustisim.propagation import SolverConfig
 
     for module in ("acoustisim.propagation.fast.specular", "acoustisim.propagation.specular"):
         try:
-            return importlib.import_module(module).specular_rows
+            specular_rows = importlib.import_module(module).specular_rows
         except ModuleNotFoundError:
             continue
+        if "max_curved_per_path" in inspect.signature(specular_rows).parameters:
+            knob = SolverConfig().max_curved_per_path if max_curved_per_path is None else max_curved_per_path
+            return lambda context, prepared, max_order: specular_rows(context, prepared, max_order, knob)
+        return specular_rows if max_curved_per_path is None else None
     raise ModuleNotFoundError("no specular_rows in this tree")
 
 
@@ -92,6 +102,11 @@ def _per_pose(prepared, repeats: int, fine: bool) -> dict[str, tuple[float, int]
     context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
     out = {"specular_rows": (_median_time(lambda: specular_rows(context, prepared, 3), repeats, time.process_time),
                              len(specular_rows(context, prepared, 3)))}
+    one_curved = _specular_rows_function(1)
+    if one_curved is not None:
+        out["specular_rows one curved"] = (
+            _median_time(lambda: one_curved(context, prepared, 3), repeats, time.process_time),
+            len(one_curved(context, prepared, 3)))
     cases = [("specular", ("direct", "specular"), True), ("edges", ("edge",), True),
              ("both", ("direct", "specular", "edge"), True)]
     if fine:
@@ -145,8 +160,13 @@ def _before_and_after(args) -> None:
     print(f"  A/B against {trees['before']}: per-pose CPU medians, median over {args.rounds} alternating "
           f"subprocess rounds of {max(3, args.repeats)} repeats each:")
     for key, label in _FIGURES.items():
-        before = float(np.median([run[key][0] for run in runs["before"]]))
+        if key not in runs["now"][0]:
+            continue
         now = float(np.median([run[key][0] for run in runs["now"]]))
+        if key not in runs["before"][0]:
+            print(f"    {label}: now {now * 1e3:.2f} ms ({runs['now'][0][key][1]} rows; not in the older tree)")
+            continue
+        before = float(np.median([run[key][0] for run in runs["before"]]))
         rows = (runs["before"][0][key][1], runs["now"][0][key][1])
         print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, before / now = "
               f"{before / now:.2f} (rows {rows[0]} / {rows[1]})")

@@ -8,6 +8,9 @@ from dataclasses import dataclass
 from acoustisim.errors import InputError
 from acoustisim.propagation.paths import MAX_INTERACTIONS
 
+MAX_CURVED_PER_PATH = 2
+"""The most curved reflections a specular path may hold (``SolverConfig.max_curved_per_path``)."""
+
 MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge", "diffuse")
 """Every mechanism name :func:`acoustisim.propagation.solve` knows."""
 
@@ -65,6 +68,14 @@ class SolverConfig:
         "fast" (default) or "reference": which engine computes the rows
         (:mod:`acoustisim.propagation.engine`). Both give the same rows; the reference engine
         is the readable one, the fast one the one to run.
+    max_curved_per_path : int
+        Most reflections on curved surfaces per specular path, within ``max_order``: 2
+        (default) adds the chains between two objects (post to post, post via a wall or the
+        floor to another post or back to itself, sphere to post: two curved primitives with
+        planar mirrors before, between and after them; :mod:`acoustisim.propagation.reference.curved_pairs`);
+        1 keeps at most one curved surface (a sphere, a cylinder's side or a smooth mesh) per
+        path. Planar reflections (walls, floor, surface, facets of polyhedra, cylinder caps)
+        are not counted.
     """
 
     max_order: int = 3
@@ -79,6 +90,7 @@ class SolverConfig:
     threads: int | None = None
     diffuse_visibility: str = "exact"
     backend: str = "fast"
+    max_curved_per_path: int = 2
 
     def __post_init__(self) -> None:
         def integer(name: str, minimum: int) -> None:
@@ -90,6 +102,12 @@ class SolverConfig:
         if self.max_order > MAX_INTERACTIONS:
             raise InputError(
                 f"solver.max_order = {self.max_order!r}: at most {MAX_INTERACTIONS} (interaction points stored per path)"
+            )
+        integer("max_curved_per_path", 1)
+        if self.max_curved_per_path > MAX_CURVED_PER_PATH:
+            raise InputError(
+                f"solver.max_curved_per_path = {self.max_curved_per_path!r}: at most {MAX_CURVED_PER_PATH} "
+                "(chains through three curved surfaces are not modelled)"
             )
         integer("diffuse_rays", 0)
         integer("diffuse_bounces", 1)
@@ -140,4 +158,4 @@ class SolverConfig:
             raise InputError(f"solver.backend = {self.backend!r}: must be one of {', '.join(BACKENDS)}")
 
 
-__all__ = ["BACKENDS", "MECHANISMS", "SolverConfig", "VISIBILITY_MODES"]
+__all__ = ["BACKENDS", "MAX_CURVED_PER_PATH", "MECHANISMS", "SolverConfig", "VISIBILITY_MODES"]

@@ -42,8 +42,10 @@ class Engine(Protocol):
     def direct_rows(self, context: SolveContext) -> NDArray[Any]:
         """Unblocked transmitter-to-receiver rows."""
 
-    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
-        """Specular chains of 1..``max_order`` reflections on planar and curved surfaces."""
+    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int,
+                      max_curved_per_path: int) -> NDArray[Any]:
+        """Specular chains of 1..``max_order`` reflections on planar and curved surfaces, at most
+        ``max_curved_per_path`` of them curved."""
 
     def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
         """First-order edge diffraction (discretised BTM line integrals) of every sharp edge."""

@@ -121,7 +121,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         if mechanism == "direct":
             rows = engine.direct_rows(mechanism_context)
         elif mechanism == "specular":
-            rows = engine.specular_rows(mechanism_context, prepared, config.max_order)
+            rows = engine.specular_rows(mechanism_context, prepared, config.max_order, config.max_curved_per_path)
         elif mechanism == "edge":
             rows = engine.edge_rows(mechanism_context, config, prepared)
         else:

@@ -28,7 +28,8 @@ def _engine_parts(prepared, context: SolveContext, config: SolverConfig) -> list
     """The fast engine's mechanism parts of one pose, in the solver's order and numbering."""
     engine = FastEngine()
     out, next_id = [], 0
-    for make in (lambda c: engine.direct_rows(c), lambda c: engine.specular_rows(c, prepared, config.max_order),
+    for make in (lambda c: engine.direct_rows(c),
+                 lambda c: engine.specular_rows(c, prepared, config.max_order, config.max_curved_per_path),
                  lambda c: engine.edge_rows(c, config, prepared), lambda c: engine.diffuse_rows(c, config, prepared)):
         rows = make(context.with_first_path_id(next_id))
         out.append(rows)

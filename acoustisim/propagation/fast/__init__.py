@@ -35,10 +35,11 @@ class FastEngine:
 
         return direct_rows(context)
 
-    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int,
+                      max_curved_per_path: int) -> NDArray[Any]:
         from acoustisim.propagation.fast.specular import specular_rows
 
-        return specular_rows(context, prepared, max_order)
+        return specular_rows(context, prepared, max_order, max_curved_per_path)
 
     def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
         from acoustisim.propagation.fast.edges import edge_rows

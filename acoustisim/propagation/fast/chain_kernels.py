@@ -202,7 +202,7 @@ def path_columns(rows: NDArray[Any]) -> PathColumns:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _write_mirror_slot(row: int, slot: int, m: int, mirrors: MirrorArrays, out: PaddedChains) -> None:
+def write_mirror_slot(row: int, slot: int, m: int, mirrors: MirrorArrays, out: PaddedChains) -> None:
     out.surface[row, slot] = mirrors.surface[m]
     out.patch[row, slot] = mirrors.patch[m]
     out.normal[row, slot, 0] = mirrors.normal[m, 0]
@@ -213,7 +213,7 @@ def _write_mirror_slot(row: int, slot: int, m: int, mirrors: MirrorArrays, out: 
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _write_padding(row: int, first: int, out: PaddedChains) -> None:
+def write_padding(row: int, first: int, out: PaddedChains) -> None:
     """The padding values in reflection slots ``first``.. of a row."""
     for q in range(first, out.surface.shape[1]):
         out.surface[row, q] = -1
@@ -224,7 +224,7 @@ def _write_padding(row: int, first: int, out: PaddedChains) -> None:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _write_receiver_tail(row: int, first: int, r0: float, r1: float, r2: float, out: PaddedChains) -> None:
+def write_receiver_tail(row: int, first: int, r0: float, r1: float, r2: float, out: PaddedChains) -> None:
     """The receiver in vertex slots ``first``.. (the real one and the padding)."""
     vertices = out.vertices
     for q in range(first, vertices.shape[1]):
@@ -232,7 +232,7 @@ def _write_receiver_tail(row: int, first: int, r0: float, r1: float, r2: float, 
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _write_transmitter(row: int, ends: ChainEnds, out: PaddedChains) -> None:
+def write_transmitter(row: int, ends: ChainEnds, out: PaddedChains) -> None:
     out.vertices[row, 0, 0] = ends.transmitter[0]
     out.vertices[row, 0, 1] = ends.transmitter[1]
     out.vertices[row, 0, 2] = ends.transmitter[2]
@@ -267,11 +267,11 @@ def fill_planar(mirrors_fields: tuple, side_fields: tuple, chain_base: int, ends
                 continue
             cursor += 1
             out.order[row] = k
-            _write_transmitter(row, ends, out)
-            _write_receiver_tail(row, k + 1, r0, r1, r2, out)
+            write_transmitter(row, ends, out)
+            write_receiver_tail(row, k + 1, r0, r1, r2, out)
             for q in range(k):
-                _write_mirror_slot(row, q, sequences[j, q], mirrors, out)
-            _write_padding(row, k, out)
+                write_mirror_slot(row, q, sequences[j, q], mirrors, out)
+            write_padding(row, k, out)
             e0, e1, e2 = images[j, k, 0] - r0, images[j, k, 1] - r1, images[j, k, 2] - r2
             length = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
             out.length[row] = length
@@ -380,13 +380,13 @@ def fill_mixed(mirrors_fields: tuple, before_fields: tuple, after_fields: tuple,
         cursor += 1
         rx = a % n_receivers
         out.order[row] = order
-        _write_transmitter(row, ends, out)
+        write_transmitter(row, ends, out)
         out.vertices[row, n_before + 1, 0] = x0
         out.vertices[row, n_before + 1, 1] = x1
         out.vertices[row, n_before + 1, 2] = x2
-        _write_receiver_tail(row, order + 1, receivers[rx, 0], receivers[rx, 1], receivers[rx, 2], out)
+        write_receiver_tail(row, order + 1, receivers[rx, 0], receivers[rx, 1], receivers[rx, 2], out)
         for q in range(n_before):
-            _write_mirror_slot(row, q, before.sequences[b, q], mirrors, out)
+            write_mirror_slot(row, q, before.sequences[b, q], mirrors, out)
         out.surface[row, n_before] = reflectors.surface[r]
         out.patch[row, n_before] = reflectors.patch[r]
         out.normal[row, n_before, 0] = x_normal[i, 0]
@@ -395,8 +395,8 @@ def fill_mixed(mirrors_fields: tuple, before_fields: tuple, after_fields: tuple,
         out.kind[row, n_before] = CURVED_KIND
         out.material[row, n_before] = r
         for q in range(n_after):
-            _write_mirror_slot(row, n_before + 1 + q, after.sequences[sequence_after, q], mirrors, out)
-        _write_padding(row, order, out)
+            write_mirror_slot(row, n_before + 1 + q, after.sequences[sequence_after, q], mirrors, out)
+        write_padding(row, order, out)
         e0, e1, e2 = x0 - a_end[i, 0], x1 - a_end[i, 1], x2 - a_end[i, 2]
         f0, f1, f2 = x0 - b_end[i, 0], x1 - b_end[i, 1], x2 - b_end[i, 2]
         out.length[row] = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) + math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
@@ -635,4 +635,5 @@ def occlusion_queries32(legs_fields: tuple, shift: NDArray[np.float64], eps: flo
 __all__ = ("CURVED_KIND", "ChainEnds", "ChainLegs", "MIRROR_KIND", "MaterialCodes", "MirrorSide", "MixedCandidates",
            "OcclusionQueries", "PaddedChains", "PathColumns", "ReflectorLabels", "SMOOTH_KIND", "chain_legs",
            "duplicate_keys", "fill_mixed", "fill_planar", "incidence_cosines", "mixed_candidates",
-           "occlusion_queries32", "path_columns", "unblocked_chains", "vertex_groups", "write_rows")
+           "occlusion_queries32", "path_columns", "unblocked_chains", "vertex_groups", "write_mirror_slot",
+           "write_padding", "write_receiver_tail", "write_rows", "write_transmitter")

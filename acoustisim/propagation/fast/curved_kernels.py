@@ -5,7 +5,9 @@ The compiled twins of :func:`acoustisim.propagation.reference.curved.specular_po
 order, one loop iteration per candidate (norms summed x + y + z as ``np.linalg.norm``, dot
 products (x + z) + y as ``np.einsum``). :func:`circle_newton` stops stepping a row once a step
 leaves its angle unchanged (every later step would be the same), which gives the result of
-stepping every row until none moves. No ``fastmath``.
+stepping every row until none moves. No ``fastmath``. Division follows IEEE (``error_model="numpy"``),
+as in numpy: a degenerate pair (an end on a cylinder's axis line, a start on the axis of an image
+of the same cylinder) gives NaN and an invalid point, not an exception.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, NEWTON_STEP
                                           SurfacePoints)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def circle_newton(ax: NDArray[np.float64], ay: NDArray[np.float64], bx: NDArray[np.float64],
                   by: NDArray[np.float64], rad: NDArray[np.float64], phi: NDArray[np.float64],
                   max_steps: int, tol: float) -> NDArray[np.float64]:
@@ -79,7 +81,7 @@ def _norm3(x0: float, x1: float, x2: float) -> float:
 
 
 @plain_tuple_arguments
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def primitive_specular_points(curved_fields: tuple, which: NDArray[np.int64], a: NDArray[np.float64],
                               b: NDArray[np.float64], max_steps: int, tol: float, end_tolerance: float
                               ) -> SurfacePoints:

@@ -17,7 +17,8 @@ what follows is one pass over all of them:
 * the rows written by one compiled loop.
 
 The mixed chains of every split share one specular-point solve and one geometric-optics
-evaluation.
+evaluation; the chains through two curved primitives (:mod:`.pair_kernels`) share one joint
+solve over every split, started from three batched single-surface solves.
 """
 
 from __future__ import annotations
@@ -28,19 +29,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.curved import SurfacePoints
+from acoustisim.propagation.curved import (CYLINDER_END_TOLERANCE_M, PAIR_MIN_COSINE, PAIR_NEWTON_STEPS,
+                                          PAIR_NEWTON_TOLERANCE_M, PAIR_STATIONARY_TOLERANCE, CurvedSet,
+                                          SurfacePoints)
 from acoustisim.propagation.fast.chain_kernels import (MIRROR_KIND, SMOOTH_KIND, ChainEnds, MaterialCodes, MirrorSide,
                                                        MixedCandidates, PaddedChains, ReflectorLabels, chain_legs,
                                                        duplicate_keys, fill_mixed, fill_planar, incidence_cosines,
                                                        mixed_candidates, occlusion_queries32, path_columns,
                                                        unblocked_chains, vertex_groups, write_rows)
 from acoustisim.propagation.fast.curved_kernels import go_factors, specular_points
+from acoustisim.propagation.fast.pair_kernels import (JointSettings, PairCandidates, PairLayout, PairSplit,
+                                                      fill_pairs, joint_specular_points, pair_candidates)
 from acoustisim.propagation.fast.mirror_kernels import (MirrorArrays, backtrace_chains, mirror_arrays, unfold_chains,
                                                         unfold_reversed)
 from acoustisim.propagation.image_source import PlanarMirrors
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.raycast import DEFAULT_EPS_M
+from acoustisim.propagation.reference.pair_chains import pair_splits
 from acoustisim.propagation.reference.specular import DUPLICATE_RESOLUTION_M, REAL_TOLERANCE, receivers_in_front
 
 
@@ -195,6 +201,49 @@ def smooth_chains(pose: Pose, prepared: PreparedScene, max_order: int, chain_bas
     return pad(parts, max_order), chain_base
 
 
+def pair_chains(pose: Pose, prepared: PreparedScene, max_order: int, chain_base: int) -> tuple[PaddedChains, int]:
+    """Chains [n_before mirrors, C1, n_between mirrors, C2, n_after mirrors] of every split of
+    order <= ``max_order`` (:func:`~acoustisim.propagation.reference.pair_chains.pair_splits`),
+    in the padded layout (order ``max_order``); and the next free chain number."""
+    mirrors, arrays, ends = pose.mirrors, pose.arrays, pose.ends
+    n_receivers = ends.receivers.shape[0]
+    curved, seen_by = prepared.curved_set, prepared.curved_seen_by
+    n_reflectors = curved.radius.shape[0]
+    seen = np.any(seen_by, axis=0)
+    before, after = sides(pose, seen_by, range(max_order - 1))
+    between = {k: mirrors.sequences(k, seen, seen) for k in range(max_order - 1)}
+    splits = pair_splits(max_order)
+    candidates = [pair_candidates(arrays, curved, seen_by, before[n_before], between[n_between], after[n_after],
+                                  n_receivers) for n_before, n_between, n_after in splits]
+    every = PairCandidates(*(np.concatenate(field) for field in zip(*candidates)))
+    # C1 and the unfolded C2 of each candidate as primitives of their own; the joint solve
+    # starts from the alternating single-surface solutions
+    first = curved.take(every.first)
+    second = CurvedSet(curved.is_sphere[every.second], every.second_centre, every.second_frame,
+                       curved.radius[every.second], curved.length[every.second])
+    rows = np.arange(every.first.size)
+    start = specular_points(first, rows, every.source_image, second.centre).point
+    second_start = specular_points(second, rows, start, every.receiver_image).point
+    first_start = specular_points(first, rows, every.source_image, second_start).point
+    settings = JointSettings(PAIR_NEWTON_STEPS, PAIR_NEWTON_TOLERANCE_M, PAIR_STATIONARY_TOLERANCE,
+                             CYLINDER_END_TOLERANCE_M, PAIR_MIN_COSINE)
+    x1, x2, valid = joint_specular_points(first, second, every, first_start, second_start, settings)
+    chains = allocate(int(np.count_nonzero(valid)), max_order)
+    labels = ReflectorLabels(np.array([r.surface for r in prepared.curved], dtype=np.int64),
+                             np.array([r.patch for r in prepared.curved], dtype=np.int64))
+    cursor = lo = 0
+    for (n_before, n_between, n_after), split in zip(splits, candidates):
+        hi = lo + split.first.size
+        layout = PairLayout(chain_base, between[n_between].shape[0], after[n_after].sequences.shape[0], n_reflectors)
+        sides_of_split = PairSplit(*before[n_before], between[n_between], *after[n_after], n_receivers)
+        cursor = fill_pairs(arrays, sides_of_split, split, SurfacePoints(*(field[lo:hi] for field in x1)),
+                            SurfacePoints(*(field[lo:hi] for field in x2)), labels, layout, ends, chains, cursor)
+        chain_base += (before[n_before].sequences.shape[0] * between[n_between].shape[0]
+                       * after[n_after].sequences.shape[0] * n_reflectors ** 2)
+        lo = hi
+    return head(chains, cursor), chain_base
+
+
 def pad(parts: list[tuple[int, PaddedChains]], big: int) -> PaddedChains:
     """Chains of orders k <= ``big`` (each part (k, chains of that order)) stacked in the padded
     layout of order ``big``."""
@@ -276,7 +325,8 @@ def first_distinct_rows(key: NDArray[np.int64]) -> NDArray[np.int64]:
     return np.sort(first)
 
 
-def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int,
+                  max_curved_per_path: int) -> NDArray[Any]:
     """:func:`acoustisim.propagation.reference.specular.specular_rows`, compiled."""
     mirrors = prepared.mirrors
     first = mirrors.signed_distance(np.broadcast_to(context.transmitter_m, (mirrors.count, 3)),
@@ -288,6 +338,9 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     if prepared.smooth:
         smooth, chain_base = smooth_chains(pose, prepared, max_order, chain_base)
         chains = PaddedChains(*(np.concatenate([mine, theirs]) for mine, theirs in zip(chains, smooth)))
+    if prepared.curved and max_curved_per_path >= 2 and max_order >= 2:
+        pairs, chain_base = pair_chains(pose, prepared, max_order, chain_base)
+        chains = PaddedChains(*(np.concatenate([mine, theirs]) for mine, theirs in zip(chains, pairs)))
     live = unblocked(chains, prepared)
     kept = live[first_distinct_rows(duplicate_keys(live, chains, MAX_INTERACTIONS, DUPLICATE_RESOLUTION_M))
                 ] if live.size >= 2 else live
@@ -306,5 +359,5 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     return rows
 
 
-__all__ = ("first_distinct_rows", "planar_and_mixed", "reflection_products", "smooth_chains", "specular_rows",
-           "unblocked")
+__all__ = ("first_distinct_rows", "pair_chains", "planar_and_mixed", "reflection_products", "smooth_chains",
+           "specular_rows", "unblocked")

@@ -3,19 +3,14 @@
 Modules, each opening with its Physics (equations and sources), Method and Accuracy:
 
 * :mod:`.direct`: the direct path;
-<<<<<<< HEAD
-* :mod:`.specular`: specular chains of planar mirrors and at most one curved surface, their
+* :mod:`.specular`: specular chains of planar mirrors and up to two curved surfaces, their
   occlusion, duplicates and reflection coefficients, built on :mod:`.image_source` (image
   sources, unfolding and back-tracing on planar mirrors), :mod:`.curved` (specular points on
-  spheres and cylinders, the geometric-optics amplitude) and :mod:`.chains` (the candidate
-  chains);
-* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral);
-=======
-* :mod:`.specular`: image-source chains on planar mirrors and specular points on curved
-  surfaces (spheres, cylinders, smooth meshes), with geometric-optics amplitudes;
+  spheres and cylinders, the geometric-optics amplitude), :mod:`.curved_pairs` and
+  :mod:`.pair_chains` (paths reflected by two curved primitives: joint specular points,
+  ray-tube amplitude, the candidate chains) and :mod:`.chains` (the candidate chains);
 * :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge
   formulas and the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`);
->>>>>>> p2-edges
 * :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
 * :mod:`.floor`: the amplitude floor;
 * :mod:`.columns`: the derived columns and the solve's assembled rows.
@@ -47,10 +42,11 @@ class ReferenceEngine:
 
         return direct_rows(context)
 
-    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+    def specular_rows(self, context: SolveContext, prepared: PreparedScene, max_order: int,
+                      max_curved_per_path: int) -> NDArray[Any]:
         from acoustisim.propagation.reference.specular import specular_rows
 
-        return specular_rows(context, prepared, max_order)
+        return specular_rows(context, prepared, max_order, max_curved_per_path)
 
     def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
         from acoustisim.propagation.reference.edges import edge_rows

@@ -1,4 +1,4 @@
-"""Specular paths: chains of planar mirrors and at most one curved surface, with their amplitudes.
+"""Specular paths: chains of planar mirrors and up to two curved surfaces, with their amplitudes.
 
 Physics
 -------
@@ -16,7 +16,9 @@ sections 1 and 3) and the spreading
 * 1 / L for chains of planar mirrors (the image source at L, :mod:`.image_source`);
 * the geometric-optics factor cos(theta_i) / (r1 r2 sqrt|det H|) of the curved specular point
   for chains through one curved surface, with r1, r2 the unfolded distances from the images
-  on either side (:mod:`.curved`).
+  on either side (:mod:`.curved`);
+* the ray-tube (Deschamps) factor of chains through two curved primitives, in the frame
+  unfolded across every mirror of the chain (:mod:`.curved_pairs`).
 
 ``Material`` returns coefficients in the physics convention exp(-i omega t); ``phase_rad`` is
 applied as exp(+j phase) on positive frequencies of the engineering (FFT) convention, so a
@@ -34,7 +36,10 @@ Method
    specular point is solved on the true surface between the two images (:mod:`.curved`) and
    the planar points are back-traced from it; the same chains through smooth user meshes,
    whose specular points (possibly several per pair) come from their interpolated normals
-   (:class:`~acoustisim.propagation.smooth_mesh.SmoothMesh`).
+   (:class:`~acoustisim.propagation.smooth_mesh.SmoothMesh`); with ``max_curved_per_path`` = 2,
+   chains [mirrors, curved primitive, mirrors, curved primitive, mirrors] of every split
+   (:mod:`.pair_chains`: post to post, post via a wall to a post, sphere to post), their two
+   specular points solved jointly (:mod:`.curved_pairs`).
 2. Occlusion: every leg of every candidate in one batched Embree query
    (:meth:`~acoustisim.propagation.raycast.RayCaster.occluded`); a leg ending on a mirror or a
    curved object ignores that surface's patch. A chain with a blocked leg is dropped.
@@ -52,8 +57,9 @@ Accuracy
 Geometric optics: exact for the image sources of plane mirrors; the curved-surface factor
 neglects O(1 / (k a)) terms (7e-5 for a 5 cm sphere at 500 kHz against a Kirchhoff integral).
 Not modelled: edge diffraction at the mirrors' rims (:mod:`acoustisim.propagation.edges`),
-chains through two curved surfaces, smooth-mesh chains of order > 1 through two meshes, and the
-plane-wave reflection coefficient's error for spherical waves near the critical angle. A leg is
+chains through three or more curved surfaces, chains through a smooth mesh and another curved
+surface (a smooth mesh reflects at most once per path), and the plane-wave reflection
+coefficient's error for spherical waves near the critical angle. A leg is
 blocked by any surface more than ``DEFAULT_EPS_M`` (1e-7 m) from its ends.
 """
 
@@ -73,6 +79,7 @@ from acoustisim.propagation.raycast import RayCaster
 from acoustisim.propagation.reference.chains import Chains
 from acoustisim.propagation.reference.curved import go_amplitude, specular_points
 from acoustisim.propagation.reference.image_source import backtrace, planar_chains, unfold
+from acoustisim.propagation.reference.pair_chains import pair_chains
 
 REAL_TOLERANCE = 1e-12
 """|Im R| below this fraction of |R| counts as a real coefficient (its sign kept in the gain)."""
@@ -356,7 +363,8 @@ def receivers_in_front(context: SolveContext, mirrors: PlanarMirrors) -> NDArray
     return np.any(ahead > 0, axis=0)
 
 
-def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int) -> NDArray[Any]:
+def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int,
+                  max_curved_per_path: int) -> NDArray[Any]:
     """Every unblocked specular path of order 1..``max_order`` to every receiver.
 
     Parameters
@@ -366,6 +374,9 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
         Mirrors and curved reflectors of ``context.scene``.
     max_order : int
         Most reflections per path (>= 1).
+    max_curved_per_path : int
+        Most reflections on curved surfaces per path: 1 (one curved primitive or smooth mesh)
+        or 2 (also chains through two curved primitives, numbered after all the others).
 
     Returns
     -------
@@ -388,6 +399,9 @@ def specular_rows(context: SolveContext, prepared: PreparedScene, max_order: int
     if prepared.smooth:
         smooth, chain_base = smooth_chains(context, prepared, max_order, first, last, table, chain_base)
         groups += smooth
+    if prepared.curved and max_curved_per_path >= 2 and max_order >= 2:
+        pairs, chain_base = pair_chains(context, prepared, max_order, first, last, table.curved_offset, chain_base)
+        groups += pairs
     live = unblocked(groups, prepared.raycaster)
     rows = np.concatenate([empty_paths_array(0)] + [
         path_rows(chains, reflection_products(chains, table, context), context.first_path_id) for chains in live])
