@@ -66,7 +66,7 @@ class Signals:
     volts_per_code: float | None = None
     """Set when ``waveforms`` are int16 ADC codes, not volts (volts = codes * volts_per_code;
     ``dc_v``, ``noise_sigma_v`` and ``noise_floor_v`` are in volts all the same). The detectors
-    in ``api.TAKES_CODES`` read the codes (a quarter of the bytes of the volts); the others get
+    that read codes (``DetectionMethod.reads_codes``) take them (a quarter of the bytes of the volts); the others get
     ``in_volts()``."""
     pending_full_scales_v: tuple[float, ...] = ()
     """Full scales (V) the codes have not been tested against yet (``as_signals(...,

@@ -143,7 +143,7 @@ def _span_extremes(row: NDArray, start: int, stop: int, extremes: NDArray[np.flo
     int16 codes (~8 us per 250,000 codes, measured; ``max(high, row[i])`` over ``range(start,
     stop)`` ran scalar, ~270 us). Exact in any order. Float rows (finite: ``inputs`` refuses
     NaN/inf; fastmath assumes it) run scalar (~350 us): only records of codes defer their
-    clipping test to here (``api.MEASURES_EXTREMES``).
+    clipping test to here (``DetectionMethod.measures_extremes``).
     """
     x = row[start:stop]
     high = x[0]

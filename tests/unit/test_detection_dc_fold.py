@@ -1,4 +1,4 @@
-"""Detectors that fold the DC offset into their arithmetic (``api.FOLDS_DC``) give, on the
+"""Detectors that fold the DC offset into their arithmetic (``DetectionMethod.folds_dc``) give, on the
 record as recorded plus its offsets, what they give on the offset-free copy.
 
 The folded path subtracts the same per-row median from the same samples (block by block
@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from binsonar.detection.api import FOLDS_DC
 from binsonar.detection.inputs import as_signals
 from binsonar.detection.noise import noise_sigma
 from binsonar.detection.threshold import detect_threshold, first_crossings
@@ -77,12 +76,6 @@ def test_noise_sigma_with_offset_is_that_of_the_shifted_rows():
     shifted = x - dc[:, np.newaxis]
     assert np.array_equal(noise_sigma(x, sample_rate_hz=FS, t0_s=0.0, offset_v=dc),
                           noise_sigma(shifted, sample_rate_hz=FS, t0_s=0.0))
-
-
-def test_the_folding_methods_are_known_base_methods():
-    from binsonar.detection.api import BASE_METHODS
-
-    assert FOLDS_DC and FOLDS_DC <= set(BASE_METHODS)
 
 
 def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
