@@ -24,6 +24,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from binsonar.detection.kernel_types import CodeScale, RobustSubsample
+
 
 @njit(cache=True, nogil=True)
 def row_extremes(rows: NDArray[np.int16], largest: NDArray[np.int64], smallest: NDArray[np.int64]) -> None:
@@ -91,7 +93,7 @@ def median_and_mad(sample: NDArray[np.int16], median: NDArray[np.int64], mad: ND
 
 
 @njit(cache=True, nogil=True)
-def code_statistics(rows: NDArray[np.int16], settings: NDArray[np.int64], constants: NDArray[np.float64],
+def code_statistics(rows: NDArray[np.int16], subsample: RobustSubsample, scale: CodeScale,
                     out: NDArray[np.float64]) -> None:
     """Each row's median (DC offset) and robust noise estimate from its robust subsample, and
     its clipping, in volts.
@@ -99,20 +101,19 @@ def code_statistics(rows: NDArray[np.int16], settings: NDArray[np.int64], consta
     Parameters
     ----------
     rows : ndarray of int16, shape (n_rows, n_samples), C-contiguous
-    settings : ndarray of int, shape (3,)
-        period, length, segments: the subsample is ``segments`` stretches of ``length`` samples
-        starting at multiples of ``period`` (``noise.robust_subsample``; the whole row when
-        ``segments`` is 1 and ``length`` is n_samples).
-    constants : ndarray, shape (>= 2,)
-        volts per code, the MAD-to-sigma factor, then the full scales (V) to test for clipping
+    subsample : RobustSubsample
+        ``noise.robust_subsample``'s stretches (the whole row: one stretch of n_samples).
+    scale : CodeScale
+        Volts per code, the MAD-to-sigma factor and the full scales (V) to test for clipping
         (none: no pass over the whole record).
     out : ndarray, shape (n_rows, 3), written
         Median code times volts per code (V), the factor times the MAD in codes times volts
         per code (V), and 1.0 where the volts reach a full scale within a part in 1e9
-        (``inputs._clipped_by_full_scale``: largest >= limit or smallest <= -limit), else 0.0.
+        (``inputs.clipped_by_full_scale``: largest >= limit or smallest <= -limit), else 0.0.
     """
-    period, length, segments = settings[0], settings[1], settings[2]
-    step, factor = constants[0], constants[1]
+    period, length, segments = subsample.period, subsample.length, subsample.segments
+    step, factor = scale.volts_per_code, scale.mad_to_sigma
+    full_scales = scale.full_scales_v
     n_rows = rows.shape[0]
     sample = np.empty((n_rows, segments * length), dtype=np.int16)
     for r in range(n_rows):
@@ -123,14 +124,14 @@ def code_statistics(rows: NDArray[np.int16], settings: NDArray[np.int64], consta
     median_and_mad(sample, median, mad)
     largest = np.zeros(n_rows, dtype=np.int64)
     smallest = np.zeros(n_rows, dtype=np.int64)
-    if constants.size > 2:
+    if full_scales.size > 0:
         row_extremes(rows, largest, smallest)
     for r in range(n_rows):
         out[r, 0] = median[r] * step
         out[r, 1] = factor * (mad[r] * step)
         clipped = 0.0
-        for q in range(2, constants.size):
-            limit = constants[q] * (1.0 - 1e-9)
+        for q in range(full_scales.size):
+            limit = full_scales[q] * (1.0 - 1e-9)
             if largest[r] * step >= limit or smallest[r] * step <= -limit:
                 clipped = 1.0
         out[r, 2] = clipped

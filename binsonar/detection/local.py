@@ -92,12 +92,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.detection.kernel_types import AnalyticTaps, CoarseLayout, CodedRows, EchoConstants, LagSearch, LocalOutput
 from binsonar.detection.matched import (
     MatchedPlan,
     check_pfa,
-    dc_correlation,  # noqa: F401  (the DC folding's definition; tests import it from here)
+    dc_correlation,
     lag_range,
+    lags_time_domain,
     plan_matched,
+    refine,
     white_noise_power,
 )
 from binsonar.detection.noise import noise_sigma
@@ -169,16 +172,15 @@ class LocalPlan:
     """Coarse windows blanked each side of a pick: ceil(m / block), at least 1 (a template length)."""
     tone_lanes: NDArray[np.float64] = field(repr=False)
     """``tone`` transposed, shape (2, L), zero padded to L = the next multiple of 8 >= block
-    (``local_kernels._block_powers``: whole vectors per block)."""
+    (``local_kernels.block_powers``: whole vectors per block)."""
     segment_weights32: NDArray[np.complex64] = field(repr=False)
-    """``segment_weights`` in single precision (the candidates' short FFTs, ``_candidate_correlations``)."""
-    echo_constants: NDArray[np.float64] = field(repr=False)
-    """``local_kernels.echo_rows``'s constants but the first (t0_s) and last (threshold factor),
-    shape (8,): sample rate, template t0_s, ``white_noise_power`` of 1 V, peak response, the
-    template's largest |sample|, RMS bandwidth."""
+    """``segment_weights`` in single precision (the candidates' short FFTs, ``candidate_correlations``)."""
+    echo_constants: EchoConstants = field(repr=False)
+    """``local_kernels.echo_rows``'s constants with t0_s and the threshold factor 0 (set per
+    record: ``echo_constants._replace``)."""
     tone_lanes32: NDArray[np.float32] = field(repr=False)
     """``tone_lanes`` in single precision: the coarse pass of int16 codes sums in float32
-    (``local_kernels._block_powers``)."""
+    (``local_kernels.block_powers``)."""
     tap_parts32: NDArray[np.float32] = field(repr=False)
     """The first two rows of ``tap_parts`` in single precision, shape (2, m_a + 1): the taps of
     the stretches' search (``local_kernels.local_echoes``)."""
@@ -193,8 +195,21 @@ class LocalPlan:
     band 45 bins), where |z| (an envelope ~30 samples wide at half height) is sampled every 5
     lags, so the largest sample is within D - 1 lags of the largest |z|."""
     _factors: dict = field(default_factory=dict, init=False, repr=False)
-    """Memo of ``matched.threshold_factor`` by (pfa, searched lags): a pure function of the plan,
-    a fixed-point iteration of ~20-50 Python steps (~20-50 us per ping) otherwise."""
+    """Memo of ``matched.threshold_factor`` by (pfa, searched lags): a pure function of the plan
+    (a fixed-point iteration of tens of Python steps)."""
+
+    @property
+    def coarse_layout(self) -> CoarseLayout:
+        """The coarse stage's and stretches' layout, for the kernels."""
+        return CoarseLayout(int(self.block), int(self.span), int(self.reference), int(self.exclusion), int(self.half),
+                            int(self.segment_length))
+
+    def analytic_taps(self, stride: int | None = None) -> AnalyticTaps:
+        """The analytic taps for the kernels, searching every ``stride``-th lag (default
+        ``decimation``) and refining ``REFINE_HALF_WIDTH + stride - 1`` lags each side."""
+        stride = self.decimation if stride is None else int(stride)
+        return AnalyticTaps(self.tap_parts, self.tap_parts32, int(self.matched.analytic_offset), stride,
+                            REFINE_HALF_WIDTH + stride - 1)
 
     def threshold_factor(self, pfa: float, searched_lags: int) -> float:
         """``self.matched.threshold_factor(pfa, searched_lags)``, computed once per pair."""
@@ -304,9 +319,9 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         exclusion=max(1, -(-m // block)),
         tone_lanes=lanes,
         segment_weights32=weights.astype(np.complex64),
-        echo_constants=np.array([0.0, fs, matched.template.t0_s, float(white_noise_power(matched, 1.0)),
-                                 matched.peak_response, float(np.max(np.abs(matched.template.samples))),
-                                 matched.rms_bandwidth_hz, 0.0]),
+        echo_constants=EchoConstants(0.0, fs, float(matched.template.t0_s), float(white_noise_power(matched, 1.0)),
+                                     float(matched.peak_response), float(np.max(np.abs(matched.template.samples))),
+                                     float(matched.rms_bandwidth_hz), 0.0),
         tone_lanes32=lanes.astype(np.float32),
         tap_parts32=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0)]).astype(np.float32),
         decimation=int(decimation),
@@ -440,12 +455,15 @@ def segment_correlation(
     return sfft.ifft(spectrum, plan.segment_fft, axis=-1)[:, : 2 * plan.half + 1]
 
 
-def _offsets(dc: NDArray[np.float64] | None, n_rows: int) -> NDArray[np.float64]:
-    """Per-row offsets for the kernels (zeros for none)."""
-    return np.zeros(n_rows) if dc is None else dc
+def coded_rows(rows: NDArray, dc: NDArray[np.float64] | None = None, scale: float = 1.0) -> CodedRows:
+    """The kernels' view of ``rows`` (C-contiguous float64 volts or int16 codes of ``scale`` V),
+    their offsets (zeros for none)."""
+    samples = np.ascontiguousarray(rows, dtype=np.int16 if np.issubdtype(rows.dtype, np.integer) else float)
+    offsets = np.zeros(samples.shape[0]) if dc is None else np.ascontiguousarray(dc, dtype=float).reshape(-1)
+    return CodedRows(samples, float(scale), offsets)
 
 
-def _candidate_correlations(
+def candidate_correlations(
     plan: LocalPlan,
     rows: NDArray[np.float64],
     candidates: int,
@@ -464,8 +482,8 @@ def _candidate_correlations(
     (``local_kernels.local_peaks``, which takes the largest of the 2 R + 1 direct values, the
     outer two excepted), so the result is the same unless two lags more than R - 1 apart have |z|
     within ~1e-6 of each other (two echoes of equal strength to a part in a million). Half the
-    bytes and about half the time of the float64 FFTs (measured ~0.12 against ~0.25 ms for 9
-    stretches of 625 samples, warm).
+    bytes of the float64 FFTs. The detection path (``local_kernels.local_echoes``) searches the
+    stretches by direct correlations instead; this FFT route is its reference.
 
     Parameters
     ----------
@@ -490,9 +508,9 @@ def _candidate_correlations(
     count = n_rows * candidates
     segments = np.empty((count, plan.segment_fft), dtype=np.float32)
     start = np.empty(count, dtype=np.int64)
-    settings = np.array([plan.span, plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
-                         plan.segment_length, plan.block], dtype=np.int64)
-    local_kernels.coarse_stretches(rows, scale, _offsets(dc, n_rows), plan.tone_lanes, settings, segments, start)
+    search = LagSearch(int(lag_bounds[0]), int(lag_bounds[1]), int(candidates))
+    local_kernels.coarse_stretches(coded_rows(rows, dc, scale), plan.tone_lanes, plan.coarse_layout, search, segments,
+                                   start)
     spectrum = sfft.rfft(segments, axis=-1, overwrite_x=True)
     band = plan.segment_weights32.size
     # The band, zero above it, inverse transformed on segment_fft // stride points: z at every
@@ -500,6 +518,47 @@ def _candidate_correlations(
     weighted = np.zeros((count, plan.segment_fft // stride), dtype=np.complex64)
     np.multiply(spectrum[:, :band], plan.segment_weights32, out=weighted[:, :band])
     return sfft.ifft(weighted, axis=-1, overwrite_x=True), start
+
+
+def numpy_peaks(
+    plan: LocalPlan,
+    rows: NDArray[np.float64],
+    candidates: int,
+    lag_bounds: tuple[int, int],
+    dc: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each row's refined peak, all in numpy: the definition the compiled detection path
+    (``local_kernels.local_echoes``) is checked against.
+
+    ``coarse_lags``, then z at every lag of each pick's stretch (``segment_correlation``), the
+    largest |z| over the searched lags, then the full matched filter's refinement around it
+    (``matched.lags_time_domain`` minus ``matched.dc_correlation`` at the 2 R + 1 lags around,
+    0 outside ``lag_bounds``, and ``matched.refine``'s vertex).
+
+    Returns
+    -------
+    lag : ndarray, shape (n_rows,)
+        Fractional lag of each row's vertex (samples).
+    power : ndarray, shape (n_rows,)
+        |z|^2 there.
+    """
+    lo, hi = lag_bounds
+    n_rows = rows.shape[0]
+    coarse = coarse_lags(plan, rows, candidates, lag_bounds, dc)
+    width = 2 * plan.half + 1
+    start = np.maximum(np.minimum(coarse - plan.half, hi - (width - 1)), lo).reshape(-1)
+    z = segment_correlation(plan, rows, np.repeat(np.arange(n_rows), candidates), start, dc)
+    power = np.abs(z) ** 2
+    lags = start[:, np.newaxis] + np.arange(width)
+    power[(lags < lo) | (lags > hi)] = -1.0
+    best = np.argmax(power.reshape(n_rows, -1), axis=1)
+    peak_lag = lags.reshape(n_rows, -1)[np.arange(n_rows), best]
+    refine_lags = peak_lag[:, np.newaxis] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
+    direct = lags_time_domain(plan.matched, rows, np.arange(n_rows), refine_lags)
+    if dc is not None:
+        direct -= dc_correlation(plan.matched, rows.shape[1], dc, refine_lags, plan.tap_partial)
+    direct[(refine_lags < lo) | (refine_lags > hi)] = 0.0
+    return refine(direct, refine_lags)
 
 
 def detect_local_matched(
@@ -572,26 +631,21 @@ def detect_local_matched(
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
     scale = 1.0 if volts_per_code is None else float(volts_per_code)
-    rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)  # contiguous blocks
-    stride = plan.decimation
-    settings = np.array([plan.span, plan.reference, plan.exclusion, lag_lo, lag_hi, candidates, plan.half,
-                         plan.segment_length, plan.block, matched.analytic_offset, stride,
-                         REFINE_HALF_WIDTH + stride - 1], dtype=np.int64)
+    coded = coded_rows(np.asarray(rows) if volts_per_code is not None else np.asarray(rows, dtype=float), dc, scale)
     # ``matched.echo_values`` of the vertex, the noise as ``white_noise_power`` (2 sigma^2 sum s^2:
     # white noise through the filter); pfa over the searched lags, as detect_matched.
-    constants = plan.echo_constants.copy()
-    constants[0] = t0_s
-    constants[-1] = plan.threshold_factor(pfa, lag_hi - lag_lo)
-    echoes = np.empty((n_rows, 5))
+    constants = plan.echo_constants._replace(t0_s=float(t0_s),
+                                             threshold_factor=float(plan.threshold_factor(pfa, lag_hi - lag_lo)))
+    out = LocalOutput(np.empty((n_rows, 5)), np.empty((0, 2)) if extremes_out is None else extremes_out)
     from binsonar.detection import local_kernels
 
     # Steps 1-3 and the echo values in one compiled call (``local_kernels.local_echoes``: the
     # coarse pass, each stretch searched every ``stride`` lags by direct correlations, the
-    # refinement as the full matched filter's, ``matched.echo_values``; checked against the
-    # numpy definitions and the FFT route in tests/parity/test_detection_local_kernels.py).
+    # refinement as the full matched filter's, ``matched.echo_values``; checked against
+    # ``numpy_peaks`` and the FFT route in tests/parity/test_detection_local_kernels.py).
     lanes = plan.tone_lanes if volts_per_code is None else plan.tone_lanes32  # codes: float32 block sums
-    local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), sigma,  # sigma: a new float64 array (noise_sigma)
-                               lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,
-                               np.empty((0, 2)) if extremes_out is None else extremes_out)
+    search = LagSearch(int(lag_lo), int(lag_hi), int(candidates))
+    local_kernels.local_echoes(coded, sigma, lanes, plan.coarse_layout, search, plan.analytic_taps(), constants, out)
+    echoes = out.echoes
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
     return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in echoes.tolist()]

@@ -505,7 +505,7 @@ def dc_correlation(
     partial: NDArray[np.complex128] | None = None,
 ) -> NDArray[np.complex128]:
     """Analytic correlation of constant rows (value ``dc``) with the template, at ``lags``,
-    samples outside the record counting as 0 (as in ``lags_time_domain`` / ``lags_by_fft``).
+    samples outside the record counting as 0 (as in ``lags_time_domain``).
 
     Parameters
     ----------
@@ -525,28 +525,6 @@ def dc_correlation(
     lo = np.minimum(np.maximum(-first, 0), taps.size)
     hi = np.minimum(np.maximum(n_samples - first, 0), taps.size)
     return dc[:, np.newaxis] * np.where(hi > lo, partial[hi] - partial[lo], 0.0)
-
-
-def lags_by_fft(
-    plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
-) -> NDArray[np.complex128]:
-    """Same as ``lags_time_domain`` (to rounding), via short FFTs of the record segments.
-
-    Cheaper when many consecutive lags are wanted (the local matched filter's window): each
-    segment of w + m_a - 1 samples is convolved with the reversed analytic template.
-    """
-    import scipy.fft as sfft
-
-    taps = plan.analytic_template_conj
-    n = rows.shape[1]
-    w = lags.shape[1]
-    start = lags[:, 0] - plan.analytic_offset
-    index = start[:, np.newaxis] + np.arange(w + taps.size - 1)
-    inside = (index >= 0) & (index < n)
-    segment = np.where(inside, rows[row_index[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
-    size = sfft.next_fast_len(segment.shape[1] + taps.size - 1)
-    product = sfft.fft(segment, size, axis=-1) * sfft.fft(taps[::-1], size)
-    return sfft.ifft(product, axis=-1)[:, taps.size - 1: taps.size - 1 + w]
 
 
 def lags_from_spectrum(plan: MatchedPlan, spectrum: NDArray[np.complex128], lags: NDArray[np.intp]) -> NDArray[np.complex128]:

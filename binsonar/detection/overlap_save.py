@@ -217,6 +217,7 @@ def block_samples(
     One compiled pass over the record (``overlap_save_kernels.gather_blocks``: the cast, the
     offset subtraction and the blocks' overlap together).
     """
+    from binsonar.detection.kernel_types import BlockLayout, CodedRows
     from binsonar.detection.overlap_save_kernels import gather_blocks
 
     n_rows, n = rows.shape
@@ -225,7 +226,7 @@ def block_samples(
     out = np.empty((n_rows, plan.n_blocks, plan.block), dtype=np.float32 if single else np.float64)
     offset = np.zeros(n_rows) if dc is None else np.ascontiguousarray(dc, dtype=float).reshape(n_rows)
     rows = np.ascontiguousarray(rows, dtype=np.int16 if np.issubdtype(rows.dtype, np.integer) else float)
-    gather_blocks(rows, offset, float(scale), plan.hop, plan.lead, out)
+    gather_blocks(CodedRows(rows, float(scale), offset), BlockLayout(int(plan.hop), int(plan.lead)), out)
     return out
 
 

@@ -12,34 +12,33 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from binsonar.detection.kernel_types import BlockLayout, CodedRows
+
 
 @njit(cache=True, nogil=True, fastmath=True)
-def gather_blocks(rows: NDArray, dc: NDArray[np.float64], scale: float, hop: int, lead: int,
-                  out: NDArray[np.floating]) -> None:
-    """``out[r, b, j] = rows[r, b hop - lead + j] scale - dc[r]``, 0 where the index is outside
-    the row.
+def gather_blocks(rows: CodedRows, layout: BlockLayout, out: NDArray[np.floating]) -> None:
+    """``out[r, b, j] = samples[r, b hop - lead + j] scale - dc_v[r]``, 0 where the index is
+    outside the row.
 
     Parameters
     ----------
-    rows : ndarray, shape (n_rows, n_samples), float64 volts or int16 ADC codes
-    dc : ndarray, shape (n_rows,)
-    scale : float
-        Volts per unit of ``rows`` (1.0 for volts).
-    hop, lead : int
-        Block b starts at sample b hop - lead.
+    rows : CodedRows
+    layout : BlockLayout
     out : ndarray, shape (n_rows, n_blocks, block), float32 or float64, written
     """
-    n_rows, n = rows.shape
+    samples, scale = rows.samples, rows.scale
+    hop, lead = layout.hop, layout.lead
+    n_rows, n = samples.shape
     n_blocks, block = out.shape[1], out.shape[2]
     for r in range(n_rows):
-        d = dc[r]
+        d = rows.dc_v[r]
         for b in range(n_blocks):
             start = b * hop - lead
             lo = min(max(-start, 0), block)  # block samples [lo, hi) lie inside the row
             hi = max(min(n - start, block), lo)
             for j in range(lo):
                 out[r, b, j] = 0.0
-            source = rows[r, start + lo: start + hi]
+            source = samples[r, start + lo: start + hi]
             target = out[r, b, lo:hi]
             for j in range(hi - lo):
                 target[j] = source[j] * scale - d

@@ -1,11 +1,11 @@
 """Compiled loop of the threshold detector (numba, cached on disk, GIL released).
 
 Imported by :mod:`binsonar.detection.threshold` when the detector runs (never by ``import
-binsonar``). ``threshold.first_crossings`` and the test's ``crossing_measures`` are the numpy
-definitions: the first reads each searched sample twice (a block's maxima, then its minima)
-and pays a few array operations per block, the second a dozen small array operations; this
-loop reads each sample once, up to the crossing, stops there and measures the echo after it,
-in one call for all rows (``tests/parity/test_detection_threshold_kernels.py`` checks that they agree).
+binsonar``). The numpy definitions are ``threshold.first_crossings``,
+``threshold.crossing_measures`` and ``threshold.crossing_echo_values``; this loop reads each
+searched sample once, up to the crossing, stops there and measures the echo after it, in one
+call for all rows (``tests/parity/test_detection_threshold_kernels.py`` checks that they agree).
+The arguments are the bundles of ``kernel_types``.
 """
 
 from __future__ import annotations
@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+
+from binsonar.detection.kernel_types import CodedRows, CrossingSearch, CrossingTiming, RowLevels
 
 # Samples per chunk: the largest |x - offset| of a chunk comes from its largest and smallest
 # sample (``_chunk_peak``); only the chunk where it first reaches the level is scanned sample
@@ -29,8 +31,7 @@ def _chunk_peak(x: NDArray, scale: float, offset: float, codes: bool) -> float:
     vectorise without converting each code to a float. fastmath may fuse the final
     multiply-add, rounding it otherwise than numpy's product then difference by an ulp of
     |x scale|: ``first_crossings`` allows for that. ``codes``: x holds integers (one chain
-    each for the extremes, which LLVM vectorises; floats need four chains, measured 0.17
-    against 0.29 ms for 3 x 80,000 samples, while codes take 0.04 with one against 0.08 ms).
+    each for the extremes, which LLVM vectorises); floats take four independent chains.
     """
     if codes:  # integer min/max: one chain each, vectorised by LLVM (16 codes a vector)
         high = x[0]
@@ -60,29 +61,27 @@ def _chunk_peak(x: NDArray, scale: float, offset: float, codes: bool) -> float:
 
 
 @njit(cache=True, nogil=True)
-def first_crossings(rows: NDArray, scale: float, level: NDArray[np.float64], offset: NDArray[np.float64],
-                    first: int, stop_at: int, found: NDArray[np.int64]) -> None:
-    """Index of the first sample in [first, stop_at) with |x scale - offset| >= level in each
-    row (-1 where none).
+def first_crossings(rows: CodedRows, level: NDArray[np.float64], search: CrossingSearch,
+                    found: NDArray[np.int64]) -> None:
+    """Index of the first sample in [search.first, search.stop) with |x scale - dc| >= level in
+    each row (-1 where none): ``threshold.first_crossings``.
 
     Parameters
     ----------
-    rows : ndarray, shape (n_rows, n_samples), float64 volts or int16 ADC codes, C-contiguous
-    scale : float
-        Volts per unit of ``rows``: 1.0 for volts, the code step for codes (x scale is then
-        exactly the volts ``codes * volts_per_code`` numpy makes).
-    level, offset : ndarray, shape (n_rows,)
+    rows : CodedRows
+        x scale is exactly the volts ``codes * volts_per_code`` numpy makes.
+    level : ndarray, shape (n_rows,)
         Volts.
-    first, stop_at : int
-        Searched samples (0 <= first <= stop_at <= n_samples).
+    search : CrossingSearch
     found : ndarray of int, shape (n_rows,), written
     """
-    n_rows = rows.shape[0]
-    n = stop_at
+    samples, scale = rows.samples, rows.scale
+    n_rows = samples.shape[0]
+    first, n = search.first, search.stop
     codes = scale != 1.0  # codes (volts have scale 1): only picks ``_chunk_peak``'s loop, both exact for either
     for r in range(n_rows):
-        row = rows[r]
-        c = offset[r]
+        row = samples[r]
+        c = rows.dc_v[r]
         threshold = level[r]
         # The chunk test may be off by an ulp of |x scale| (``_chunk_peak``): a chunk within
         # that of the level is scanned exactly, sample by sample (unfused, as numpy computes).
@@ -100,38 +99,37 @@ def first_crossings(rows: NDArray, scale: float, level: NDArray[np.float64], off
 
 
 @njit(cache=True, nogil=True)
-def crossings(rows: NDArray, scale: float, level: NDArray[np.float64], offset: NDArray[np.float64], first: int,
-              stop_at: int, window: int, found: NDArray[np.int64], measures: NDArray[np.float64]) -> None:
+def crossings(rows: CodedRows, level: NDArray[np.float64], search: CrossingSearch, found: NDArray[np.int64],
+              measures: NDArray[np.float64]) -> None:
     """``first_crossings``, then the echo measures at each crossing (numpy reference:
-    ``crossing_measures`` in ``tests/parity/test_detection_threshold_kernels.py``).
+    ``threshold.crossing_measures``).
 
     Parameters
     ----------
-    rows, scale, level, offset, first, stop_at, found
-        As for ``first_crossings``.
-    window : int
-        Samples measured from the crossing on (indices past the row's end repeat its last
-        sample, as ``numpy.clip`` of the indices does).
+    rows, level, search, found
+        As for ``first_crossings``; ``search.window`` samples are measured from the crossing on
+        (indices past the row's end repeat its last sample, as ``numpy.clip`` of the indices does).
     measures : ndarray, shape (n_rows, 4), written
-        |x - offset| at the sample before the crossing (at the crossing itself when it is
-        sample 0) and at the crossing, the largest |x - offset| and the sum of (x - offset)^2
-        over the window (x: the row times ``scale``, volts); NaN for rows without a crossing.
+        |x - dc| at the sample before the crossing (at the crossing itself when it is sample 0)
+        and at the crossing, the largest |x - dc| and the sum of (x - dc)^2 over the window (x:
+        the row times ``scale``, volts); NaN for rows without a crossing.
     """
-    first_crossings(rows, scale, level, offset, first, stop_at, found)
-    n = rows.shape[1]
-    for r in range(rows.shape[0]):
+    first_crossings(rows, level, search, found)
+    samples, scale = rows.samples, rows.scale
+    n = samples.shape[1]
+    for r in range(samples.shape[0]):
         i = found[r]
         if i < 0:
             for q in range(4):
                 measures[r, q] = np.nan
             continue
-        c = offset[r]
-        measures[r, 0] = abs(rows[r, max(i - 1, 0)] * scale - c)
-        measures[r, 1] = abs(rows[r, i] * scale - c)
+        c = rows.dc_v[r]
+        measures[r, 0] = abs(samples[r, max(i - 1, 0)] * scale - c)
+        measures[r, 1] = abs(samples[r, i] * scale - c)
         peak = 0.0
         energy = 0.0
-        for j in range(window):
-            v = rows[r, min(i + j, n - 1)] * scale - c
+        for j in range(search.window):
+            v = samples[r, min(i + j, n - 1)] * scale - c
             peak = max(peak, abs(v))
             energy += v * v
         measures[r, 2] = peak
@@ -139,25 +137,18 @@ def crossings(rows: NDArray, scale: float, level: NDArray[np.float64], offset: N
 
 
 @njit(cache=True, nogil=True)
-def threshold_echoes(rows: NDArray, scale: float, per_row: NDArray[np.float64], settings: NDArray[np.int64],
-                     constants: NDArray[np.float64], echoes: NDArray[np.float64]) -> None:
+def threshold_echoes(rows: CodedRows, levels: RowLevels, search: CrossingSearch, timing: CrossingTiming,
+                     echoes: NDArray[np.float64]) -> None:
     """``crossings``, then each crossing's echo values: the whole threshold detector after its
-    noise estimate, in one call (numpy reference: ``threshold_echo_values`` in
-    ``tests/parity/test_detection_threshold_kernels.py``, the same operations in the same order).
-    Once a new ping has evicted the caches, each numpy call costs tens of microseconds: the
-    twenty-odd small ones this replaces cost ~0.2 ms per ping.
+    noise estimate, in one call (numpy reference: ``threshold.crossing_echo_values``, the same
+    operations in the same order).
 
     Parameters
     ----------
-    rows, scale
-        As for ``first_crossings``.
-    per_row : ndarray, shape (n_rows, 3)
-        Level (V), DC offset (V) and noise standard deviation sigma (V) of each row.
-    settings : ndarray of int, shape (3,)
-        first, stop_at (searched samples) and window (samples measured from the crossing).
-    constants : ndarray, shape (3,)
-        Sample rate (Hz), t0_s (time of sample 0, s) and the calibrated offset subtracted from
-        the crossing time (s).
+    rows : CodedRows
+    levels : RowLevels
+    search : CrossingSearch
+    timing : CrossingTiming
     echoes : ndarray, shape (n_rows, 6), written
         1 where the row crosses (0 and NaN values elsewhere), then tof_s (the crossing linearly
         interpolated between the samples around it, minus the offset), amplitude (the largest
@@ -165,14 +156,13 @@ def threshold_echoes(rows: NDArray, scale: float, per_row: NDArray[np.float64], 
         at least -30 dB, capped near 200 dB for a noise-free record), score (amplitude /
         level) and tof_std_s (sigma over the crossing's slope).
     """
-    n_rows = rows.shape[0]
-    level = np.ascontiguousarray(per_row[:, 0])
-    offset = np.ascontiguousarray(per_row[:, 1])
+    n_rows = rows.samples.shape[0]
+    level = levels.level_v
     found = np.empty(n_rows, dtype=np.int64)
     measures = np.empty((n_rows, 4))
-    window = settings[2]
-    crossings(rows, scale, level, offset, settings[0], settings[1], window, found, measures)
-    fs, t0_s, offset_s = constants[0], constants[1], constants[2]
+    window = search.window
+    crossings(rows, level, search, found, measures)
+    fs, t0_s, offset_s = timing.sample_rate_hz, timing.t0_s, timing.offset_s
     tiny = np.finfo(np.float64).tiny
     for r in range(n_rows):
         i = found[r]
@@ -182,9 +172,9 @@ def threshold_echoes(rows: NDArray, scale: float, per_row: NDArray[np.float64], 
                 echoes[r, q] = np.nan
             continue
         before, after, amplitude, total = measures[r, 0], measures[r, 1], measures[r, 2], measures[r, 3]
-        sigma = per_row[r, 2]
+        sigma = levels.sigma_v[r]
         frac = 0.0
-        if i > 0:  # ``threshold._fraction``
+        if i > 0:  # ``threshold.crossing_fraction``
             rise = after - before
             frac = (level[r] - before) / rise if rise > 0 else 1.0
             frac = min(max(frac, 0.0), 1.0)
