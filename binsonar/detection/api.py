@@ -109,15 +109,6 @@ class PreparedDetector:
         """The base method's name ("matched" for "seed-4", ...)."""
         return self.implementation.name
 
-    @property
-    def direct(self) -> bool:
-        """The rows reach the method as recorded: no averaging, no band-pass."""
-        return not self.average and self.bandpass_hz is None
-
-    def defers_clipping(self, on_clipped: str) -> bool:
-        """Whether a clipping test of ADC codes may be left to the method's own extremes."""
-        return self.implementation.measures_extremes and on_clipped != "error"
-
     def run(
         self,
         data: Recording | NDArray[np.floating],
@@ -139,7 +130,7 @@ class PreparedDetector:
         start = time.perf_counter()
         signals = as_signals(data, None if isinstance(data, Recording) else self.sample_rate_hz, t0_s, full_scale_v,
                              adc_step_v, remove_dc=False, volts_per_code=volts_per_code, adc_bits=adc_bits,
-                             defer_clipping=self.defers_clipping(on_clipped))
+                             defer_clipping=self.implementation.measures_extremes and on_clipped != "error")
         if not math.isclose(signals.sample_rate_hz, self.sample_rate_hz, rel_tol=1e-12) or signals.n_samples != self.n_samples:
             raise RecordingError(
                 f"{signals.source}: {signals.n_samples} samples at {signals.sample_rate_hz:g} Hz, but the detector was "
@@ -152,10 +143,11 @@ class PreparedDetector:
         ``start``: the ``time.perf_counter()`` the result's ``elapsed_s`` counts from."""
         _check_policy(on_clipped)
         implementation = self.implementation
+        direct = not self.average and self.bandpass_hz is None  # the rows reach the method as recorded
         # A clipping test left pending (codes, a method measuring extremes) is finished on the
         # extremes the method measures when it reads the codes as they are; otherwise here.
-        deferred = bool(signals.pending_full_scales_v) and self.defers_clipping(on_clipped) and self.direct \
-            and signals.volts_per_code is not None
+        deferred = bool(signals.pending_full_scales_v) and implementation.measures_extremes and on_clipped != "error" \
+            and direct and signals.volts_per_code is not None
         if not deferred:
             signals = signals.with_clipping_checked()
         if on_clipped == "error" and signals.clipped.any():
@@ -164,7 +156,7 @@ class PreparedDetector:
                 f"{signals.source}: ping {ping}, channel {channel} clipped ({int(signals.clipped.sum())} clipped "
                 f"channel(s))"
             )
-        if signals.volts_per_code is not None and not (implementation.reads_codes and self.direct):
+        if signals.volts_per_code is not None and not (implementation.reads_codes and direct):
             signals = signals.in_volts()
         if implementation.folds_dc and self.bandpass_hz is None:
             if self.average:

@@ -81,8 +81,7 @@ class Signals:
 
         A row reaches one of the full scales exactly when it reaches the smallest of them, so
         one comparison per extreme (within a part in 1e9, as ``clipped_by_full_scale``), on
-        Python floats: a few rows, and no numpy calls beyond one ``tolist`` of each array (each
-        costs microseconds once a new ping has evicted the caches).
+        Python floats: a few rows, and no numpy calls beyond one ``tolist`` of each array.
 
         Parameters
         ----------
@@ -252,7 +251,7 @@ def code_offsets(
     clipped : ndarray of bool, shape (n_pings, n_channels)
     """
     from binsonar.detection.code_kernels import code_statistics
-    from binsonar.detection.kernel_types import CodeScale, RobustSubsample
+    from binsonar.detection.kernel_types import CODE_SCALE, record
 
     n_pings, n_channels, n = codes.shape
     rows = np.ascontiguousarray(codes).reshape(n_pings * n_channels, n)
@@ -261,8 +260,9 @@ def code_offsets(
     else:
         period, length, segments = n // ROBUST_SEGMENTS, ROBUST_SAMPLES // ROBUST_SEGMENTS, ROBUST_SEGMENTS
     stats = np.empty((rows.shape[0], 3))
-    code_statistics(rows, RobustSubsample(int(period), int(length), int(segments)),
-                    CodeScale(float(volts_per_code), float(MAD_TO_SIGMA), np.array(full_scales_v, dtype=float)), stats)
+    scale = record(CODE_SCALE, period=period, length=length, segments=segments, volts_per_code=volts_per_code,
+                   mad_to_sigma=MAD_TO_SIGMA)
+    code_statistics(rows, scale, np.array(full_scales_v, dtype=float), stats)
     dc = stats[:, 0].reshape(n_pings, n_channels)
     return (dc if dc.any() else None), stats[:, 1].reshape(n_pings, n_channels), \
         (stats[:, 2] != 0.0).reshape(n_pings, n_channels)

@@ -1,241 +1,100 @@
-"""The typed bundles the compiled detection kernels take (one per concern, read by field name).
+"""The typed bundles the compiled detection kernels take, one per concern, read by field name.
 
-numba passes a ``NamedTuple`` of arrays and numbers to a compiled function as a tuple of typed
-fields, so a kernel's arguments are a few bundles, not a long positional list or a settings
-array read by index. Build them with ``int(...)`` and ``float(...)`` fields (a numpy integer
-would compile another specialisation). This module imports numpy only.
+A kernel's numbers travel in one-element numpy structured arrays (``record(DTYPE, **fields)``),
+read as ``p = bundle[0]; p.field``; its per-row results in structured arrays of one record per
+row (``ECHO``); its arrays (the samples, their offsets, tables, outputs) as plain arguments,
+each named for what it holds. numba dispatches an array of any dtype as fast as a plain array,
+where a ``NamedTuple`` argument goes through Python-level type inference on every call (tens of
+microseconds once a new ping has evicted the caches: as much as a sub-millisecond detector's
+whole budget for arguments). Records a plan can build once are built once (``local.LocalPlan``,
+``overlap_save.BlockEnvelopePlan``). The dtypes are immutable module constants. This module
+imports numpy only.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+CROSSING_SEARCH = np.dtype([
+    ("scale", np.float64),  # volts per unit of the samples: 1.0 for volts, the code step for codes
+    ("first", np.int64),  # searched samples [first, stop)
+    ("stop", np.int64),
+    ("window", np.int64),  # samples measured from the crossing on (amplitude and energy)
+    ("sample_rate_hz", np.float64),
+    ("t0_s", np.float64),  # time of sample 0 after the trigger (s)
+    ("offset_s", np.float64),  # calibrated offset subtracted from the crossing time (s)
+])
+"""Where the threshold detector searches and measures, and how a crossing becomes a time of flight."""
 
-class CodedRows(NamedTuple):
-    """The rows a kernel reads, and how to turn their values into volts.
+ECHO = np.dtype([
+    ("tof_s", np.float64),
+    ("amplitude", np.float64),
+    ("snr_db", np.float64),
+    ("score", np.float64),
+    ("tof_std_s", np.float64),
+])
+"""Per row: an echo's values (``Echo``'s fields, in its order)."""
 
-    Attributes
-    ----------
-    samples : ndarray, shape (n_rows, n_samples), C-contiguous
-        float64 volts, or int16 ADC codes.
-    scale : float
-        Volts per unit of ``samples``: 1.0 for volts, the code step for codes.
-    dc_v : ndarray, shape (n_rows,), float64
-        Each row's DC offset (V) still in ``samples`` (zeros for none): the kernels compute
-        with ``samples * scale - dc_v``.
+LOCAL_SEARCH = np.dtype([
+    ("scale", np.float64),  # volts per unit of the samples: 1.0 for volts, the code step for codes
+    ("block", np.int64),  # coarse-stage block length B (samples)
+    ("span", np.int64),  # blocks per window
+    ("reference", np.int64),  # the template's envelope-peak index (samples)
+    ("exclusion", np.int64),  # windows blanked each side of a pick (a template length)
+    ("half", np.int64),  # lags searched each side of a pick
+    ("segment_length", np.int64),  # samples per stretch (2 half + m)
+    ("lag_lo", np.int64),  # inclusive range of searched lags
+    ("lag_hi", np.int64),
+    ("candidates", np.int64),  # coarse picks per row
+    ("analytic_offset", np.int64),  # index of the template's sample 0 among the analytic taps
+    ("stride", np.int64),  # the search samples every stride-th lag (``LocalPlan.decimation``)
+    ("reach", np.int64),  # direct lags each side of the searched peak for the refinement
+])
+"""The local matched filter's layout (``local.LocalPlan``) and the lags it searches (full-rate samples)."""
+
+ECHO_CONSTANTS = np.dtype([
+    ("t0_s", np.float64),  # time of sample 0 after the trigger (s)
+    ("sample_rate_hz", np.float64),
+    ("template_t0_s", np.float64),  # the template's time origin (s): a TOF refers to its reference instant
+    ("noise_gain", np.float64),  # mean |z|^2 of white noise of 1 V std (``matched.white_noise_power``)
+    ("peak_response", np.float64),  # |z| of an echo equal to the template
+    ("peak_abs", np.float64),  # the template's largest |sample|
+    ("rms_bandwidth_hz", np.float64),
+    ("threshold_factor", np.float64),  # |z|^2 over the noise's mean |z|^2 at the detection threshold
+])
+"""What turns a refined matched-filter peak into an echo (``matched.echo_values``' constants)."""
+
+CODE_SCALE = np.dtype([
+    ("period", np.int64),  # the robust subsample: ``segments`` stretches of ``length`` samples at
+    ("length", np.int64),  # multiples of ``period`` (``noise.robust_subsample``; the whole row:
+    ("segments", np.int64),  # one stretch of n_samples)
+    ("volts_per_code", np.float64),
+    ("mad_to_sigma", np.float64),  # the robust noise estimate's factor (``noise.MAD_TO_SIGMA``)
+])
+"""How ADC codes become volts and robust statistics (``code_kernels.code_statistics``)."""
+
+BLOCK_LAYOUT = np.dtype([("hop", np.int64), ("lead", np.int64)])
+"""Overlapping blocks of a record: block b starts at sample ``b hop - lead``."""
+
+
+def record(dtype: np.dtype, **fields: Any) -> NDArray[np.void]:
+    """A one-element structured array of ``dtype`` with the given fields: all of them, in the
+    dtype's order (checked: a missing or misplaced number is a bug, not a default).
+
+    Raises
+    ------
+    ValueError
+        Fields other than the dtype's, or in another order.
     """
-
-    samples: NDArray
-    scale: float
-    dc_v: NDArray[np.float64]
-
-
-# --- the threshold detector (``threshold_kernels``) ---
+    if tuple(fields) != dtype.names:
+        raise ValueError(f"record: fields {tuple(fields)} are not {dtype.names}")
+    return np.array([tuple(fields.values())], dtype=dtype)
 
 
-class RowLevels(NamedTuple):
-    """Per-row levels of the threshold detector (V), shape (n_rows,) each.
-
-    Attributes
-    ----------
-    level_v : ndarray
-        The threshold on |x - dc|.
-    sigma_v : ndarray
-        The noise standard deviation (for the echo's SNR and TOF std).
-    """
-
-    level_v: NDArray[np.float64]
-    sigma_v: NDArray[np.float64]
-
-
-class CrossingSearch(NamedTuple):
-    """Where the threshold detector searches and measures (samples).
-
-    Attributes
-    ----------
-    first, stop : int
-        Searched samples [first, stop) (0 <= first <= stop <= n_samples).
-    window : int
-        Samples measured from the crossing on (amplitude and energy).
-    """
-
-    first: int
-    stop: int
-    window: int
-
-
-class CrossingTiming(NamedTuple):
-    """How a crossing's sample becomes a time of flight.
-
-    Attributes
-    ----------
-    sample_rate_hz : float
-    t0_s : float
-        Time of sample 0 after the trigger (s).
-    offset_s : float
-        Calibrated offset subtracted from the crossing time (s).
-    """
-
-    sample_rate_hz: float
-    t0_s: float
-    offset_s: float
-
-
-# --- the local matched filter (``local_kernels``) ---
-
-
-class CoarseLayout(NamedTuple):
-    """The local matched filter's coarse stage and stretches (``local.LocalPlan``), in samples or blocks.
-
-    Attributes
-    ----------
-    block : int
-        Block length B (samples).
-    span : int
-        Blocks per window.
-    reference : int
-        The template's envelope-peak index (samples).
-    exclusion : int
-        Windows blanked each side of a pick (a template length).
-    half : int
-        Lags searched each side of a pick.
-    segment_length : int
-        Samples per stretch (2 half + m).
-    """
-
-    block: int
-    span: int
-    reference: int
-    exclusion: int
-    half: int
-    segment_length: int
-
-
-class LagSearch(NamedTuple):
-    """Which lags the local matched filter searches (full-rate samples).
-
-    Attributes
-    ----------
-    lag_lo, lag_hi : int
-        Inclusive range of searched lags.
-    candidates : int
-        Coarse picks per row.
-    """
-
-    lag_lo: int
-    lag_hi: int
-    candidates: int
-
-
-class AnalyticTaps(NamedTuple):
-    """The analytic template's taps for direct correlations (``local.LocalPlan``).
-
-    Attributes
-    ----------
-    parts : ndarray, shape (4, m_a + 1), float64
-        The conjugated analytic template (real, imaginary; first m_a columns) and its running
-        sums, 0 first (``LocalPlan.tap_parts``).
-    parts32 : ndarray, shape (2, m_a + 1), float32
-        Its first two rows in single precision (``LocalPlan.tap_parts32``), for the search.
-    analytic_offset : int
-        Index of the template's sample 0 among the taps.
-    stride : int
-        The search samples every ``stride``-th lag (``LocalPlan.decimation``).
-    reach : int
-        Direct lags each side of the searched peak for the refinement.
-    """
-
-    parts: NDArray[np.float64]
-    parts32: NDArray[np.float32]
-    analytic_offset: int
-    stride: int
-    reach: int
-
-
-class EchoConstants(NamedTuple):
-    """What turns a refined peak into an echo (``matched.echo_values``' constants).
-
-    Attributes
-    ----------
-    t0_s : float
-        Time of sample 0 after the trigger (s).
-    sample_rate_hz : float
-    template_t0_s : float
-        The template's time origin (s): a TOF refers to its reference instant.
-    noise_gain : float
-        Mean |z|^2 of white noise of 1 V standard deviation (``matched.white_noise_power``).
-    peak_response : float
-        |z| of an echo equal to the template.
-    peak_abs : float
-        The template's largest |sample|.
-    rms_bandwidth_hz : float
-    threshold_factor : float
-        |z|^2 over the noise's mean |z|^2 at the detection threshold.
-    """
-
-    t0_s: float
-    sample_rate_hz: float
-    template_t0_s: float
-    noise_gain: float
-    peak_response: float
-    peak_abs: float
-    rms_bandwidth_hz: float
-    threshold_factor: float
-
-
-class LocalOutput(NamedTuple):
-    """What the local matched filter's kernel writes.
-
-    Attributes
-    ----------
-    echoes : ndarray, shape (n_rows, 5)
-        tof_s, amplitude, snr_db, score, tof_std_s of each row's peak.
-    extremes : ndarray, shape (n_rows, 2) or (0, 2)
-        Each row's largest and smallest value (units of the samples), read with the coarse
-        pass; with no rows, not measured.
-    """
-
-    echoes: NDArray[np.float64]
-    extremes: NDArray[np.float64]
-
-
-# --- ADC codes (``code_kernels``) ---
-
-
-class RobustSubsample(NamedTuple):
-    """The robust estimates' subsample (``noise.robust_subsample``): ``segments`` stretches of
-    ``length`` samples starting at multiples of ``period`` (the whole row: 1 stretch of n)."""
-
-    period: int
-    length: int
-    segments: int
-
-
-class CodeScale(NamedTuple):
-    """How codes become volts, and the clipping test.
-
-    Attributes
-    ----------
-    volts_per_code : float
-    mad_to_sigma : float
-        The robust noise estimate's factor (``noise.MAD_TO_SIGMA``).
-    full_scales_v : ndarray, shape (k,)
-        Full scales (V) to test (none: no pass over the whole record).
-    """
-
-    volts_per_code: float
-    mad_to_sigma: float
-    full_scales_v: NDArray[np.float64]
-
-
-# --- the matched filter's overlap-save blocks (``overlap_save_kernels``) ---
-
-
-class BlockLayout(NamedTuple):
-    """Overlapping blocks of a record: block b starts at sample ``b hop - lead``."""
-
-    hop: int
-    lead: int
+def read_only(array: NDArray) -> NDArray:
+    """``array``, made read-only (a record memoised and shared between calls)."""
+    array.flags.writeable = False
+    return array

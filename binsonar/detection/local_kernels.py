@@ -31,15 +31,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from binsonar.detection.kernel_types import (
-    AnalyticTaps,
-    CoarseLayout,
-    CodedRows,
-    EchoConstants,
-    LagSearch,
-    LocalOutput,
-)
-
 
 @njit(cache=True, nogil=True)
 def tone_offsets(dc_v: NDArray[np.float64], lanes: NDArray, block: int) -> tuple:
@@ -54,8 +45,8 @@ def tone_offsets(dc_v: NDArray[np.float64], lanes: NDArray, block: int) -> tuple
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def block_powers(rows: CodedRows, lanes: NDArray, block: int, first_block: int, energy: NDArray[np.float64],
-                 offset_re: NDArray[np.float64], offset_im: NDArray[np.float64]) -> None:
+def block_powers(samples: NDArray, lanes: NDArray, search: NDArray[np.void], first_block: int,
+                 energy: NDArray[np.float64], offset_re: NDArray[np.float64], offset_im: NDArray[np.float64]) -> None:
     """|z_b|^2 of blocks first_block + 0 .. energy.shape[1] - 1 of every row (``local.block_tone_power``).
 
     Four blocks at a time: eight independent multiply-add chains over the tone table, with no
@@ -69,9 +60,9 @@ def block_powers(rows: CodedRows, lanes: NDArray, block: int, first_block: int, 
 
     Parameters
     ----------
-    rows : CodedRows
-        Each block's correlation of the raw values is scaled to volts once, before the offset
-        is subtracted.
+    samples : ndarray, shape (n_rows, n_samples), C-contiguous
+        float64 volts or int16 ADC codes: each block's correlation of the raw values is scaled
+        to volts once (``search``'s scale), before the offset is subtracted.
     lanes : ndarray, shape (2, L), L >= block a multiple of 8
         cos and -sin of 2 pi f0 k / fs for k < block, 0 beyond (``LocalPlan.tone_lanes``),
         float64; or float32 (``LocalPlan.tone_lanes32``) for int16 codes: the codes convert
@@ -79,14 +70,14 @@ def block_powers(rows: CodedRows, lanes: NDArray, block: int, first_block: int, 
         block's float32 sum of ~48 products is within ~48 x 6e-8 of the sum of their magnitudes
         (~1e-7 of a block's correlation): the coarse statistic only picks the candidates, which
         then are the float64 ones unless two windows' statistics agree to ~1e-6.
-    block : int
-        Block length B (samples).
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        Its scale and block (block length B, samples).
     first_block : int
     energy : ndarray, shape (n_rows, n_blocks), written
     offset_re, offset_im : ndarray, shape (n_rows,)
-        ``tone_offsets(rows.dc_v, lanes, block)``: subtracted from each block's correlation.
+        ``tone_offsets(dc_v, lanes, block)``: subtracted from each block's correlation.
     """
-    samples, scale = rows.samples, rows.scale
+    scale, block = search[0].scale, search[0].block
     n_rows, n = samples.shape
     n_blocks = energy.shape[1]
     padded = lanes.shape[1]
@@ -188,10 +179,10 @@ def _group_max(window: NDArray[np.float64], lo: int, hi: int) -> float:
 
 @njit(cache=True, nogil=True)
 def coarse_starts(
-    rows: CodedRows,
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
     lanes: NDArray,
-    layout: CoarseLayout,
-    search: LagSearch,
+    search: NDArray[np.void],
     starts: NDArray[np.int64],
     extremes: NDArray[np.float64],
 ) -> None:
@@ -200,12 +191,16 @@ def coarse_starts(
 
     Parameters
     ----------
-    rows : CodedRows
+    samples : ndarray, shape (n_rows, n_samples), C-contiguous
+        float64 volts or int16 ADC codes (``search``'s scale: volts per unit).
+    dc_v : ndarray, shape (n_rows,)
+        Each row's DC offset (V) still in the samples (zeros for none).
     lanes : ndarray, shape (2, L), C-contiguous
         cos and -sin of 2 pi f0 k / fs, k < block, zero padded (``LocalPlan.tone_lanes``, or
         ``LocalPlan.tone_lanes32`` for int16 codes: ``block_powers``).
-    layout : CoarseLayout
-    search : LagSearch
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        The scale, the layout (block, span, reference, exclusion, half) and the searched lags
+        (lag_lo, lag_hi, candidates).
     starts : ndarray of int, shape (n_rows * candidates,), written
         Lag of each stretch's sample 0 (its first searched lag), row r's pick k at
         r * candidates + k.
@@ -215,9 +210,9 @@ def coarse_starts(
         blocks scanned while it is in cache after its block powers, then the samples outside
         the blocks read: no pass over the record of its own. With none: not computed.
     """
-    span, reference, exclusion, half, block = layout.span, layout.reference, layout.exclusion, layout.half, layout.block
-    lag_lo, lag_hi, candidates = search.lag_lo, search.lag_hi, search.candidates
-    samples = rows.samples
+    p = search[0]
+    span, reference, exclusion, half, block = p.span, p.reference, p.exclusion, p.half, p.block
+    lag_lo, lag_hi, candidates = p.lag_lo, p.lag_hi, p.candidates
     n_rows, n = samples.shape
     n_blocks = n // block
     sp = min(span, n_blocks)
@@ -231,9 +226,9 @@ def coarse_starts(
     n_groups = -(-n_searched // _GROUP)
     group_max = np.empty(n_groups)
     width = 2 * half + 1
-    offset_re, offset_im = tone_offsets(rows.dc_v, lanes, block)
+    offset_re, offset_im = tone_offsets(dc_v, lanes, block)
     if extremes.shape[0] != n_rows:
-        block_powers(rows, lanes, block, first, energies, offset_re, offset_im)
+        block_powers(samples, lanes, search, first, energies, offset_re, offset_im)
     else:
         # Chunk by chunk: the block powers (the same sums as in one call), then the chunk's
         # extremes, read again from the cache rather than from memory; then the samples outside
@@ -244,7 +239,7 @@ def coarse_starts(
         n_read = energies.shape[1]
         for c0 in range(0, n_read, _EXTREMES_CHUNK):
             c1 = min(c0 + _EXTREMES_CHUNK, n_read)
-            block_powers(rows, lanes, block, first + c0, energies[:, c0:c1], offset_re, offset_im)
+            block_powers(samples, lanes, search, first + c0, energies[:, c0:c1], offset_re, offset_im)
             for r in range(n_rows):
                 _span_extremes(samples[r], (first + c0) * block, (first + c1) * block, extremes[r])
         for r in range(n_rows):
@@ -289,10 +284,10 @@ def coarse_starts(
 
 @njit(cache=True, nogil=True)
 def coarse_stretches(
-    rows: CodedRows,
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
     lanes: NDArray,
-    layout: CoarseLayout,
-    search: LagSearch,
+    search: NDArray[np.void],
     segments: NDArray[np.float32],
     starts: NDArray[np.int64],
 ) -> None:
@@ -303,20 +298,19 @@ def coarse_stretches(
 
     Parameters
     ----------
-    rows, lanes, layout, search, starts
+    samples, dc_v, lanes, search, starts
         As for ``coarse_starts``.
     segments : ndarray, shape (n_rows * candidates, n_fft), float32, written
         Stretch of each pick (row r's pick k at r * candidates + k), ``rows - dc`` rounded to
         float32 (the short FFTs only pick the peak's integer lag), samples outside the record
-        and beyond ``layout.segment_length`` set to 0.
+        and beyond ``segment_length`` set to 0.
     """
-    candidates, segment_length = search.candidates, layout.segment_length
-    samples, scale = rows.samples, rows.scale
+    candidates, segment_length, scale = search[0].candidates, search[0].segment_length, search[0].scale
     n_rows, n = samples.shape
     n_fft = segments.shape[1]
-    coarse_starts(rows, lanes, layout, search, starts, np.empty((0, 2)))
+    coarse_starts(samples, dc_v, lanes, search, starts, np.empty((0, 2)))
     for r in range(n_rows):
-        d = rows.dc_v[r]
+        d = dc_v[r]
         for k in range(candidates):
             i = r * candidates + k
             start = starts[i]
@@ -346,10 +340,10 @@ def _log_parabolic(left: float, centre: float, right: float) -> tuple:
 def local_peaks(
     z: NDArray[np.complex128],
     starts: NDArray[np.int64],
-    rows: CodedRows,
-    taps: AnalyticTaps,
-    layout: CoarseLayout,
-    search: LagSearch,
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
+    taps: NDArray[np.float64],
+    search: NDArray[np.void],
     values: NDArray[np.complex128],
     refined: NDArray[np.float64],
 ) -> None:
@@ -359,14 +353,16 @@ def local_peaks(
     ----------
     z : ndarray, shape (n_rows * candidates, >= ceil(width / stride)), complex
         Local filter output of each stretch at lags ``starts + stride j`` (width = 2 half + 1
-        lags, ``taps.stride``).
+        lags).
     starts : ndarray of int, shape (n_rows * candidates,)
-    rows : CodedRows
-    taps : AnalyticTaps
-        Its ``parts``, ``analytic_offset`` and ``stride`` (the reach is ``values``' half width).
-    layout : CoarseLayout
-        Its ``half``.
-    search : LagSearch
+    samples, dc_v
+        As for ``coarse_starts``.
+    taps : ndarray, shape (4, m_a + 1)
+        ``LocalPlan.tap_parts``: the conjugated analytic template (real, imaginary; first m_a
+        columns) and its running sums, 0 first.
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        Its scale, half, lag_lo, lag_hi, candidates, analytic_offset and stride (the reach is
+        ``values``' half width).
     values : ndarray, shape (n_rows, 2 R + 1), complex, written
         Direct z (``rows - dc``; 0 at lags outside [lag_lo, lag_hi]) at the peak's lag + (-R .. R),
         as ``matched.lags_time_domain`` minus ``matched.dc_correlation`` (R >= stride keeps the
@@ -374,10 +370,11 @@ def local_peaks(
     refined : ndarray, shape (n_rows, 2), written
         ``matched.refine`` of ``values``: fractional lag and |z|^2 at the vertex.
     """
-    candidates, lag_lo, lag_hi = search.candidates, search.lag_lo, search.lag_hi
-    width = 2 * layout.half + 1
-    stride = taps.stride
-    n_rows = rows.samples.shape[0]
+    p = search[0]
+    candidates, lag_lo, lag_hi = p.candidates, p.lag_lo, p.lag_hi
+    width = 2 * p.half + 1
+    stride = p.stride
+    n_rows = samples.shape[0]
     power = np.empty(values.shape[1])
     for r in range(n_rows):
         best_lag = 0
@@ -391,7 +388,7 @@ def local_peaks(
                 if p > best:
                     best = p
                     best_lag = lag
-        _refine_row(rows.samples[r], rows.scale, rows.dc_v[r], taps, search, best_lag, values[r], power, refined[r])
+        _refine_row(samples[r], dc_v[r], taps, search, best_lag, values[r], power, refined[r])
 
 
 @njit(cache=True, nogil=True)
@@ -412,15 +409,14 @@ def _folded(re: float, im: float, first: int, n: int, scale: float, d: float, ta
 
 
 @njit(cache=True, nogil=True)
-def _refine_row(row: NDArray, scale: float, d: float, analytic: AnalyticTaps, search: LagSearch, best_lag: int,
+def _refine_row(row: NDArray, d: float, taps: NDArray[np.float64], search: NDArray[np.void], best_lag: int,
                 values: NDArray[np.complex128], power: NDArray[np.float64], refined: NDArray[np.float64]) -> None:
     """Direct z of ``row * scale - d`` at ``best_lag - reach .. best_lag + reach`` (reach =
     values.size // 2; 0 outside [lag_lo, lag_hi]) into ``values``, and ``matched.refine``'s
     vertex of the largest |z| among them, the outer two excepted, into ``refined`` (fractional
     lag, |z|^2)."""
-    taps = analytic.parts
-    analytic_offset = analytic.analytic_offset
-    lag_lo, lag_hi = search.lag_lo, search.lag_hi
+    p = search[0]
+    scale, analytic_offset, lag_lo, lag_hi = p.scale, p.analytic_offset, p.lag_lo, p.lag_hi
     n = row.size
     m_a = taps.shape[1] - 1
     n_lags = values.size
@@ -455,8 +451,8 @@ def _refine_row(row: NDArray, scale: float, d: float, analytic: AnalyticTaps, se
 
 
 @njit(cache=True, nogil=True)
-def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constants: EchoConstants,
-              echoes: NDArray[np.float64]) -> None:
+def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constants: NDArray[np.void],
+              echoes: NDArray[np.void]) -> None:
     """TOF, amplitude, SNR, score and TOF std of each row's refined peak: ``matched.echo_values``
     (with ``matched.white_noise_power`` for the noise) compiled for a few rows, the same
     operations in the same order (``tests/parity/test_detection_local_kernels.py``).
@@ -467,24 +463,23 @@ def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constant
         Fractional lag and |z|^2 at the vertex (``local_peaks``).
     sigma : ndarray, shape (n_rows,)
         Noise standard deviation of each row (V, ``noise.noise_sigma``: floored).
-    constants : EchoConstants
-    echoes : ndarray, shape (n_rows, 5), written
-        tof_s, amplitude, snr_db, score, tof_std_s.
+    constants : ndarray of ``kernel_types.ECHO_CONSTANTS``, shape (1,)
+    echoes : ndarray of ``kernel_types.ECHO``, shape (n_rows,), written
     """
-    t0_s, fs, template_t0_s, gain = constants.t0_s, constants.sample_rate_hz, constants.template_t0_s, \
-        constants.noise_gain
-    peak_response, peak_abs = constants.peak_response, constants.peak_abs
-    rms_bandwidth, factor = constants.rms_bandwidth_hz, constants.threshold_factor
+    c = constants[0]
+    t0_s, fs, template_t0_s, gain = c.t0_s, c.sample_rate_hz, c.template_t0_s, c.noise_gain
+    peak_response, peak_abs, rms_bandwidth, factor = c.peak_response, c.peak_abs, c.rms_bandwidth_hz, c.threshold_factor
     for r in range(refined.shape[0]):
         lag = refined[r, 0]
         power = refined[r, 1]
         noise_mean = max(sigma[r] * sigma[r] * gain, 1e-20 * power)
         snr = max(2.0 * power / noise_mean - 2.0, 1e-3)
-        echoes[r, 0] = t0_s + lag / fs - template_t0_s
-        echoes[r, 1] = np.sqrt(power) / peak_response * peak_abs
-        echoes[r, 2] = 10.0 * np.log10(snr)
-        echoes[r, 3] = power / (factor * noise_mean)
-        echoes[r, 4] = 1.0 / (2.0 * np.pi * rms_bandwidth * np.sqrt(snr))
+        echo = echoes[r]
+        echo.tof_s = t0_s + lag / fs - template_t0_s
+        echo.amplitude = np.sqrt(power) / peak_response * peak_abs
+        echo.snr_db = 10.0 * np.log10(snr)
+        echo.score = power / (factor * noise_mean)
+        echo.tof_std_s = 1.0 / (2.0 * np.pi * rms_bandwidth * np.sqrt(snr))
 
 
 @njit(cache=True, nogil=True, fastmath=True)
@@ -547,14 +542,16 @@ def _four_lags32(x: NDArray[np.float32], first: int, stride: int, taps: NDArray[
 
 @njit(cache=True, nogil=True)
 def local_echoes(
-    rows: CodedRows,
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
     sigma: NDArray[np.float64],
     lanes: NDArray,
-    layout: CoarseLayout,
-    search: LagSearch,
-    analytic: AnalyticTaps,
-    constants: EchoConstants,
-    out: LocalOutput,
+    taps: NDArray[np.float64],
+    taps32: NDArray[np.float32],
+    search: NDArray[np.void],
+    constants: NDArray[np.void],
+    echoes: NDArray[np.void],
+    extremes: NDArray[np.float64],
 ) -> None:
     """The whole local matched filter of every row in one call: ``coarse_starts``, the search
     of each pick's stretch, ``_refine_row``, ``echo_rows``.
@@ -575,27 +572,28 @@ def local_echoes(
 
     Parameters
     ----------
-    rows : CodedRows
+    samples, dc_v, lanes
+        As for ``coarse_starts``.
     sigma : ndarray, shape (n_rows,)
         Noise standard deviation of each row (V, floored), as for ``echo_rows``.
-    lanes, layout, search
-        As for ``coarse_starts``.
-    analytic : AnalyticTaps
-        ``reach`` direct lags each side of the searched peak (``local.REFINE_HALF_WIDTH +
-        stride - 1``).
-    constants : EchoConstants
-    out : LocalOutput
-        ``echoes`` (``echo_rows``) and ``extremes`` (``coarse_starts``), written.
+    taps : ndarray, shape (4, m_a + 1)
+        As for ``local_peaks``.
+    taps32 : ndarray of float32, shape (2, m_a + 1)
+        Its first two rows in single precision (``LocalPlan.tap_parts32``), for the search.
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        All its fields: ``coarse_starts``', and analytic_offset, stride and reach (direct lags
+        each side of the searched peak: ``local.REFINE_HALF_WIDTH + stride - 1``).
+    constants : ndarray of ``kernel_types.ECHO_CONSTANTS``, shape (1,)
+    echoes : ndarray of ``kernel_types.ECHO``, shape (n_rows,), written (``echo_rows``)
+    extremes : ndarray, shape (n_rows, 2) or (0, 2), written (``coarse_starts``)
     """
-    lag_lo, lag_hi, candidates, half = search.lag_lo, search.lag_hi, search.candidates, layout.half
-    analytic_offset, stride, reach = analytic.analytic_offset, analytic.stride, analytic.reach
-    taps = analytic.parts
-    taps32 = analytic.parts32
-    samples, scale = rows.samples, rows.scale
+    p = search[0]
+    lag_lo, lag_hi, candidates, half = p.lag_lo, p.lag_hi, p.candidates, p.half
+    scale, analytic_offset, stride, reach = p.scale, p.analytic_offset, p.stride, p.reach
     n_rows, n = samples.shape
     m_a = taps.shape[1] - 1
     starts = np.empty(n_rows * candidates, dtype=np.int64)
-    coarse_starts(rows, lanes, layout, search, starts, out.extremes)
+    coarse_starts(samples, dc_v, lanes, search, starts, extremes)
     width = 2 * half + 1
     count = (width + stride - 1) // stride  # searched lags per stretch: start + stride j
     groups = (count + 3) // 4
@@ -609,7 +607,7 @@ def local_echoes(
     refined = np.empty((n_rows, 2))
     for r in range(n_rows):
         row = samples[r]
-        d = rows.dc_v[r]
+        d = dc_v[r]
         best_lag = 0
         best = -2.0
         for k in range(candidates):
@@ -629,5 +627,5 @@ def local_echoes(
                     if p > best:
                         best = p
                         best_lag = lag
-        _refine_row(row, scale, d, analytic, search, best_lag, values, power, refined[r])
-    echo_rows(refined, sigma, constants, out.echoes)
+        _refine_row(row, d, taps, search, best_lag, values, power, refined[r])
+    echo_rows(refined, sigma, constants, echoes)

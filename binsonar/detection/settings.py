@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
-from typing import Any, Hashable, Mapping
+from typing import Any, Hashable, Mapping, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -11,9 +10,8 @@ from numpy.typing import NDArray
 from binsonar.recording import Template
 
 
-@dataclass(frozen=True, eq=False)
-class DetectionSettings:
-    """The arguments of ``detect`` (see it for each one's meaning), in one frozen bundle.
+class DetectionSettings(NamedTuple):
+    """The arguments of ``detect`` (see it for each one's meaning), in one immutable bundle.
 
     Attributes
     ----------
@@ -53,9 +51,8 @@ class DetectionSettings:
     def from_arguments(cls, arguments: Mapping[str, Any]) -> "DetectionSettings":
         """Keyword arguments as ``detect`` takes them: the fields above by name (``options``
         excepted), every other name a method option."""
-        names = {f.name for f in fields(cls)} - {"options"}
-        given = {k: v for k, v in arguments.items() if k in names}
-        return cls(**given, options=tuple((k, v) for k, v in arguments.items() if k not in names))
+        given = {k: v for k, v in arguments.items() if k in ARGUMENT_NAMES}
+        return cls(**given, options=tuple((k, v) for k, v in arguments.items() if k not in ARGUMENT_NAMES))
 
     @property
     def option_dict(self) -> dict[str, Any]:
@@ -74,6 +71,10 @@ class DetectionSettings:
         except TypeError:
             return None
         return key
+
+
+ARGUMENT_NAMES: frozenset[str] = frozenset(DetectionSettings._fields) - {"options"}
+"""``detect``'s own keyword arguments (every other keyword is a method option)."""
 
 
 def template_key(template: Template | NDArray[np.floating] | None) -> Hashable:

@@ -246,17 +246,17 @@ def detect_threshold(
         stop = min(n, int(math.floor((stop_s - t0_s) * fs)) + 1) if math.isfinite(stop_s) else n
         if stop - first < 2:
             raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
-    from binsonar.detection.kernel_types import CodedRows, CrossingSearch, CrossingTiming, RowLevels
+    from binsonar.detection.kernel_types import CROSSING_SEARCH, ECHO, record
     from binsonar.detection.threshold_kernels import threshold_echoes
 
     # ``first_crossings``, ``crossing_measures`` and ``crossing_echo_values``, compiled in one
     # call: each searched sample read once, up to the crossing.
     samples = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)
-    echoes = np.empty((n_rows, 6))
-    threshold_echoes(CodedRows(samples, 1.0 if volts_per_code is None else float(volts_per_code),
-                               np.ascontiguousarray(offset, dtype=float)),
-                     RowLevels(np.ascontiguousarray(level, dtype=float), sigma),
-                     CrossingSearch(int(first), int(stop), int(window)),
-                     CrossingTiming(float(fs), float(t0_s), float(offset_s)), echoes)
-    # One conversion to Python floats for all rows (``tolist``).
-    return [[tuple(echo[1:])] if echo[0] else [] for echo in echoes.tolist()]
+    search = record(CROSSING_SEARCH, scale=1.0 if volts_per_code is None else volts_per_code, first=first, stop=stop,
+                    window=window, sample_rate_hz=fs, t0_s=t0_s, offset_s=offset_s)
+    found = np.empty(n_rows, dtype=np.int64)
+    echoes = np.empty(n_rows, dtype=ECHO)
+    threshold_echoes(samples, np.ascontiguousarray(offset, dtype=float), np.ascontiguousarray(level, dtype=float), sigma,
+                     search, found, echoes)
+    # One conversion to Python values for all rows (``tolist``: tuples of floats).
+    return [[echo] if i >= 0 else [] for echo, i in zip(echoes.tolist(), found.tolist())]

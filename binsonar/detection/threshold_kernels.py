@@ -14,8 +14,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from binsonar.detection.kernel_types import CodedRows, CrossingSearch, CrossingTiming, RowLevels
-
 # Samples per chunk: the largest |x - offset| of a chunk comes from its largest and smallest
 # sample (``_chunk_peak``); only the chunk where it first reaches the level is scanned sample
 # by sample.
@@ -61,28 +59,31 @@ def _chunk_peak(x: NDArray, scale: float, offset: float, codes: bool) -> float:
 
 
 @njit(cache=True, nogil=True)
-def first_crossings(rows: CodedRows, level: NDArray[np.float64], search: CrossingSearch,
-                    found: NDArray[np.int64]) -> None:
-    """Index of the first sample in [search.first, search.stop) with |x scale - dc| >= level in
-    each row (-1 where none): ``threshold.first_crossings``.
+def first_crossings(samples: NDArray, dc_v: NDArray[np.float64], level_v: NDArray[np.float64],
+                    search: NDArray[np.void], found: NDArray[np.int64]) -> None:
+    """Index of the first sample in [first, stop) with |x scale - dc| >= level in each row (-1
+    where none): ``threshold.first_crossings``.
 
     Parameters
     ----------
-    rows : CodedRows
-        x scale is exactly the volts ``codes * volts_per_code`` numpy makes.
-    level : ndarray, shape (n_rows,)
-        Volts.
-    search : CrossingSearch
+    samples : ndarray, shape (n_rows, n_samples), C-contiguous
+        float64 volts or int16 ADC codes; x scale is exactly the volts ``codes * volts_per_code``
+        numpy makes.
+    dc_v : ndarray, shape (n_rows,)
+        Each row's DC offset (V) still in the samples.
+    level_v : ndarray, shape (n_rows,)
+        Each row's threshold on |x - dc| (V).
+    search : ndarray of ``kernel_types.CROSSING_SEARCH``, shape (1,)
     found : ndarray of int, shape (n_rows,), written
     """
-    samples, scale = rows.samples, rows.scale
+    scale = search[0].scale
     n_rows = samples.shape[0]
-    first, n = search.first, search.stop
+    first, n = search[0].first, search[0].stop
     codes = scale != 1.0  # codes (volts have scale 1): only picks ``_chunk_peak``'s loop, both exact for either
     for r in range(n_rows):
         row = samples[r]
-        c = rows.dc_v[r]
-        threshold = level[r]
+        c = dc_v[r]
+        threshold = level_v[r]
         # The chunk test may be off by an ulp of |x scale| (``_chunk_peak``): a chunk within
         # that of the level is scanned exactly, sample by sample (unfused, as numpy computes).
         coarse = threshold - (threshold + abs(c)) * 1e-12
@@ -99,23 +100,24 @@ def first_crossings(rows: CodedRows, level: NDArray[np.float64], search: Crossin
 
 
 @njit(cache=True, nogil=True)
-def crossings(rows: CodedRows, level: NDArray[np.float64], search: CrossingSearch, found: NDArray[np.int64],
-              measures: NDArray[np.float64]) -> None:
+def crossings(samples: NDArray, dc_v: NDArray[np.float64], level_v: NDArray[np.float64], search: NDArray[np.void],
+              found: NDArray[np.int64], measures: NDArray[np.float64]) -> None:
     """``first_crossings``, then the echo measures at each crossing (numpy reference:
     ``threshold.crossing_measures``).
 
     Parameters
     ----------
-    rows, level, search, found
-        As for ``first_crossings``; ``search.window`` samples are measured from the crossing on
+    samples, dc_v, level_v, search, found
+        As for ``first_crossings``; ``window`` samples are measured from the crossing on
         (indices past the row's end repeat its last sample, as ``numpy.clip`` of the indices does).
     measures : ndarray, shape (n_rows, 4), written
         |x - dc| at the sample before the crossing (at the crossing itself when it is sample 0)
         and at the crossing, the largest |x - dc| and the sum of (x - dc)^2 over the window (x:
         the row times ``scale``, volts); NaN for rows without a crossing.
     """
-    first_crossings(rows, level, search, found)
-    samples, scale = rows.samples, rows.scale
+    first_crossings(samples, dc_v, level_v, search, found)
+    window = search[0].window
+    scale = search[0].scale
     n = samples.shape[1]
     for r in range(samples.shape[0]):
         i = found[r]
@@ -123,12 +125,12 @@ def crossings(rows: CodedRows, level: NDArray[np.float64], search: CrossingSearc
             for q in range(4):
                 measures[r, q] = np.nan
             continue
-        c = rows.dc_v[r]
+        c = dc_v[r]
         measures[r, 0] = abs(samples[r, max(i - 1, 0)] * scale - c)
         measures[r, 1] = abs(samples[r, i] * scale - c)
         peak = 0.0
         energy = 0.0
-        for j in range(search.window):
+        for j in range(window):
             v = samples[r, min(i + j, n - 1)] * scale - c
             peak = max(peak, abs(v))
             energy += v * v
@@ -137,54 +139,56 @@ def crossings(rows: CodedRows, level: NDArray[np.float64], search: CrossingSearc
 
 
 @njit(cache=True, nogil=True)
-def threshold_echoes(rows: CodedRows, levels: RowLevels, search: CrossingSearch, timing: CrossingTiming,
-                     echoes: NDArray[np.float64]) -> None:
+def threshold_echoes(samples: NDArray, dc_v: NDArray[np.float64], level_v: NDArray[np.float64],
+                     sigma_v: NDArray[np.float64], search: NDArray[np.void], found: NDArray[np.int64],
+                     echoes: NDArray[np.void]) -> None:
     """``crossings``, then each crossing's echo values: the whole threshold detector after its
     noise estimate, in one call (numpy reference: ``threshold.crossing_echo_values``, the same
     operations in the same order).
 
     Parameters
     ----------
-    rows : CodedRows
-    levels : RowLevels
-    search : CrossingSearch
-    timing : CrossingTiming
-    echoes : ndarray, shape (n_rows, 6), written
-        1 where the row crosses (0 and NaN values elsewhere), then tof_s (the crossing linearly
-        interpolated between the samples around it, minus the offset), amplitude (the largest
-        |x - dc| over the window, V), snr_db (the window's energy above the noise over sigma^2,
-        at least -30 dB, capped near 200 dB for a noise-free record), score (amplitude /
-        level) and tof_std_s (sigma over the crossing's slope).
+    samples, dc_v, level_v
+        As for ``first_crossings``.
+    sigma_v : ndarray, shape (n_rows,)
+        Each row's noise standard deviation (V), for the SNR and the TOF std.
+    search : ndarray of ``kernel_types.CROSSING_SEARCH``, shape (1,)
+    found : ndarray of int, shape (n_rows,), written
+        Each row's crossing sample (-1: none).
+    echoes : ndarray of ``kernel_types.ECHO``, shape (n_rows,), written
+        Where the row crosses (NaN elsewhere): tof_s (the crossing linearly interpolated between
+        the samples around it, minus the offset), amplitude (the largest |x - dc| over the
+        window, V), snr_db (the window's energy above the noise over sigma^2, at least -30 dB,
+        capped near 200 dB for a noise-free record), score (amplitude / level) and tof_std_s
+        (sigma over the crossing's slope).
     """
-    n_rows = rows.samples.shape[0]
-    level = levels.level_v
-    found = np.empty(n_rows, dtype=np.int64)
+    n_rows = samples.shape[0]
     measures = np.empty((n_rows, 4))
-    window = search.window
-    crossings(rows, level, search, found, measures)
-    fs, t0_s, offset_s = timing.sample_rate_hz, timing.t0_s, timing.offset_s
+    p = search[0]
+    window = p.window
+    crossings(samples, dc_v, level_v, search, found, measures)
+    fs, t0_s, offset_s = p.sample_rate_hz, p.t0_s, p.offset_s
     tiny = np.finfo(np.float64).tiny
     for r in range(n_rows):
         i = found[r]
+        echo = echoes[r]
         if i < 0:
-            echoes[r, 0] = 0.0
-            for q in range(1, 6):
-                echoes[r, q] = np.nan
+            echo.tof_s = echo.amplitude = echo.snr_db = echo.score = echo.tof_std_s = np.nan
             continue
         before, after, amplitude, total = measures[r, 0], measures[r, 1], measures[r, 2], measures[r, 3]
-        sigma = levels.sigma_v[r]
+        sigma = sigma_v[r]
+        level = level_v[r]
         frac = 0.0
         if i > 0:  # ``threshold.crossing_fraction``
             rise = after - before
-            frac = (level[r] - before) / rise if rise > 0 else 1.0
+            frac = (level - before) / rise if rise > 0 else 1.0
             frac = min(max(frac, 0.0), 1.0)
         crossing = t0_s + (i - 1 + frac) / fs
         noise_var = max(sigma ** 2, 1e-20 * total)  # a noise-free record: the SNR capped at 200 dB
         snr = max((total - window * sigma ** 2) / noise_var, 1e-3)
         slope = max((after - before) * fs, tiny)
-        echoes[r, 0] = 1.0
-        echoes[r, 1] = crossing - offset_s
-        echoes[r, 2] = amplitude
-        echoes[r, 3] = 10 * np.log10(snr)
-        echoes[r, 4] = amplitude / level[r]
-        echoes[r, 5] = sigma / slope
+        echo.tof_s = crossing - offset_s
+        echo.amplitude = amplitude
+        echo.snr_db = 10 * np.log10(snr)
+        echo.score = amplitude / level
+        echo.tof_std_s = sigma / slope

@@ -8,13 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from binsonar.detection.kernel_types import LagSearch, LocalOutput
+from binsonar.detection.kernel_types import ECHO
 from binsonar.detection.local import (
     REFINE_HALF_WIDTH,
     block_tone_power,
     candidate_correlations,
     coarse_lags,
-    coded_rows,
     detect_local_matched,
     numpy_peaks,
     plan_local,
@@ -30,6 +29,11 @@ N = 60_000
 def _template() -> Template:
     t = (np.arange(201) - 100) / FS
     return Template(np.exp(-13.8 * t**2 / 5e-6**2) * np.cos(2 * np.pi * 500e3 * t), FS, -100 / FS)
+
+
+def _dc(offsets: np.ndarray | None) -> np.ndarray:
+    """The kernels' offsets: zeros for none."""
+    return np.zeros(3) if offsets is None else offsets
 
 
 def _rows(seed: int, dc: bool) -> tuple[np.ndarray, np.ndarray | None]:
@@ -75,8 +79,8 @@ def test_refinement_matches_the_full_filters_refinement(dc):
     n_lags = 2 * REFINE_HALF_WIDTH + 1
     values = np.empty((3, n_lags), dtype=complex)
     refined = np.empty((3, 2))
-    local_kernels.local_peaks(z, start, coded_rows(rows, offsets), plan.analytic_taps(1), plan.coarse_layout,
-                              LagSearch(lo, hi, 3), values, refined)
+    local_kernels.local_peaks(z, start, rows, _dc(offsets), plan.tap_parts, plan.search((lo, hi), 3, stride=1),
+                              values, refined)
     # The numpy definition: the largest |z| over the candidates' lags, then the direct z.
     width = 2 * plan.half + 1
     power = np.abs(z[:, :width]) ** 2
@@ -128,8 +132,8 @@ def test_detection_path_equals_the_numpy_path_at_edges(n, bounds, k, dc):
     z, start, *_ = candidate_correlations(plan, rows, k, bounds, offsets)
     values = np.empty((3, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
     refined = np.empty((3, 2))
-    local_kernels.local_peaks(z, start, coded_rows(rows, offsets), plan.analytic_taps(1), plan.coarse_layout,
-                              LagSearch(*bounds, k), values, refined)
+    local_kernels.local_peaks(z, start, rows, _dc(offsets), plan.tap_parts, plan.search(bounds, k, stride=1),
+                              values, refined)
     # Same picks and the same refinement up to the order of ~1000-term sums: lags to 1e-9
     # samples (50 fs) and powers to 1e-9 relative, as above.
     assert np.max(np.abs(refined[:, 0] - lag_ref)) < 1e-9
@@ -172,9 +176,8 @@ def test_block_powers_with_padded_taps_equal_the_numpy_definition(n, first_block
     rows = np.ascontiguousarray(rows[:, :n])
     n_blocks = n // plan.block - first_block
     energy = np.empty((3, n_blocks))
-    coded = coded_rows(rows, offsets)
-    local_kernels.block_powers(coded, plan.tone_lanes, plan.block, first_block, energy,
-                               *local_kernels.tone_offsets(coded.dc_v, plan.tone_lanes, plan.block))
+    local_kernels.block_powers(rows, plan.tone_lanes, plan.search((0, n), 1), first_block, energy,
+                               *local_kernels.tone_offsets(_dc(offsets), plan.tone_lanes, plan.block))
     expected = block_tone_power(plan, rows, offsets)[:, first_block:]
     assert np.max(np.abs(energy - expected)) < 1e-12 * np.max(expected)
 
@@ -192,12 +195,13 @@ def test_compiled_echo_values_equal_the_matched_filters(t0_s, pfa):
     plan = plan_local(_template(), N, FS)
     refined = np.array([[1234.37, 5.2e3], [40_000.0, 2.0e2], [7.5, 3.1]])
     sigma = np.array([0.1, 0.0, 0.2])
-    constants = plan.echo_constants._replace(t0_s=t0_s, threshold_factor=plan.threshold_factor(pfa, N - 201))
-    assert constants.threshold_factor == plan.matched.threshold_factor(pfa, N - 201)
-    echoes = np.empty((3, 5))
-    local_kernels.echo_rows(refined, sigma, constants, echoes)
+    factor = plan.threshold_factor(pfa, N - 201)
+    assert factor == plan.matched.threshold_factor(pfa, N - 201)
+    values = np.empty(3, dtype=ECHO)
+    local_kernels.echo_rows(refined, sigma, plan.echo_constants(t0_s, factor), values)
+    echoes = np.stack([values[name] for name in ECHO.names], axis=1)
     expected = np.stack(echo_values(plan.matched, refined[:, 0], refined[:, 1], white_noise_power(plan.matched, sigma),
-                                    constants.threshold_factor, t0_s), axis=1)
+                                    factor, t0_s), axis=1)
     assert np.all(np.abs(echoes - expected) <= 1e-15 * np.abs(expected))
     assert echoes[2, 3] < 1.0 < echoes[0, 3]
 
@@ -234,8 +238,8 @@ def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, 
     assert np.max(np.abs(z[:, :sampled.shape[1]] / stride - sampled)) < 1e-6 * np.max(np.abs(z_full))
     values = np.empty((3, 2 * (REFINE_HALF_WIDTH + stride - 1) + 1), dtype=complex)
     refined = np.empty((3, 2))
-    local_kernels.local_peaks(z, start, coded_rows(rows, offsets), plan.analytic_taps(stride), plan.coarse_layout,
-                              LagSearch(*bounds, k), values, refined)
+    local_kernels.local_peaks(z, start, rows, _dc(offsets), plan.tap_parts, plan.search(bounds, k, stride=stride),
+                              values, refined)
     # The same direct values around the same largest |z|: the vertex to 1e-9 samples, as above.
     assert np.max(np.abs(refined[:, 0] - lag_ref)) < 1e-9
     assert np.max(np.abs(refined[:, 1] / peak_ref - 1.0)) < 1e-9
@@ -264,21 +268,21 @@ def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed
     stride = plan.decimation
     rows, offsets = _rows(seed, dc)
     rows = np.ascontiguousarray(rows[:, :n])
-    coded = coded_rows(rows, offsets)
+    dc = _dc(offsets)
     sigma = np.array([0.01, 0.02, 0.03])
-    constants = plan.echo_constants._replace(t0_s=1e-4, threshold_factor=2.5)
-    taps = plan.analytic_taps()
-    search = LagSearch(*bounds, k)
-    out = LocalOutput(np.empty((3, 5)), np.empty((3, 2)))
-    local_kernels.local_echoes(coded, sigma, plan.tone_lanes, plan.coarse_layout, search, taps, constants, out)
-    echoes, extremes = out
+    t0_s = 1e-4
+    constants = plan.echo_constants(t0_s, 2.5)
+    search = plan.search(bounds, k)
+    echoes, extremes = np.empty(3, dtype=ECHO), np.empty((3, 2))
+    local_kernels.local_echoes(rows, dc, sigma, plan.tone_lanes, plan.tap_parts, plan.tap_parts32, search, constants,
+                               echoes, extremes)
     assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1))
 
     z, start = candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
-    values = np.empty((3, 2 * taps.reach + 1), dtype=complex)
+    values = np.empty((3, 2 * search[0]["reach"] + 1), dtype=complex)
     refined = np.empty((3, 2))
-    local_kernels.local_peaks(z, start, coded, taps, plan.coarse_layout, search, values, refined)
-    expected = np.empty((3, 5))
+    local_kernels.local_peaks(z, start, rows, dc, plan.tap_parts, search, values, refined)
+    expected = np.empty(3, dtype=ECHO)
     local_kernels.echo_rows(refined, sigma, constants, expected)
     # The same direct z at the same lags, whichever sampled lag each search found largest (the
     # FFT's float32 |z| and the direct float64 |z| differ by ~1e-6 of the peak): bit-identical.
@@ -286,11 +290,11 @@ def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed
     lag_ref, peak_ref = numpy_peaks(plan, rows, k, bounds, offsets)
     # The numpy path: lags to 1e-9 samples and powers to 1e-9 relative (sums of ~1000 terms in
     # another order), as above; a wrong pick would be off by whole samples.
-    lag = (echoes[:, 0] - constants.t0_s + plan.matched.template.t0_s) * FS
+    lag = (echoes["tof_s"] - t0_s + plan.matched.template.t0_s) * FS
     # Back from a TOF of <= 3 ms: its float64 rounding (~4e-19 s) is ~1e-11 samples, far below 1e-9.
     assert np.max(np.abs(lag - lag_ref)) < 1e-9
     amplitude = np.sqrt(peak_ref) / plan.matched.peak_response * np.max(np.abs(plan.matched.template.samples))
-    assert np.max(np.abs(echoes[:, 1] / amplitude - 1.0)) < 1e-9
+    assert np.max(np.abs(echoes["amplitude"] / amplitude - 1.0)) < 1e-9
 
 
 @pytest.mark.parametrize("n, bounds", [(N, (0, N - 201)), (N, (30_000, 30_100)), (N, (N - 400, N - 201)),
@@ -309,12 +313,11 @@ def test_coarse_pass_measures_every_samples_extremes(n, bounds, codes):
         rows = np.rint(rows).astype(np.int16)
     rows = np.ascontiguousarray(rows)
     rows[0, 0], rows[1, -1], rows[2, n // 2] = 3000, -3000, 2500  # first, last and a middle sample
-    search = LagSearch(*bounds, 3)
+    search = plan.search(bounds, 3)
     starts, alone = np.empty(9, dtype=np.int64), np.empty(9, dtype=np.int64)
     extremes = np.empty((3, 2))
-    coded = coded_rows(rows)
-    local_kernels.coarse_starts(coded, plan.tone_lanes, plan.coarse_layout, search, starts, extremes)
-    local_kernels.coarse_starts(coded, plan.tone_lanes, plan.coarse_layout, search, alone, np.empty((0, 2)))
+    local_kernels.coarse_starts(rows, np.zeros(3), plan.tone_lanes, search, starts, extremes)
+    local_kernels.coarse_starts(rows, np.zeros(3), plan.tone_lanes, search, alone, np.empty((0, 2)))
     assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1).astype(float))
     assert np.array_equal(starts, alone)
 
@@ -333,14 +336,14 @@ def test_codes_coarse_pass_in_single_precision(n, bounds, dc):
     codes = np.ascontiguousarray(np.rint(volts[:, :n] / step).astype(np.int16))
     dc_v = np.zeros(3) if offsets is None else np.rint(offsets / step) * step
     energy = np.empty((3, n // plan.block))
-    coded = coded_rows(codes, dc_v, step)
-    local_kernels.block_powers(coded, plan.tone_lanes32, plan.block, 0, energy,
-                               *local_kernels.tone_offsets(coded.dc_v, plan.tone_lanes32, plan.block))
+    search = plan.search(bounds, 3, step)
+    local_kernels.block_powers(codes, plan.tone_lanes32, search, 0, energy,
+                               *local_kernels.tone_offsets(dc_v, plan.tone_lanes32, plan.block))
     expected = block_tone_power(plan, codes.astype(float) * step, dc_v)
     assert np.max(np.abs(energy - expected)) < 1e-6 * np.max(expected)
-    constants = plan.echo_constants._replace(threshold_factor=2.5)
-    single, double = np.empty((3, 5)), np.empty((3, 5))
+    constants = plan.echo_constants(0.0, 2.5)
+    single, double = np.empty(3, dtype=ECHO), np.empty(3, dtype=ECHO)
     for lanes, echoes in ((plan.tone_lanes32, single), (plan.tone_lanes, double)):
-        local_kernels.local_echoes(coded, np.full(3, 0.01), lanes, plan.coarse_layout, LagSearch(*bounds, 3),
-                                   plan.analytic_taps(), constants, LocalOutput(echoes, np.empty((0, 2))))
+        local_kernels.local_echoes(codes, dc_v, np.full(3, 0.01), lanes, plan.tap_parts, plan.tap_parts32, search,
+                                   constants, echoes, np.empty((0, 2)))
     assert np.array_equal(single, double)

@@ -6,9 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from binsonar.detection.kernel_types import CodedRows, CrossingSearch, CrossingTiming, RowLevels
+from binsonar.detection.kernel_types import CROSSING_SEARCH, ECHO, record
 from binsonar.detection.threshold import crossing_echo_values, crossing_measures, first_crossings
 from binsonar.detection.threshold_kernels import CHUNK, crossings
+
+
+def _search(first: int, stop: int, window: int, fs: float = 20e6, t0_s: float = 0.0, offset_s: float = 0.0,
+            scale: float = 1.0) -> np.ndarray:
+    return record(CROSSING_SEARCH, scale=scale, first=first, stop=stop, window=window, sample_rate_hz=fs, t0_s=t0_s,
+                  offset_s=offset_s)
 
 
 def _case(seed: int, n: int = 5000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -32,7 +38,7 @@ def test_compiled_crossings_equal_the_numpy_definition(first, stop):
     rows, level, offset = _case(1)
     found = np.empty(6, dtype=np.int64)
     measures = np.empty((6, 4))
-    crossings(CodedRows(rows, 1.0, offset), level, CrossingSearch(first, stop, 201), found, measures)
+    crossings(rows, offset, level, _search(first, stop, 201), found, measures)
     reference = first_crossings(rows[:, first:stop], level, offset)
     reference = np.where(reference >= 0, reference + first, -1)
     assert np.array_equal(found, reference)
@@ -54,16 +60,17 @@ def test_compiled_echo_values_equal_the_numpy_definition(first, stop):
     sigma = np.array([0.1, 0.2, 1e-30, 0.05, 0.1, 0.1])  # 1e-30: a noise-free row (SNR capped)
     found = np.empty(6, dtype=np.int64)
     measures = np.empty((6, 4))
-    crossings(CodedRows(rows, 1.0, offset), level, CrossingSearch(first, stop, 201), found, measures)
+    crossings(rows, offset, level, _search(first, stop, 201), found, measures)
     fs, t0_s, offset_s = 20e6, 1e-4, 3e-7
-    echoes = np.empty((6, 6))
-    threshold_echoes(CodedRows(rows, 1.0, offset), RowLevels(level, sigma), CrossingSearch(first, stop, 201),
-                     CrossingTiming(fs, t0_s, offset_s), echoes)
-    assert echoes[:, 0].tolist() == (found >= 0).astype(float).tolist()
+    found_too = np.empty(6, dtype=np.int64)
+    values = np.empty(6, dtype=ECHO)
+    threshold_echoes(rows, offset, level, sigma, _search(first, stop, 201, fs, t0_s, offset_s), found_too, values)
+    assert np.array_equal(found_too, found)
+    echoes = np.stack([values[name] for name in ECHO.names], axis=1)
     expected = crossing_echo_values(found, measures, level, sigma, 201, fs, t0_s, offset_s)
     # The same operations in the same order (numpy's log10 and numba's may differ by an ulp).
-    np.testing.assert_allclose(echoes[found >= 0, 1:], expected, rtol=1e-15, atol=0.0)
-    assert np.isnan(echoes[found < 0, 1:]).all()
+    np.testing.assert_allclose(echoes[found >= 0], expected, rtol=1e-15, atol=0.0)
+    assert np.isnan(echoes[found < 0]).all()
 
 
 def test_codes_cross_where_their_volts_do():
@@ -81,9 +88,8 @@ def test_codes_cross_where_their_volts_do():
     found_volts = np.empty(4, dtype=np.int64)
     measures_codes = np.empty((4, 4))
     measures_volts = np.empty((4, 4))
-    search = CrossingSearch(0, 3000, 50)
-    crossings(CodedRows(codes, step, offset), level, search, found_codes, measures_codes)
-    crossings(CodedRows(codes * step, 1.0, offset), level, search, found_volts, measures_volts)
+    crossings(codes, offset, level, _search(0, 3000, 50, scale=step), found_codes, measures_codes)
+    crossings(codes * step, offset, level, _search(0, 3000, 50), found_volts, measures_volts)
     assert found_codes.tolist() == found_volts.tolist() == [CHUNK, 2 * CHUNK - 1, 0, -1]
     np.testing.assert_array_equal(measures_codes[:3, :3], measures_volts[:3, :3])
     np.testing.assert_allclose(measures_codes[:3, 3], measures_volts[:3, 3], rtol=1e-12)

@@ -101,8 +101,8 @@ def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
 
 
 def test_dc_correlation_is_the_correlation_of_a_constant_record():
-    from binsonar.detection.local import block_tone_power, dc_correlation, plan_local
-    from binsonar.detection.matched import lags_time_domain, plan_matched
+    from binsonar.detection.local import block_tone_power, plan_local
+    from binsonar.detection.matched import dc_correlation, lags_time_domain, plan_matched
 
     plan = plan_matched(pulse_template(), 1000, FS, full=False)
     constant = np.full((2, 1000), 1.0) * np.array([[0.7], [-2.0]])
