@@ -72,8 +72,8 @@ def finite(label: str, value: Any) -> None:
 
 
 def flag(label: str, value: Any) -> None:
-    """True or False."""
-    if not isinstance(value, (bool, np.bool_)):
+    """True or False (or 1 or 0)."""
+    if not (isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer)) and value in (0, 1))):
         raise RecordingError(f"{label} must be true or false, got {value!r}")
 
 

@@ -221,7 +221,7 @@ def detect_threshold(
     fs = sample_rate_hz
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc_v, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
-    offset = np.zeros(rows.shape[0]) if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
+    offset = np.zeros(rows.shape[0]) if dc_v is None else np.ascontiguousarray(dc_v, dtype=float).reshape(rows.shape[0])
     if level_v is not None:
         if not (math.isfinite(level_v) and level_v > 0):
             raise RecordingError(f"{where}: level_v must be > 0, got {level_v!r}")
@@ -256,7 +256,6 @@ def detect_threshold(
                     window=window, sample_rate_hz=fs, t0_s=t0_s, offset_s=offset_s)
     found = np.empty(n_rows, dtype=np.int64)
     echoes = np.empty(n_rows, dtype=ECHO)
-    threshold_echoes(samples, np.ascontiguousarray(offset, dtype=float), np.ascontiguousarray(level, dtype=float), sigma,
-                     search, found, echoes)
+    threshold_echoes(samples, offset, level, sigma, search, found, echoes)  # contiguous float64 rows of values
     # One conversion to Python values for all rows (``tolist``: tuples of floats).
     return [[echo] if i >= 0 else [] for echo, i in zip(echoes.tolist(), found.tolist())]

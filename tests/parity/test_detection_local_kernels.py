@@ -260,7 +260,7 @@ def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, 
 @pytest.mark.parametrize("seed", [5, 6])
 def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed):
     # ``local_echoes`` (coarse pass, direct search every ``decimation`` lags, refinement, echo
-    # values in one call) against the FFT route it replaced (``_candidate_correlations``, then
+    # values in one call) against the FFT route it replaced (``candidate_correlations``, then
     # ``local_peaks`` and ``echo_rows``) and against the all-numpy path.
     from binsonar.detection import local_kernels
 

@@ -91,7 +91,7 @@ def test_options_are_checked_at_prepare(method):
     ("ca-cfar", "n_reference", 7, "n_reference must be an even integer"),
     ("energy", "tof", "middle", "tof must be one of"),
     ("threshold", "search_window_s", (1.0,), r"search_window_s must be \(start_s, stop_s\)"),
-    ("seed-3", "single", 1, "single must be true or false"),
+    ("seed-3", "single", 2, "single must be true or false"),
 ])
 def test_out_of_range_values_are_refused_with_their_name(name, option, value, message):
     with pytest.raises(RecordingError, match=message):
