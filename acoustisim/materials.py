@@ -27,7 +27,7 @@ of a rigid face, sigma = k^4 (1 + sin^2 t)^2 W(2 k sin t), with the Gaussian rou
 at its worst correlation length, W <= h^2 / (pi e (2 k sin t)^2), equated to the Lambert law
 mu cos^2 t. Evaluated at 500 kHz in fresh water at 20 C (c = 1482 m/s, k = 2120 /m, k h = 0.0064)
 and at t = 60 deg from the normal (the faces of a 60-degree prism seen along its bisector):
-mu = 1.9338e-5. The library keeps the formula's double (``acoustisim.experiments.point_target.
+mu = 1.9338e-5. The library keeps the formula's double (``acoustisim.experiments.edge_scene.
 small_roughness_lambert_mu``; ``tests/physics/test_materials.py`` recomputes it): the inputs justify about
 one digit, but all digits make the figures of the sweeps that use it reproducible from the formula.
 mu scales as h^2; the equivalent mu at other angles is about half at 30-45 deg, 3.7 times at 75 deg.

@@ -7,7 +7,8 @@ experiment plugs in by adding its module, without editing any other file. Shared
 ``config`` (the run's settings), ``runner`` (parallel trials with per-trial seeds), ``report``
 (results.json, report.md, figures), ``geometry`` (sonar placement), ``truth`` (what a localiser
 should report), ``gating`` (the record window), ``labels`` (naming echoes from the ground truth),
-``point_target`` (the edge-target measurements of the range and angle sweeps).
+``edge_scene``, ``position_measurement``, ``sweep_detectors``, ``noise_free_bias``, ``sweep_summary``
+(the edge-target measurements of the range and angle sweeps).
 
 Importing this package imports nothing heavy.
 """

@@ -31,7 +31,7 @@ def sweep_figure(x: Sequence[float], positions: list[dict[str, Any]], detectors:
     x : sequence of float
         The swept variable at each position.
     positions : list of dict
-        ``point_target.summarise(...)["positions"]``.
+        ``sweep_summary.summarise(...)["positions"]``.
     detectors : sequence of str
     xlabel, title : str
     """

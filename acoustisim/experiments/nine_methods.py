@@ -62,8 +62,8 @@ def measure_group(trial: Trial) -> dict[str, Any]:
     """Record ``n_pings`` pings at one position and run the nine methods on them (runner function)."""
     from acoustisim.experiments.gating import range_window_s
     from acoustisim.experiments.geometry import pose_for_target
-    from acoustisim.experiments.point_target import (
-        EDGE_M, GATE_HALF_WIDTH_M, edge_tank_scene, estimate_point, solver_config)
+    from acoustisim.experiments.edge_scene import EDGE_M, GATE_HALF_WIDTH_M, edge_tank_scene, solver_config
+    from acoustisim.experiments.sweep_detectors import estimate_point
     from acoustisim.experiments.truth import object_truth
     from acoustisim.simulation import simulate
     from binsonar.detection import detect
@@ -191,7 +191,7 @@ def _base(method: str) -> str:
 def run(config: ExperimentConfig) -> ExperimentReport:
     """Record the pings (``config.trials`` in all, default 68) and compare the nine methods."""
     from acoustisim.errors import InputError
-    from acoustisim.experiments.point_target import GATE_HALF_WIDTH_M
+    from acoustisim.experiments.edge_scene import GATE_HALF_WIDTH_M
     from acoustisim.experiments.runner import make_trials, run_trials
     from binsonar.detection.seed import seed_combination
 

@@ -50,12 +50,12 @@ BIAS_NOTE = (
     "beta the template's RMS bandwidth (118 kHz for the default 5 us pulse), 2E/N0 the matched filter's output "
     "SNR of the edge's noise-free "
     "echo in the ping's actual averaged noise (both known in the simulation), on the left and right channels, "
-    "propagated to range and bearing through the localiser's linearised covariance (`point_target.noise_bound`). "
+    "propagated to range and bearing through the localiser's linearised covariance (`binsonar.estimation.noise_bound`). "
     "It bounds the scatter, not the bias. The JSON also holds the detector's own bound "
     "(`detector_bound_range_m`: its noise floor, the median over the gate, includes the frozen reverberation, "
     "so it was 1.2-1.6x larger in the default sweeps), the optimal bound (`optimal_bound_range_m`: the received echo's own spectrum in "
     "the noise's own spectrum, which a whitened filter matched to the echo would reach) and the bound with the "
-    "diffuse reverberation counted as Gaussian interference (`reverb_bound_range_m`, `point_target.reverb_bound`): "
+    "diffuse reverberation counted as Gaussian interference (`reverb_bound_range_m`, `binsonar.estimation.reverberation_bound`): "
     "the same CRLB with the reverberation's level at the echo's delay (the matched filter's output power of the "
     "reverberation alone over one template length around the edge's peak, averaged over the realisations "
     "measured, as the sonar equation's reverberation level) added to the noise's.")
@@ -122,7 +122,7 @@ def add_sweep_arguments(parser: Any, *, pings: int) -> None:
 def detectors_of(config: ExperimentConfig) -> tuple[str, ...]:
     """The detectors option as a tuple (validated against binsonar's methods)."""
     from acoustisim.errors import InputError
-    from acoustisim.experiments.point_target import BEAM_MATCHED
+    from acoustisim.experiments.sweep_detectors import BEAM_MATCHED
     from binsonar.detection import METHODS
 
     known = (*METHODS, BEAM_MATCHED)
@@ -149,11 +149,13 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
         The other parameter.
     calibration_at : (range_m, bearing_deg)
         Where the threshold detector's preset level and offset are calibrated
-        (``point_target.calibrate_threshold``), once for the sweep.
+        (``position_measurement.calibrate_threshold``), once for the sweep.
     """
     from acoustisim.errors import InputError
     from acoustisim.experiments.figures import sweep_figure
-    from acoustisim.experiments.point_target import BEAM_MATCHED, BOUNDED_DETECTORS, measure_position, summarise
+    from acoustisim.experiments.position_measurement import calibrate_threshold, measure_position
+    from acoustisim.experiments.sweep_detectors import BEAM_MATCHED, BOUNDED_DETECTORS
+    from acoustisim.experiments.sweep_summary import summarise
 
     repeats = config.trials_or(default_repeats)
     pings = int(config.option("pings", default_pings))
@@ -162,7 +164,6 @@ def run_sweep(config: ExperimentConfig, *, variable: str, values: Sequence[float
     detectors = detectors_of(config)
     reverberation = not bool(config.option("no_reverberation", False))
     fresh = reverberation and bool(config.option("fresh_reverberation", False))
-    from acoustisim.experiments.point_target import calibrate_threshold
 
     calibration: dict[str, float] = {}
     extra: dict[str, float] = {}

@@ -11,9 +11,8 @@ from counting, not sorting:
   subsample, then a walk over at most the codes' range), exactly the elements
   ``numpy.partition`` selects (``noise.row_median``'s convention: element ``k = n // 2`` of the
   sorted values), without its two selections per row;
-- :func:`code_statistics`: both, for every row of a record, in one call (a call costs
-  microseconds of dispatch, and each numpy call as much again once a new ping has evicted
-  the caches: one call instead of some fifteen).
+- :func:`code_statistics`: both, for every row of a record, in one call (one dispatch instead
+  of some fifteen numpy calls).
 
 ``tests/unit/test_detection_codes.py`` checks them against numpy.
 """
@@ -23,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+
 
 
 @njit(cache=True, nogil=True)
@@ -91,7 +91,7 @@ def median_and_mad(sample: NDArray[np.int16], median: NDArray[np.int64], mad: ND
 
 
 @njit(cache=True, nogil=True)
-def code_statistics(rows: NDArray[np.int16], settings: NDArray[np.int64], constants: NDArray[np.float64],
+def code_statistics(rows: NDArray[np.int16], scale: NDArray[np.void], full_scales_v: NDArray[np.float64],
                     out: NDArray[np.float64]) -> None:
     """Each row's median (DC offset) and robust noise estimate from its robust subsample, and
     its clipping, in volts.
@@ -99,20 +99,20 @@ def code_statistics(rows: NDArray[np.int16], settings: NDArray[np.int64], consta
     Parameters
     ----------
     rows : ndarray of int16, shape (n_rows, n_samples), C-contiguous
-    settings : ndarray of int, shape (3,)
-        period, length, segments: the subsample is ``segments`` stretches of ``length`` samples
-        starting at multiples of ``period`` (``noise.robust_subsample``; the whole row when
-        ``segments`` is 1 and ``length`` is n_samples).
-    constants : ndarray, shape (>= 2,)
-        volts per code, the MAD-to-sigma factor, then the full scales (V) to test for clipping
-        (none: no pass over the whole record).
+    scale : ndarray of ``kernel_types.CODE_SCALE``, shape (1,)
+        The robust subsample's stretches (``noise.robust_subsample``), volts per code and the
+        MAD-to-sigma factor.
+    full_scales_v : ndarray, shape (k,)
+        Full scales (V) to test for clipping (none: no pass over the whole record).
     out : ndarray, shape (n_rows, 3), written
         Median code times volts per code (V), the factor times the MAD in codes times volts
         per code (V), and 1.0 where the volts reach a full scale within a part in 1e9
-        (``inputs._clipped_by_full_scale``: largest >= limit or smallest <= -limit), else 0.0.
+        (``inputs.clipped_by_full_scale``: largest >= limit or smallest <= -limit), else 0.0.
     """
-    period, length, segments = settings[0], settings[1], settings[2]
-    step, factor = constants[0], constants[1]
+    p = scale[0]
+    period, length, segments = p.period, p.length, p.segments
+    step, factor = p.volts_per_code, p.mad_to_sigma
+    full_scales = full_scales_v
     n_rows = rows.shape[0]
     sample = np.empty((n_rows, segments * length), dtype=np.int16)
     for r in range(n_rows):
@@ -123,14 +123,14 @@ def code_statistics(rows: NDArray[np.int16], settings: NDArray[np.int64], consta
     median_and_mad(sample, median, mad)
     largest = np.zeros(n_rows, dtype=np.int64)
     smallest = np.zeros(n_rows, dtype=np.int64)
-    if constants.size > 2:
+    if full_scales.size > 0:
         row_extremes(rows, largest, smallest)
     for r in range(n_rows):
         out[r, 0] = median[r] * step
         out[r, 1] = factor * (mad[r] * step)
         clipped = 0.0
-        for q in range(2, constants.size):
-            limit = constants[q] * (1.0 - 1e-9)
+        for q in range(full_scales.size):
+            limit = full_scales[q] * (1.0 - 1e-9)
             if largest[r] * step >= limit or smallest[r] * step <= -limit:
                 clipped = 1.0
         out[r, 2] = clipped

@@ -2,12 +2,12 @@
 
 ``detect(data, method, ...)`` plans the method on every call: the matched filter's template
 spectrum and analytic template, the local matched filter's tone table and short-FFT weights,
-the threshold factors (some 0.4-0.8 ms for the 201-sample pulse and 250,000-sample records).
-A ``Detector`` keeps the prepared detectors (``api.PreparedDetector``) it builds, keyed on
+the threshold factors. A ``Detector`` keeps the prepared detectors (``api.PreparedDetector``) it builds, keyed on
 the method, the template (its bytes), the sample rate, the record length and the options, in
 a small least-recently-used store owned by the object (no module-level state), so that a loop
 over pings with the same set-up pays the planning once and each call costs what
-``prepare(...).run(ping)`` costs plus the key (hashing the template's bytes: microseconds).
+``prepare(...).run(ping)`` costs plus the key (``DetectionSettings.plan_key``: the template's
+bytes hashed).
 """
 
 from __future__ import annotations
@@ -18,8 +18,9 @@ from typing import Any, Callable, Hashable
 import numpy as np
 from numpy.typing import NDArray
 
-from binsonar.detection.api import PreparedDetector, detect_with_plans
+from binsonar.detection.api import PreparedDetector, detect_with_settings
 from binsonar.detection.echo import DetectionResult
+from binsonar.detection.settings import DetectionSettings
 from binsonar.recording import Recording, RecordingError
 
 
@@ -72,4 +73,4 @@ class Detector:
         RecordingError
             As ``detect``.
         """
-        return detect_with_plans(data, method, self, **arguments)
+        return detect_with_settings(data, method, DetectionSettings.from_arguments(arguments), self)

@@ -66,7 +66,7 @@ class Signals:
     volts_per_code: float | None = None
     """Set when ``waveforms`` are int16 ADC codes, not volts (volts = codes * volts_per_code;
     ``dc_v``, ``noise_sigma_v`` and ``noise_floor_v`` are in volts all the same). The detectors
-    in ``api.TAKES_CODES`` read the codes (a quarter of the bytes of the volts); the others get
+    that read codes (``DetectionMethod.reads_codes``) take them (a quarter of the bytes of the volts); the others get
     ``in_volts()``."""
     pending_full_scales_v: tuple[float, ...] = ()
     """Full scales (V) the codes have not been tested against yet (``as_signals(...,
@@ -80,9 +80,8 @@ class Signals:
         Python lists (n_pings lists of n_channels bools).
 
         A row reaches one of the full scales exactly when it reaches the smallest of them, so
-        one comparison per extreme (within a part in 1e9, as ``_clipped_by_full_scale``), on
-        Python floats: a few rows, and no numpy calls beyond one ``tolist`` of each array (each
-        costs microseconds once a new ping has evicted the caches).
+        one comparison per extreme (within a part in 1e9, as ``clipped_by_full_scale``), on
+        Python floats: a few rows, and no numpy calls beyond one ``tolist`` of each array.
 
         Parameters
         ----------
@@ -174,7 +173,7 @@ class Signals:
         )
 
 
-def _clipped_by_full_scale(waveforms: NDArray[np.float64], full_scale_v: float) -> NDArray[np.bool_]:
+def clipped_by_full_scale(waveforms: NDArray[np.float64], full_scale_v: float) -> NDArray[np.bool_]:
     # A sample at (or beyond) the full scale, within a part in 1e9 for the int16 -> volts rounding:
     # |x| >= L exactly when max(x) >= L or min(x) <= -L (two reductions, no record-sized temporaries).
     limit = full_scale_v * (1.0 - 1e-9)
@@ -241,7 +240,7 @@ def code_offsets(
     volts_per_code : float
     full_scales_v : tuple of float
         Full scales (V) to test: a row is clipped when ``codes * volts_per_code`` reaches one
-        (``_clipped_by_full_scale``, judged on the codes' extremes, scaled: the volts'
+        (``clipped_by_full_scale``, judged on the codes' extremes, scaled: the volts'
         extremes). Empty: no clipping test, and no pass over the whole record.
 
     Returns
@@ -252,6 +251,7 @@ def code_offsets(
     clipped : ndarray of bool, shape (n_pings, n_channels)
     """
     from binsonar.detection.code_kernels import code_statistics
+    from binsonar.detection.kernel_types import CODE_SCALE, record
 
     n_pings, n_channels, n = codes.shape
     rows = np.ascontiguousarray(codes).reshape(n_pings * n_channels, n)
@@ -260,8 +260,9 @@ def code_offsets(
     else:
         period, length, segments = n // ROBUST_SEGMENTS, ROBUST_SAMPLES // ROBUST_SEGMENTS, ROBUST_SEGMENTS
     stats = np.empty((rows.shape[0], 3))
-    code_statistics(rows, np.array([period, length, segments], dtype=np.int64),
-                    np.array((volts_per_code, MAD_TO_SIGMA) + tuple(full_scales_v)), stats)
+    scale = record(CODE_SCALE, period=period, length=length, segments=segments, volts_per_code=volts_per_code,
+                   mad_to_sigma=MAD_TO_SIGMA)
+    code_statistics(rows, scale, np.array(full_scales_v, dtype=float), stats)
     dc = stats[:, 0].reshape(n_pings, n_channels)
     return (dc if dc.any() else None), stats[:, 1].reshape(n_pings, n_channels), \
         (stats[:, 2] != 0.0).reshape(n_pings, n_channels)
@@ -387,9 +388,9 @@ def as_signals(
         clipped = np.array(data.clipped, dtype=bool)
         if data.volts_per_code is not None and data.adc_bits is not None:
             code_full_scale = (2 ** (int(data.adc_bits) - 1) - 1) * data.volts_per_code
-            clipped |= _clipped_by_full_scale(waveforms, code_full_scale)
+            clipped |= clipped_by_full_scale(waveforms, code_full_scale)
         if full_scale_v is not None:
-            clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
+            clipped |= clipped_by_full_scale(waveforms, full_scale_v)
         step = adc_step_v if adc_step_v is not None else data.volts_per_code
         floor = 0.0 if step is None else quantisation_noise_std_v(step)
         dc, sigma = robust_offsets(waveforms)
@@ -447,7 +448,7 @@ def as_signals(
     _check_rate(where, sample_rate_hz, t0_s)
     clipped = np.zeros(waveforms.shape[:2], dtype=bool)
     if full_scale_v is not None:
-        clipped |= _clipped_by_full_scale(waveforms, full_scale_v)
+        clipped |= clipped_by_full_scale(waveforms, full_scale_v)
     floor = 0.0 if adc_step_v is None else quantisation_noise_std_v(adc_step_v)
     dc, sigma = robust_offsets(waveforms)
     signals = Signals(waveforms, float(sample_rate_hz), float(t0_s), clipped, None, where, floor, dc, sigma)

@@ -45,36 +45,23 @@ then work on a few candidates only: a dot product of the analytic template's len
 How it runs (``detect_local_matched``): everything is one compiled call for all rows of a
 record (``local_kernels.local_echoes``, numba, imported on first use): the coarse pass of step
 1 (each searched sample read once), then each pick's stretch searched at every
-``LocalPlan.decimation``-th lag by direct float64 dot products with the analytic template
-(step 2 sampled on the lattice the decimated FFT route samples: |z| there is the refinement's
-own z), the refinement of step 3 and ``matched.echo_values``. The FFT route of step 2
-(``_candidate_correlations``: one batched single-precision real FFT of the stretches, the
-band's inverse FFT decimated, then ``local_kernels.local_peaks``) gives the same echoes
-bit for bit on the tests' records and is kept as the reference the direct search is checked
-against, with the numpy functions below (``block_tone_power``, ``coarse_lags``,
-``segment_correlation``: the same steps written with numpy;
-``tests/parity/test_detection_local_kernels.py``). The direct search does ~0.7 M multiply-adds for 9
-picks of the 5 us pulse (~0.05 ms), where the FFT route paid two scipy FFT calls and a dozen
-numpy calls between three kernels: ~0.3-0.5 ms CPU per ping once an FFT of the record has
-evicted the caches, as a new ping does (measured with ``benchmarks/bench_detection.py
---methods local-matched``: prepared ``run`` on int16 codes ~1.4 -> ~1.0 ms, on float64 ~1.9 ->
-~1.5 ms, same runs). Before that change, in units of one (cold) read of the record: the block
-correlations ~1.15 (the coarse kernel as a whole ~1.3), the robust DC and noise estimate
-(``inputs.robust_offsets``: two numpy partitions of 4,096 samples per row, which numpy's SIMD
-selection does faster than a compiled quickselect) ~0.6, the short FFTs ~0.45, the rest
-(Python between the kernels, the refinement) ~0.3.
+``LocalPlan.decimation``-th lag by direct dot products with the analytic template (step 2
+sampled on the lattice the decimated FFT route samples: |z| there is the refinement's own z),
+the refinement of step 3 and ``matched.echo_values``. The FFT route of step 2
+(``candidate_correlations``: one batched single-precision real FFT of the stretches, the
+band's inverse FFT decimated, then ``local_kernels.local_peaks``) gives the same echoes bit for
+bit on the tests' records and is the reference the direct search is checked against, with the
+numpy definitions below (``block_tone_power``, ``coarse_lags``, ``segment_correlation``,
+``numpy_peaks``: the same steps written with numpy; ``tests/parity/test_detection_local_kernels.py``).
 
-Records of int16 ADC codes (``volts_per_code``: ``api.TAKES_CODES``) are read as they are, 2
-bytes a sample instead of 8: the block correlations of the codes are scaled to volts once per
-block, the searched stretches are converted once each (float32), the direct correlations are
-made of code * volts_per_code, and the robust DC and noise come from a histogram of the codes
-(``code_kernels``) instead of two partitions. The clipping test of the codes (the ADC's rails,
-a ``full_scale_v``) is read with the coarse pass (``extremes_out``: each chunk of blocks
-scanned again while in cache, then the samples outside the searched blocks), not by a pass
-of its own (``api.MEASURES_EXTREMES``). What remains per ping (3 x 250,000 codes, CPU, once an
-FFT of the record has evicted the caches, on the loaded team machine): the compiled call
-~0.55-0.8 ms (mostly the block correlations), the Python and numpy calls around it (input
-checks, the code statistics, the result objects) ~0.4-0.6 ms.
+Records of int16 ADC codes (``volts_per_code``: ``DetectionMethod.reads_codes``) are read as
+they are, 2 bytes a sample instead of 8: the block correlations of the codes are scaled to
+volts once per block, the searched stretches are converted once each (float32), the direct
+correlations are made of code * volts_per_code, and the robust DC and noise come from a
+histogram of the codes (``code_kernels``). The clipping test of the codes (the ADC's rails, a
+``full_scale_v``) is read with the coarse pass (``extremes_out``: each chunk of blocks scanned
+again while in cache, then the samples outside the searched blocks), not by a pass of its own
+(``DetectionMethod.measures_extremes``).
 
 A row's DC offset (``dc_v``, still in the samples) is folded in rather than removed from a
 copy of the record: the block correlations of x - dc are those of x minus dc times the sum of
@@ -92,17 +79,22 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.detection.kernel_types import ECHO, ECHO_CONSTANTS, LOCAL_SEARCH, read_only, record
 from binsonar.detection.matched import (
     MatchedPlan,
     check_pfa,
-    dc_correlation,  # noqa: F401  (the DC folding's definition; tests import it from here)
+    dc_correlation,
     lag_range,
+    lags_time_domain,
     plan_matched,
+    refine,
     white_noise_power,
 )
 from binsonar.detection.noise import noise_sigma
 from binsonar.recording import RecordingError, Template
 
+SCORE = ECHO.names.index("score")
+"""Position of the score in an ``ECHO`` record's tuple (``tolist``)."""
 # Block length of the coarse stage: B = BLOCK_BANDWIDTH_FRACTION * fs / beta (beta the template's
 # RMS bandwidth about its centre frequency). A block's tone correlation has the response
 # sinc(B (f - f0) / fs) in amplitude: at one RMS bandwidth from f0 it is sinc(0.25), a power
@@ -169,16 +161,14 @@ class LocalPlan:
     """Coarse windows blanked each side of a pick: ceil(m / block), at least 1 (a template length)."""
     tone_lanes: NDArray[np.float64] = field(repr=False)
     """``tone`` transposed, shape (2, L), zero padded to L = the next multiple of 8 >= block
-    (``local_kernels._block_powers``: whole vectors per block)."""
+    (``local_kernels.block_powers``: whole vectors per block)."""
     segment_weights32: NDArray[np.complex64] = field(repr=False)
-    """``segment_weights`` in single precision (the candidates' short FFTs, ``_candidate_correlations``)."""
-    echo_constants: NDArray[np.float64] = field(repr=False)
-    """``local_kernels.echo_rows``'s constants but the first (t0_s) and last (threshold factor),
-    shape (8,): sample rate, template t0_s, ``white_noise_power`` of 1 V, peak response, the
-    template's largest |sample|, RMS bandwidth."""
+    """``segment_weights`` in single precision (the candidates' short FFTs, ``candidate_correlations``)."""
+    noise_gain: float
+    """``matched.white_noise_power`` of 1 V: the mean |z|^2 of white noise of unit variance."""
     tone_lanes32: NDArray[np.float32] = field(repr=False)
     """``tone_lanes`` in single precision: the coarse pass of int16 codes sums in float32
-    (``local_kernels._block_powers``)."""
+    (``local_kernels.block_powers``)."""
     tap_parts32: NDArray[np.float32] = field(repr=False)
     """The first two rows of ``tap_parts`` in single precision, shape (2, m_a + 1): the taps of
     the stretches' search (``local_kernels.local_echoes``)."""
@@ -193,8 +183,48 @@ class LocalPlan:
     band 45 bins), where |z| (an envelope ~30 samples wide at half height) is sampled every 5
     lags, so the largest sample is within D - 1 lags of the largest |z|."""
     _factors: dict = field(default_factory=dict, init=False, repr=False)
-    """Memo of ``matched.threshold_factor`` by (pfa, searched lags): a pure function of the plan,
-    a fixed-point iteration of ~20-50 Python steps (~20-50 us per ping) otherwise."""
+    """Memo of ``matched.threshold_factor`` by (pfa, searched lags): a pure function of the plan
+    (a fixed-point iteration of tens of Python steps)."""
+    _records: dict = field(default_factory=dict, init=False, repr=False)
+    """Memo of the kernels' read-only records (``search``, ``echo_constants``) by their arguments:
+    a live loop builds each once."""
+
+    def _forget_records(self) -> None:
+        """Keep the records' memo small (records for other time origins or windows come and go)."""
+        if len(self._records) >= 32:
+            self._records.clear()
+
+    def search(self, lag_bounds: tuple[int, int], candidates: int, scale: float = 1.0,
+               stride: int | None = None) -> NDArray[np.void]:
+        """The kernels' ``kernel_types.LOCAL_SEARCH`` record: samples of ``scale`` V per unit,
+        this plan's layout, the searched lags (inclusive ``lag_bounds``, ``candidates`` picks per
+        row), every ``stride``-th lag searched (default ``decimation``) and ``REFINE_HALF_WIDTH +
+        stride - 1`` refined each side."""
+        key = ("search", lag_bounds[0], lag_bounds[1], candidates, scale, stride)
+        found = self._records.get(key)
+        if found is None:
+            stride = self.decimation if stride is None else int(stride)
+            self._forget_records()
+            found = self._records[key] = read_only(record(
+                LOCAL_SEARCH, scale=scale, block=self.block, span=self.span, reference=self.reference, exclusion=self.exclusion,
+                half=self.half, segment_length=self.segment_length, lag_lo=lag_bounds[0], lag_hi=lag_bounds[1],
+                candidates=candidates, analytic_offset=self.matched.analytic_offset, stride=stride,
+                reach=REFINE_HALF_WIDTH + stride - 1))
+        return found
+
+    def echo_constants(self, t0_s: float, threshold_factor: float) -> NDArray[np.void]:
+        """The kernels' ``kernel_types.ECHO_CONSTANTS`` record (``matched.echo_values``' constants)."""
+        key = ("constants", t0_s, threshold_factor)
+        found = self._records.get(key)
+        if found is None:
+            matched = self.matched
+            self._forget_records()
+            found = self._records[key] = read_only(record(
+                ECHO_CONSTANTS, t0_s=t0_s, sample_rate_hz=matched.sample_rate_hz, template_t0_s=matched.template.t0_s,
+                noise_gain=self.noise_gain, peak_response=matched.peak_response,
+                peak_abs=float(np.max(np.abs(matched.template.samples))), rms_bandwidth_hz=matched.rms_bandwidth_hz,
+                threshold_factor=threshold_factor))
+        return found
 
     def threshold_factor(self, pfa: float, searched_lags: int) -> float:
         """``self.matched.threshold_factor(pfa, searched_lags)``, computed once per pair."""
@@ -304,9 +334,7 @@ def plan_local(template: Template, n_samples: int, sample_rate_hz: float) -> Loc
         exclusion=max(1, -(-m // block)),
         tone_lanes=lanes,
         segment_weights32=weights.astype(np.complex64),
-        echo_constants=np.array([0.0, fs, matched.template.t0_s, float(white_noise_power(matched, 1.0)),
-                                 matched.peak_response, float(np.max(np.abs(matched.template.samples))),
-                                 matched.rms_bandwidth_hz, 0.0]),
+        noise_gain=float(white_noise_power(matched, 1.0)),
         tone_lanes32=lanes.astype(np.float32),
         tap_parts32=np.stack([np.append(taps.real, 0.0), np.append(taps.imag, 0.0)]).astype(np.float32),
         decimation=int(decimation),
@@ -440,12 +468,7 @@ def segment_correlation(
     return sfft.ifft(spectrum, plan.segment_fft, axis=-1)[:, : 2 * plan.half + 1]
 
 
-def _offsets(dc: NDArray[np.float64] | None, n_rows: int) -> NDArray[np.float64]:
-    """Per-row offsets for the kernels (zeros for none)."""
-    return np.zeros(n_rows) if dc is None else dc
-
-
-def _candidate_correlations(
+def candidate_correlations(
     plan: LocalPlan,
     rows: NDArray[np.float64],
     candidates: int,
@@ -464,8 +487,8 @@ def _candidate_correlations(
     (``local_kernels.local_peaks``, which takes the largest of the 2 R + 1 direct values, the
     outer two excepted), so the result is the same unless two lags more than R - 1 apart have |z|
     within ~1e-6 of each other (two echoes of equal strength to a part in a million). Half the
-    bytes and about half the time of the float64 FFTs (measured ~0.12 against ~0.25 ms for 9
-    stretches of 625 samples, warm).
+    bytes of the float64 FFTs. The detection path (``local_kernels.local_echoes``) searches the
+    stretches by direct correlations instead; this FFT route is its reference.
 
     Parameters
     ----------
@@ -490,9 +513,10 @@ def _candidate_correlations(
     count = n_rows * candidates
     segments = np.empty((count, plan.segment_fft), dtype=np.float32)
     start = np.empty(count, dtype=np.int64)
-    settings = np.array([plan.span, plan.reference, plan.exclusion, lag_bounds[0], lag_bounds[1], candidates, plan.half,
-                         plan.segment_length, plan.block], dtype=np.int64)
-    local_kernels.coarse_stretches(rows, scale, _offsets(dc, n_rows), plan.tone_lanes, settings, segments, start)
+    samples = np.ascontiguousarray(rows, dtype=np.int16 if np.issubdtype(rows.dtype, np.integer) else float)
+    offsets = np.zeros(n_rows) if dc is None else np.ascontiguousarray(dc, dtype=float).reshape(n_rows)
+    local_kernels.coarse_stretches(samples, offsets, plan.tone_lanes, plan.search(lag_bounds, candidates, float(scale)),
+                                   segments, start)
     spectrum = sfft.rfft(segments, axis=-1, overwrite_x=True)
     band = plan.segment_weights32.size
     # The band, zero above it, inverse transformed on segment_fft // stride points: z at every
@@ -500,6 +524,47 @@ def _candidate_correlations(
     weighted = np.zeros((count, plan.segment_fft // stride), dtype=np.complex64)
     np.multiply(spectrum[:, :band], plan.segment_weights32, out=weighted[:, :band])
     return sfft.ifft(weighted, axis=-1, overwrite_x=True), start
+
+
+def numpy_peaks(
+    plan: LocalPlan,
+    rows: NDArray[np.float64],
+    candidates: int,
+    lag_bounds: tuple[int, int],
+    dc: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each row's refined peak, all in numpy: the definition the compiled detection path
+    (``local_kernels.local_echoes``) is checked against.
+
+    ``coarse_lags``, then z at every lag of each pick's stretch (``segment_correlation``), the
+    largest |z| over the searched lags, then the full matched filter's refinement around it
+    (``matched.lags_time_domain`` minus ``matched.dc_correlation`` at the 2 R + 1 lags around,
+    0 outside ``lag_bounds``, and ``matched.refine``'s vertex).
+
+    Returns
+    -------
+    lag : ndarray, shape (n_rows,)
+        Fractional lag of each row's vertex (samples).
+    power : ndarray, shape (n_rows,)
+        |z|^2 there.
+    """
+    lo, hi = lag_bounds
+    n_rows = rows.shape[0]
+    coarse = coarse_lags(plan, rows, candidates, lag_bounds, dc)
+    width = 2 * plan.half + 1
+    start = np.maximum(np.minimum(coarse - plan.half, hi - (width - 1)), lo).reshape(-1)
+    z = segment_correlation(plan, rows, np.repeat(np.arange(n_rows), candidates), start, dc)
+    power = np.abs(z) ** 2
+    lags = start[:, np.newaxis] + np.arange(width)
+    power[(lags < lo) | (lags > hi)] = -1.0
+    best = np.argmax(power.reshape(n_rows, -1), axis=1)
+    peak_lag = lags.reshape(n_rows, -1)[np.arange(n_rows), best]
+    refine_lags = peak_lag[:, np.newaxis] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
+    direct = lags_time_domain(plan.matched, rows, np.arange(n_rows), refine_lags)
+    if dc is not None:
+        direct -= dc_correlation(plan.matched, rows.shape[1], dc, refine_lags, plan.tap_partial)
+    direct[(refine_lags < lo) | (refine_lags > hi)] = 0.0
+    return refine(direct, refine_lags)
 
 
 def detect_local_matched(
@@ -568,30 +633,24 @@ def detect_local_matched(
     if not (isinstance(candidates, (int, np.integer)) and 1 <= candidates <= 16):
         raise RecordingError(f"{where}: candidates must be an integer in [1, 16], got {candidates!r}")
     lag_lo, lag_hi = lag_range(matched, t0_s, search_window_s, where)
-    dc = None if dc_v is None else np.asarray(dc_v, dtype=float).reshape(n_rows)
+    dc = None if dc_v is None else np.ascontiguousarray(dc_v, dtype=float).reshape(n_rows)
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
+    samples = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)  # contiguous blocks
     scale = 1.0 if volts_per_code is None else float(volts_per_code)
-    rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)  # contiguous blocks
-    stride = plan.decimation
-    settings = np.array([plan.span, plan.reference, plan.exclusion, lag_lo, lag_hi, candidates, plan.half,
-                         plan.segment_length, plan.block, matched.analytic_offset, stride,
-                         REFINE_HALF_WIDTH + stride - 1], dtype=np.int64)
     # ``matched.echo_values`` of the vertex, the noise as ``white_noise_power`` (2 sigma^2 sum s^2:
     # white noise through the filter); pfa over the searched lags, as detect_matched.
-    constants = plan.echo_constants.copy()
-    constants[0] = t0_s
-    constants[-1] = plan.threshold_factor(pfa, lag_hi - lag_lo)
-    echoes = np.empty((n_rows, 5))
+    constants = plan.echo_constants(t0_s, plan.threshold_factor(pfa, lag_hi - lag_lo))
+    echoes = np.empty(n_rows, dtype=ECHO)
     from binsonar.detection import local_kernels
 
     # Steps 1-3 and the echo values in one compiled call (``local_kernels.local_echoes``: the
     # coarse pass, each stretch searched every ``stride`` lags by direct correlations, the
-    # refinement as the full matched filter's, ``matched.echo_values``; checked against the
-    # numpy definitions and the FFT route in tests/parity/test_detection_local_kernels.py).
+    # refinement as the full matched filter's, ``matched.echo_values``; checked against
+    # ``numpy_peaks`` and the FFT route in tests/parity/test_detection_local_kernels.py).
     lanes = plan.tone_lanes if volts_per_code is None else plan.tone_lanes32  # codes: float32 block sums
-    local_kernels.local_echoes(rows, scale, _offsets(dc, n_rows), sigma,  # sigma: a new float64 array (noise_sigma)
-                               lanes, plan.tap_parts, plan.tap_parts32, settings, constants, echoes,
+    local_kernels.local_echoes(samples, np.zeros(n_rows) if dc is None else dc, sigma, lanes, plan.tap_parts,
+                               plan.tap_parts32, plan.search((lag_lo, lag_hi), candidates, scale), constants, echoes,
                                np.empty((0, 2)) if extremes_out is None else extremes_out)
     # One conversion to Python floats for all rows (``tolist``: the same values as float(v[row])).
-    return [[tuple(echo)] if echo[3] >= 1.0 else [] for echo in echoes.tolist()]
+    return [[echo] if echo[SCORE] >= 1.0 else [] for echo in echoes.tolist()]

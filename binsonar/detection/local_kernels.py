@@ -12,16 +12,17 @@ same evaluation as ``matched.lags_time_domain`` minus ``matched.dc_correlation``
 log-parabolic vertex of ``matched.refine``, then :func:`echo_rows` (the TOF, amplitude, SNR,
 score and TOF std of each row's vertex, ``matched.echo_values``' operations in its order).
 
-The FFT route the direct search replaced is kept as its reference: :func:`coarse_stretches`
-(the coarse stage, then each candidate's stretch, DC removed and zero padded, into the buffer
-of ``local._candidate_correlations``' batched short FFTs) and :func:`local_peaks` (the largest
-|z| over all candidates' lags from those FFTs, then ``_refine_row``).
+The FFT route is the direct search's reference: :func:`coarse_stretches` (the coarse stage,
+then each candidate's stretch, DC removed and zero padded, into the buffer of
+``local.candidate_correlations``' batched short FFTs) and :func:`local_peaks` (the largest |z|
+over all candidates' lags from those FFTs, then ``_refine_row``).
 
 All follow :mod:`binsonar.detection.local`'s numpy definitions step for step (same ties:
 first maximum; same bounds); only the order of the floating-point sums differs, i.e. results
-agree to rounding (``tests/parity/test_detection_local_kernels.py``). ``cache=True`` stores the
-compiled code in ``__pycache__`` beside this file (or numba's per-user cache directory): the
-first run in a fresh checkout compiles them (a few seconds of CPU), later processes load them.
+agree to rounding (``tests/parity/test_detection_local_kernels.py``). The arguments are the
+bundles of ``kernel_types``. ``cache=True`` stores the compiled code in ``__pycache__`` beside
+this file (or numba's per-user cache directory): the first run in a fresh checkout compiles
+them, later processes load them.
 """
 
 from __future__ import annotations
@@ -31,53 +32,53 @@ from numba import njit
 from numpy.typing import NDArray
 
 
+@njit(cache=True, nogil=True)
+def tone_offsets(dc_v: NDArray[np.float64], lanes: NDArray, block: int) -> tuple:
+    """The block correlation of each row's DC offset: dc times the tone's column sums over its
+    ``block`` taps (real and imaginary parts, each shape (n_rows,))."""
+    sum_cos = 0.0
+    sum_sin = 0.0
+    for q in range(block):
+        sum_cos += lanes[0, q]
+        sum_sin += lanes[1, q]
+    return dc_v * sum_cos, dc_v * sum_sin
+
+
 @njit(cache=True, nogil=True, fastmath=True)
-def _block_powers(rows: NDArray, first_block: int, energy: NDArray[np.float64], block: int,
-                  lanes: NDArray[np.float64], offset_re: NDArray[np.float64], offset_im: NDArray[np.float64],
-                  scale: float) -> None:
-    """|z_b|^2 of blocks first_block + 0 .. energy.shape[1] - 1 of every row.
+def block_powers(samples: NDArray, lanes: NDArray, search: NDArray[np.void], first_block: int,
+                 energy: NDArray[np.float64], offset_re: NDArray[np.float64], offset_im: NDArray[np.float64]) -> None:
+    """|z_b|^2 of blocks first_block + 0 .. energy.shape[1] - 1 of every row (``local.block_tone_power``).
 
     Four blocks at a time: eight independent multiply-add chains over the tone table, with no
-    reduction inside a block, so each sample is read once (one block at a time, a horizontal
-    sum per block, ran at 1.6x a read; BLAS's (n_blocks, block) @ (block, 2) as fast but with
-    its own threads). The rows advance together, four blocks of each in turn: several memory
-    streams keep more of the record's cache misses in flight than one row after another, which
-    matters when the record is not in cache (a new ping; measured 0.84 against 1.0 ms for 3 x
-    250,000 samples after an FFT of another array, 0.46 against 0.58 ms when cached).
-    The tone table is zero padded to a multiple of 8 taps (``lanes``): each block's sum then
-    runs over whole vectors, with no scalar remainder loop (42 taps: 5 vectors of 8 and 2 single
-    taps otherwise); the padded taps read the next block's first samples and multiply them by
-    exactly 0. Used wherever those extra samples exist in the row (all but the last few blocks
-    of a row, which take their own taps only). Measured for 3 x 250,000 samples, interleaved,
-    in units of one read (numpy ``max``): these block powers 1.34 cached, 1.12 after an FFT of
-    the record (cold, as a new ping arrives); the whole ``coarse_stretches`` 1.55 cached and
-    1.30 cold, against 2.2 and 1.50 with the unpadded table (and the windows' moving sums as an
-    inner loop). fastmath is safe here: finite sums only.
+    reduction inside a block, so each sample is read once; the rows advance together, four
+    blocks of each in turn (several memory streams keep more of a new record's cache misses in
+    flight). The tone table is zero padded to a multiple of 8 taps (``lanes``): each block's sum
+    then runs over whole vectors, with no scalar remainder loop; the padded taps read the next
+    block's first samples and multiply them by exactly 0. Used wherever those extra samples
+    exist in the row (all but the last few blocks of a row, which take their own taps only).
+    fastmath is safe here: finite sums only.
 
     Parameters
     ----------
-    rows : ndarray, shape (n_rows, n_samples)
-        Volts (float64), or int16 ADC codes (2 bytes a sample to read) with ``scale``.
+    samples : ndarray, shape (n_rows, n_samples), C-contiguous
+        float64 volts or int16 ADC codes: each block's correlation of the raw values is scaled
+        to volts once (``search``'s scale), before the offset is subtracted.
+    lanes : ndarray, shape (2, L), L >= block a multiple of 8
+        cos and -sin of 2 pi f0 k / fs for k < block, 0 beyond (``LocalPlan.tone_lanes``),
+        float64; or float32 (``LocalPlan.tone_lanes32``) for int16 codes: the codes convert
+        exactly to float32 and each group's sums run in float32, twice the lanes of a vector. A
+        block's float32 sum of ~48 products is within ~48 x 6e-8 of the sum of their magnitudes
+        (~1e-7 of a block's correlation): the coarse statistic only picks the candidates, which
+        then are the float64 ones unless two windows' statistics agree to ~1e-6.
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        Its scale and block (block length B, samples).
     first_block : int
     energy : ndarray, shape (n_rows, n_blocks), written
-    block : int
-        Block length B (samples).
-    lanes : ndarray, shape (2, L), L >= B a multiple of 8
-        cos and -sin of 2 pi f0 k / fs for k < B, 0 beyond (``LocalPlan.tone_lanes``), float64;
-        or float32 (``LocalPlan.tone_lanes32``) for int16 codes: the codes convert exactly to
-        float32 and each group's sums run in float32, twice the lanes of a vector (measured
-        0.67x the time of the float64 sums for 3 x 250,000 codes, warm). A block's float32 sum
-        of ~48 products is within ~48 x 6e-8 of the sum of their magnitudes (~1e-7 of a block's
-        correlation, measured 6.5e-8 of the largest block power): the coarse statistic only
-        picks the candidates, which then are the float64 ones unless two windows' statistics
-        agree to ~1e-6.
     offset_re, offset_im : ndarray, shape (n_rows,)
-        Block correlation of each row's DC offset (dc times the tone's column sums), subtracted.
-    scale : float
-        Volts per unit of ``rows`` (1.0 for volts: exact): each block's correlation of the raw
-        values is scaled to volts once, before the offset is subtracted.
+        ``tone_offsets(dc_v, lanes, block)``: subtracted from each block's correlation.
     """
-    n_rows, n = rows.shape
+    scale, block = search[0].scale, search[0].block
+    n_rows, n = samples.shape
     n_blocks = energy.shape[1]
     padded = lanes.shape[1]
     c = lanes[0]
@@ -89,7 +90,7 @@ def _block_powers(rows: NDArray, first_block: int, energy: NDArray[np.float64], 
     for j in range(0, fast, 4):
         base = (first_block + j) * block
         for r in range(n_rows):
-            row = rows[r]
+            row = samples[r]
             x0 = row[base: base + padded]
             x1 = row[base + block: base + block + padded]
             x2 = row[base + 2 * block: base + 2 * block + padded]
@@ -120,7 +121,7 @@ def _block_powers(rows: NDArray, first_block: int, energy: NDArray[np.float64], 
             energy[r, j + 2] = r2 * r2 + i2 * i2
             energy[r, j + 3] = r3 * r3 + i3 * i3
     for r in range(n_rows):  # the last few blocks: their own taps only
-        row = rows[r]
+        row = samples[r]
         for j in range(fast, n_blocks):
             base = (first_block + j) * block
             x = row[base: base + block]
@@ -140,10 +141,9 @@ def _span_extremes(row: NDArray, start: int, stop: int, extremes: NDArray[np.flo
     (largest, smallest), as ``code_kernels.row_extremes`` does for a whole row.
 
     Written as a loop over a slice with comparisons, which LLVM turns into vector max/min for
-    int16 codes (~8 us per 250,000 codes, measured; ``max(high, row[i])`` over ``range(start,
-    stop)`` ran scalar, ~270 us). Exact in any order. Float rows (finite: ``inputs`` refuses
-    NaN/inf; fastmath assumes it) run scalar (~350 us): only records of codes defer their
-    clipping test to here (``api.MEASURES_EXTREMES``).
+    int16 codes. Exact in any order. Float rows (finite: ``inputs`` refuses NaN/inf; fastmath
+    assumes it) run scalar: only records of codes defer their clipping test to here
+    (``DetectionMethod.measures_extremes``).
     """
     x = row[start:stop]
     high = x[0]
@@ -163,7 +163,7 @@ _EXTREMES_CHUNK = 64
 
 
 # Windows per group of the candidate search: each pick scans the groups' maxima and one group,
-# not every window (three picks of ~6,000 windows per 12.5 ms channel: ~60 us saved per ping).
+# not every window.
 _GROUP = 64
 
 
@@ -179,11 +179,10 @@ def _group_max(window: NDArray[np.float64], lo: int, hi: int) -> float:
 
 @njit(cache=True, nogil=True)
 def coarse_starts(
-    rows: NDArray,
-    scale: float,
-    dc: NDArray[np.float64],
-    lanes: NDArray[np.float64],
-    settings: NDArray[np.int64],
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
+    lanes: NDArray,
+    search: NDArray[np.void],
     starts: NDArray[np.int64],
     extremes: NDArray[np.float64],
 ) -> None:
@@ -192,21 +191,16 @@ def coarse_starts(
 
     Parameters
     ----------
-    rows : ndarray, shape (n_rows, n_samples), C-contiguous
-        Volts (float64), or int16 ADC codes.
-    scale : float
-        Volts per unit of ``rows``: 1.0 for volts, the code step for codes.
-    dc : ndarray, shape (n_rows,)
-        Offset (V) still in each row (zeros for none).
+    samples : ndarray, shape (n_rows, n_samples), C-contiguous
+        float64 volts or int16 ADC codes (``search``'s scale: volts per unit).
+    dc_v : ndarray, shape (n_rows,)
+        Each row's DC offset (V) still in the samples (zeros for none).
     lanes : ndarray, shape (2, L), C-contiguous
         cos and -sin of 2 pi f0 k / fs, k < block, zero padded (``LocalPlan.tone_lanes``, or
-        ``LocalPlan.tone_lanes32`` for int16 codes: ``_block_powers``).
-    settings : ndarray of int, shape (9,)
-        span (blocks per window), reference (the template's envelope-peak index), exclusion
-        (windows blanked each side of a pick: a template length), lag_lo and lag_hi (inclusive
-        range of searched lags), candidates (picks per row), half (lags searched each side of a
-        pick), segment_length (samples per stretch, 2 half + m), block (B). One array rather
-        than nine arguments: each argument costs the call a few microseconds of type dispatch.
+        ``LocalPlan.tone_lanes32`` for int16 codes: ``block_powers``).
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        The scale, the layout (block, span, reference, exclusion, half) and the searched lags
+        (lag_lo, lag_hi, candidates).
     starts : ndarray of int, shape (n_rows * candidates,), written
         Lag of each stretch's sample 0 (its first searched lag), row r's pick k at
         r * candidates + k.
@@ -216,9 +210,10 @@ def coarse_starts(
         blocks scanned while it is in cache after its block powers, then the samples outside
         the blocks read: no pass over the record of its own. With none: not computed.
     """
-    span, reference, exclusion, lag_lo, lag_hi = settings[0], settings[1], settings[2], settings[3], settings[4]
-    candidates, half, block = settings[5], settings[6], settings[8]
-    n_rows, n = rows.shape
+    p = search[0]
+    span, reference, exclusion, half, block = p.span, p.reference, p.exclusion, p.half, p.block
+    lag_lo, lag_hi, candidates = p.lag_lo, p.lag_hi, p.candidates
+    n_rows, n = samples.shape
     n_blocks = n // block
     sp = min(span, n_blocks)
     n_windows = n_blocks - sp + 1
@@ -230,16 +225,10 @@ def coarse_starts(
     window = np.empty(n_searched)
     n_groups = -(-n_searched // _GROUP)
     group_max = np.empty(n_groups)
-    sum_cos = 0.0
-    sum_sin = 0.0
-    for q in range(block):
-        sum_cos += lanes[0, q]
-        sum_sin += lanes[1, q]
     width = 2 * half + 1
-    offset_re = dc * sum_cos
-    offset_im = dc * sum_sin
+    offset_re, offset_im = tone_offsets(dc_v, lanes, block)
     if extremes.shape[0] != n_rows:
-        _block_powers(rows, first, energies, block, lanes, offset_re, offset_im, scale)
+        block_powers(samples, lanes, search, first, energies, offset_re, offset_im)
     else:
         # Chunk by chunk: the block powers (the same sums as in one call), then the chunk's
         # extremes, read again from the cache rather than from memory; then the samples outside
@@ -250,19 +239,18 @@ def coarse_starts(
         n_read = energies.shape[1]
         for c0 in range(0, n_read, _EXTREMES_CHUNK):
             c1 = min(c0 + _EXTREMES_CHUNK, n_read)
-            _block_powers(rows, first + c0, energies[:, c0:c1], block, lanes, offset_re, offset_im, scale)
+            block_powers(samples, lanes, search, first + c0, energies[:, c0:c1], offset_re, offset_im)
             for r in range(n_rows):
-                _span_extremes(rows[r], (first + c0) * block, (first + c1) * block, extremes[r])
+                _span_extremes(samples[r], (first + c0) * block, (first + c1) * block, extremes[r])
         for r in range(n_rows):
             if first > 0:
-                _span_extremes(rows[r], 0, first * block, extremes[r])
+                _span_extremes(samples[r], 0, first * block, extremes[r])
             if (first + n_read) * block < n:
-                _span_extremes(rows[r], (first + n_read) * block, n, extremes[r])
+                _span_extremes(samples[r], (first + n_read) * block, n, extremes[r])
     for r in range(n_rows):
         energy = energies[r]
         # The moving sums as ``sp`` passes over the windows (the same additions in the same
-        # order as a sum per window, so the same values): an inner loop of sp (2) terms per
-        # window cost ~70 us per ping, the passes ~14.
+        # order as a sum per window, so the same values).
         for w in range(n_searched):
             window[w] = energy[w]
         for t in range(1, sp):
@@ -296,40 +284,39 @@ def coarse_starts(
 
 @njit(cache=True, nogil=True)
 def coarse_stretches(
-    rows: NDArray,
-    scale: float,
-    dc: NDArray[np.float64],
-    lanes: NDArray[np.float64],
-    settings: NDArray[np.int64],
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
+    lanes: NDArray,
+    search: NDArray[np.void],
     segments: NDArray[np.float32],
     starts: NDArray[np.int64],
 ) -> None:
     """Coarse candidates of every row and their stretches (``local.coarse_lags`` and
     ``local.segment_spectra``'s input, in one pass): ``coarse_starts``, then each pick's
-    stretch gathered for the short FFTs of ``local._candidate_correlations`` (the FFT route,
+    stretch gathered for the short FFTs of ``local.candidate_correlations`` (the FFT route,
     the reference the direct search of ``local_echoes`` is tested against).
 
     Parameters
     ----------
-    rows, scale, dc, lanes, settings, starts
+    samples, dc_v, lanes, search, starts
         As for ``coarse_starts``.
     segments : ndarray, shape (n_rows * candidates, n_fft), float32, written
         Stretch of each pick (row r's pick k at r * candidates + k), ``rows - dc`` rounded to
-        float32 (``local._candidate_correlations``: the short FFTs only pick the peak's integer
-        lag), samples outside the record and beyond ``segment_length`` set to 0.
+        float32 (the short FFTs only pick the peak's integer lag), samples outside the record
+        and beyond ``segment_length`` set to 0.
     """
-    candidates, segment_length = settings[5], settings[7]
-    n_rows, n = rows.shape
+    candidates, segment_length, scale = search[0].candidates, search[0].segment_length, search[0].scale
+    n_rows, n = samples.shape
     n_fft = segments.shape[1]
-    coarse_starts(rows, scale, dc, lanes, settings, starts, np.empty((0, 2)))
+    coarse_starts(samples, dc_v, lanes, search, starts, np.empty((0, 2)))
     for r in range(n_rows):
-        d = dc[r]
+        d = dc_v[r]
         for k in range(candidates):
             i = r * candidates + k
             start = starts[i]
             for s in range(segment_length):
                 index = start + s
-                segments[i, s] = rows[r, index] * scale - d if 0 <= index < n else 0.0
+                segments[i, s] = samples[r, index] * scale - d if 0 <= index < n else 0.0
             for s in range(segment_length, n_fft):
                 segments[i, s] = 0.0
 
@@ -353,11 +340,10 @@ def _log_parabolic(left: float, centre: float, right: float) -> tuple:
 def local_peaks(
     z: NDArray[np.complex128],
     starts: NDArray[np.int64],
-    rows: NDArray,
-    scale: float,
-    dc: NDArray[np.float64],
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
     taps: NDArray[np.float64],
-    settings: NDArray[np.int64],
+    search: NDArray[np.void],
     values: NDArray[np.complex128],
     refined: NDArray[np.float64],
 ) -> None:
@@ -365,16 +351,18 @@ def local_peaks(
 
     Parameters
     ----------
-    z : ndarray, shape (n_rows * candidates, >= width), complex
-        Local filter output of each stretch at lags ``starts + 0 .. width - 1``.
+    z : ndarray, shape (n_rows * candidates, >= ceil(width / stride)), complex
+        Local filter output of each stretch at lags ``starts + stride j`` (width = 2 half + 1
+        lags).
     starts : ndarray of int, shape (n_rows * candidates,)
-    rows, scale, dc : the record, its volts per unit and its offsets (as for ``coarse_stretches``)
+    samples, dc_v
+        As for ``coarse_starts``.
     taps : ndarray, shape (4, m_a + 1)
-        ``LocalPlan.tap_parts``: the analytic template's conjugate (real, imaginary; first m_a
+        ``LocalPlan.tap_parts``: the conjugated analytic template (real, imaginary; first m_a
         columns) and its running sums, 0 first.
-    settings : ndarray of int, shape (6,)
-        candidates, width, lag_lo, lag_hi, analytic_offset (index of template sample 0 in the
-        taps), stride (z holds every stride-th lag: entry j is lag ``starts + stride j``).
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        Its scale, half, lag_lo, lag_hi, candidates, analytic_offset and stride (the reach is
+        ``values``' half width).
     values : ndarray, shape (n_rows, 2 R + 1), complex, written
         Direct z (``rows - dc``; 0 at lags outside [lag_lo, lag_hi]) at the peak's lag + (-R .. R),
         as ``matched.lags_time_domain`` minus ``matched.dc_correlation`` (R >= stride keeps the
@@ -382,9 +370,11 @@ def local_peaks(
     refined : ndarray, shape (n_rows, 2), written
         ``matched.refine`` of ``values``: fractional lag and |z|^2 at the vertex.
     """
-    candidates, width, lag_lo, lag_hi, analytic_offset = settings[0], settings[1], settings[2], settings[3], settings[4]
-    stride = settings[5]
-    n_rows = rows.shape[0]
+    p = search[0]
+    candidates, lag_lo, lag_hi = p.candidates, p.lag_lo, p.lag_hi
+    width = 2 * p.half + 1
+    stride = p.stride
+    n_rows = samples.shape[0]
     power = np.empty(values.shape[1])
     for r in range(n_rows):
         best_lag = 0
@@ -398,8 +388,7 @@ def local_peaks(
                 if p > best:
                     best = p
                     best_lag = lag
-        _refine_row(rows[r], scale, dc[r], taps, best_lag, lag_lo, lag_hi, analytic_offset, values[r], power,
-                    refined[r])
+        _refine_row(samples[r], dc_v[r], taps, search, best_lag, values[r], power, refined[r])
 
 
 @njit(cache=True, nogil=True)
@@ -420,12 +409,14 @@ def _folded(re: float, im: float, first: int, n: int, scale: float, d: float, ta
 
 
 @njit(cache=True, nogil=True)
-def _refine_row(row: NDArray, scale: float, d: float, taps: NDArray[np.float64], best_lag: int, lag_lo: int,
-                lag_hi: int, analytic_offset: int, values: NDArray[np.complex128], power: NDArray[np.float64],
-                refined: NDArray[np.float64]) -> None:
-    """Direct z at ``best_lag - reach .. best_lag + reach`` (reach = values.size // 2; 0 outside
-    [lag_lo, lag_hi]) into ``values``, and ``matched.refine``'s vertex of the largest |z| among
-    them, the outer two excepted, into ``refined`` (fractional lag, |z|^2)."""
+def _refine_row(row: NDArray, d: float, taps: NDArray[np.float64], search: NDArray[np.void], best_lag: int,
+                values: NDArray[np.complex128], power: NDArray[np.float64], refined: NDArray[np.float64]) -> None:
+    """Direct z of ``row * scale - d`` at ``best_lag - reach .. best_lag + reach`` (reach =
+    values.size // 2; 0 outside [lag_lo, lag_hi]) into ``values``, and ``matched.refine``'s
+    vertex of the largest |z| among them, the outer two excepted, into ``refined`` (fractional
+    lag, |z|^2)."""
+    p = search[0]
+    scale, analytic_offset, lag_lo, lag_hi = p.scale, p.analytic_offset, p.lag_lo, p.lag_hi
     n = row.size
     m_a = taps.shape[1] - 1
     n_lags = values.size
@@ -460,13 +451,11 @@ def _refine_row(row: NDArray, scale: float, d: float, taps: NDArray[np.float64],
 
 
 @njit(cache=True, nogil=True)
-def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constants: NDArray[np.float64],
-              echoes: NDArray[np.float64]) -> None:
+def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constants: NDArray[np.void],
+              echoes: NDArray[np.void]) -> None:
     """TOF, amplitude, SNR, score and TOF std of each row's refined peak: ``matched.echo_values``
     (with ``matched.white_noise_power`` for the noise) compiled for a few rows, the same
-    operations in the same order (``tests/parity/test_detection_local_kernels.py``). One call instead of
-    some twenty small numpy calls, which cost ~0.1-0.2 ms per ping once an FFT of the record
-    has evicted numpy's code and data from the caches (a new ping).
+    operations in the same order (``tests/parity/test_detection_local_kernels.py``).
 
     Parameters
     ----------
@@ -474,32 +463,30 @@ def echo_rows(refined: NDArray[np.float64], sigma: NDArray[np.float64], constant
         Fractional lag and |z|^2 at the vertex (``local_peaks``).
     sigma : ndarray, shape (n_rows,)
         Noise standard deviation of each row (V, ``noise.noise_sigma``: floored).
-    constants : ndarray, shape (8,)
-        t0_s, sample rate (Hz), template t0_s, white-noise gain (``white_noise_power`` of 1 V),
-        peak response, the template's largest |sample|, RMS bandwidth (Hz), threshold factor.
-    echoes : ndarray, shape (n_rows, 5), written
-        tof_s, amplitude, snr_db, score, tof_std_s.
+    constants : ndarray of ``kernel_types.ECHO_CONSTANTS``, shape (1,)
+    echoes : ndarray of ``kernel_types.ECHO``, shape (n_rows,), written
     """
-    t0_s, fs, template_t0_s, gain = constants[0], constants[1], constants[2], constants[3]
-    peak_response, peak_abs, rms_bandwidth, factor = constants[4], constants[5], constants[6], constants[7]
+    c = constants[0]
+    t0_s, fs, template_t0_s, gain = c.t0_s, c.sample_rate_hz, c.template_t0_s, c.noise_gain
+    peak_response, peak_abs, rms_bandwidth, factor = c.peak_response, c.peak_abs, c.rms_bandwidth_hz, c.threshold_factor
     for r in range(refined.shape[0]):
         lag = refined[r, 0]
         power = refined[r, 1]
         noise_mean = max(sigma[r] * sigma[r] * gain, 1e-20 * power)
         snr = max(2.0 * power / noise_mean - 2.0, 1e-3)
-        echoes[r, 0] = t0_s + lag / fs - template_t0_s
-        echoes[r, 1] = np.sqrt(power) / peak_response * peak_abs
-        echoes[r, 2] = 10.0 * np.log10(snr)
-        echoes[r, 3] = power / (factor * noise_mean)
-        echoes[r, 4] = 1.0 / (2.0 * np.pi * rms_bandwidth * np.sqrt(snr))
+        echo = echoes[r]
+        echo.tof_s = t0_s + lag / fs - template_t0_s
+        echo.amplitude = np.sqrt(power) / peak_response * peak_abs
+        echo.snr_db = 10.0 * np.log10(snr)
+        echo.score = power / (factor * noise_mean)
+        echo.tof_std_s = 1.0 / (2.0 * np.pi * rms_bandwidth * np.sqrt(snr))
 
 
 @njit(cache=True, nogil=True, fastmath=True)
 def _four_lags(x: NDArray[np.float64], first: int, stride: int, taps: NDArray[np.float64]) -> tuple:
     """sum_t x[first + stride i + t] taps[:, t], t < m_a, for i = 0 .. 3: real and imaginary parts.
 
-    Four lags at once, eight independent multiply-add chains over the taps (as ``_block_powers``):
-    ~5x the rate of one lag at a time (~0.16 against ~0.9 us per lag of 995 taps, measured).
+    Four lags at once, eight independent multiply-add chains over the taps (as ``block_powers``).
     fastmath: finite sums only. ``x`` must hold samples up to first + 3 stride + m_a - 1.
     """
     m_a = taps.shape[1] - 1
@@ -555,16 +542,15 @@ def _four_lags32(x: NDArray[np.float32], first: int, stride: int, taps: NDArray[
 
 @njit(cache=True, nogil=True)
 def local_echoes(
-    rows: NDArray,
-    scale: float,
-    dc: NDArray[np.float64],
+    samples: NDArray,
+    dc_v: NDArray[np.float64],
     sigma: NDArray[np.float64],
-    lanes: NDArray[np.float64],
+    lanes: NDArray,
     taps: NDArray[np.float64],
     taps32: NDArray[np.float32],
-    settings: NDArray[np.int64],
-    constants: NDArray[np.float64],
-    echoes: NDArray[np.float64],
+    search: NDArray[np.void],
+    constants: NDArray[np.void],
+    echoes: NDArray[np.void],
     extremes: NDArray[np.float64],
 ) -> None:
     """The whole local matched filter of every row in one call: ``coarse_starts``, the search
@@ -575,47 +561,39 @@ def local_echoes(
     analytic template (the refinement's z at that lag, in single precision: float32 stretch and
     taps, float32 sums of ~1,000 terms, errors ~1e-6 of the stretch's largest |z|); the largest
     picks the lag the float64 refinement starts from. The FFT route
-    (``local._candidate_correlations`` then ``local_peaks``) samples the same lags with the
+    (``local.candidate_correlations`` then ``local_peaks``) samples the same lags with the
     band-limited z, also in float32 (errors ~1e-6 of the peak, plus the Hilbert tails beyond
     the stretch, ~1e-5): the two pick the same lag unless two sampled lags have |z| within
     ~1e-5 of each other, and then the same refined peak whenever both lie within
     ``stride - 1`` lags of it (two lattice lags straddling one peak), so the same echoes
     (``tests/parity/test_detection_local_kernels.py``). The direct search costs (2 half / stride + 1)
-    dot products of the m_a analytic taps per pick (41 x 995 complex taps for the 5 us pulse:
-    ~0.7 M multiply-adds for 9 picks), four lags at a time (``_four_lags32``) on a float32 copy
-    of the stretch: measured ~0.05 ms per ping, against ~0.1 ms in float64 and ~0.33 ms one lag
-    at a time on the record. One call and no FFT: a new ping pays the
-    dispatch of one kernel, not of two kernels, two scipy FFTs and a dozen numpy calls (~0.3-0.4
-    ms CPU once an FFT of the record has evicted the caches, for ~50 us of arithmetic).
+    dot products of the m_a analytic taps per pick, four lags at a time (``_four_lags32``) on a
+    float32 copy of the stretch, in one call with no FFT.
 
     Parameters
     ----------
-    rows, scale, dc, lanes
+    samples, dc_v, lanes
         As for ``coarse_starts``.
     sigma : ndarray, shape (n_rows,)
         Noise standard deviation of each row (V, floored), as for ``echo_rows``.
     taps : ndarray, shape (4, m_a + 1)
-        ``LocalPlan.tap_parts``.
+        As for ``local_peaks``.
     taps32 : ndarray of float32, shape (2, m_a + 1)
         Its first two rows in single precision (``LocalPlan.tap_parts32``), for the search.
-    settings : ndarray of int, shape (12,)
-        ``coarse_starts``' nine, then analytic_offset (index of template sample 0 in the taps),
-        stride (``LocalPlan.decimation``) and reach (direct lags each side of the searched peak:
-        ``local.REFINE_HALF_WIDTH + stride - 1``).
-    constants : ndarray, shape (8,)
-        As for ``echo_rows``.
-    echoes : ndarray, shape (n_rows, 5), written
-        tof_s, amplitude, snr_db, score, tof_std_s of each row's peak (``echo_rows``).
-    extremes : ndarray, shape (n_rows, 2) or (0, 2), written
-        Each row's largest and smallest value, read with the coarse pass, or nothing
-        (``coarse_starts``).
+    search : ndarray of ``kernel_types.LOCAL_SEARCH``, shape (1,)
+        All its fields: ``coarse_starts``', and analytic_offset, stride and reach (direct lags
+        each side of the searched peak: ``local.REFINE_HALF_WIDTH + stride - 1``).
+    constants : ndarray of ``kernel_types.ECHO_CONSTANTS``, shape (1,)
+    echoes : ndarray of ``kernel_types.ECHO``, shape (n_rows,), written (``echo_rows``)
+    extremes : ndarray, shape (n_rows, 2) or (0, 2), written (``coarse_starts``)
     """
-    lag_lo, lag_hi, candidates, half = settings[3], settings[4], settings[5], settings[6]
-    analytic_offset, stride, reach = settings[9], settings[10], settings[11]
-    n_rows, n = rows.shape
+    p = search[0]
+    lag_lo, lag_hi, candidates, half = p.lag_lo, p.lag_hi, p.candidates, p.half
+    scale, analytic_offset, stride, reach = p.scale, p.analytic_offset, p.stride, p.reach
+    n_rows, n = samples.shape
     m_a = taps.shape[1] - 1
     starts = np.empty(n_rows * candidates, dtype=np.int64)
-    coarse_starts(rows, scale, dc, lanes, settings, starts, extremes)
+    coarse_starts(samples, dc_v, lanes, search, starts, extremes)
     width = 2 * half + 1
     count = (width + stride - 1) // stride  # searched lags per stretch: start + stride j
     groups = (count + 3) // 4
@@ -628,8 +606,8 @@ def local_echoes(
     power = np.empty(2 * reach + 1)
     refined = np.empty((n_rows, 2))
     for r in range(n_rows):
-        row = rows[r]
-        d = dc[r]
+        row = samples[r]
+        d = dc_v[r]
         best_lag = 0
         best = -2.0
         for k in range(candidates):
@@ -649,5 +627,5 @@ def local_echoes(
                     if p > best:
                         best = p
                         best_lag = lag
-        _refine_row(row, scale, d, taps, best_lag, lag_lo, lag_hi, analytic_offset, values, power, refined[r])
+        _refine_row(row, d, taps, search, best_lag, values, power, refined[r])
     echo_rows(refined, sigma, constants, echoes)

@@ -12,9 +12,9 @@ How it is computed (one real FFT of the record per channel, nothing else at full
    noise floor and CFAR use. ``detect`` ("matched", "seed-3/4") gets the same decimated
    envelope by overlap-save instead (``plan_matched(..., overlap_save=True)``,
    ``overlap_save.block_envelope``): ~35 real FFTs of 8,192 samples per channel rather than one
-   of ~256,000 (about a fifth of its cost: the large transform leaves the cache), equal to it to
-   the Hilbert tails' truncation (~1e-2 of the noise, 1e-4 of an echo's peak, tested), on a
-   grid of ~14.6 samples instead of ~14.9.
+   of ~256,000 (short transforms stay in the cache), equal to it to the Hilbert tails'
+   truncation (~1e-2 of the noise, 1e-4 of an echo's peak, tested), on a grid of ~14.6 samples
+   instead of ~14.9.
 3. The peak is refined at full rate: z at the integer lags around the coarse peak is computed
    directly in the time domain (a few dot products with the analytic template), and the
    parabola through log|z|^2 at the three samples around the maximum gives the sub-sample lag.
@@ -309,9 +309,9 @@ def plan_matched(
         k_hi = _band_edge_bin(s, n_fft)
         n_env = sfft.next_fast_len(k_hi)
         if noise_psd is None:
-            # The template's spectrum on the record's grid from a float32 FFT (half the cost of
-            # a float64 one, which is a third of the record's own FFT when ``detect`` plans per
-            # call): relative errors ~1e-7 of its peak, as those of the float32 record FFT the
+            # The template's spectrum on the record's grid from a float32 FFT (half the work of a
+            # float64 one, paid whenever ``detect`` plans per call): relative errors ~1e-7 of its
+            # peak, as those of the float32 record FFT the
             # plain filter's envelope comes from anyway (``filtered_spectrum``); the TOF is
             # refined with the float64 analytic template. Not for a whitened plan, whose 1 / PSD
             # weights could amplify the rounding in the spectrum's weak tails.
@@ -353,9 +353,9 @@ def plan_matched(
 def fast_fft_size(target: int) -> int:
     """Smallest FFT length >= ``target`` of the form 2^a * c, c an odd 5-smooth number <= 625.
 
-    Measured with scipy's pocketfft on 3 x 250,200 samples: 256,000 = 2^11 * 125 is as fast as
-    ``next_fast_len``'s 253,125 = 3^4 * 5^5 in float64 and 1.3x faster in float32 (a large
-    power-of-two factor suits the single-precision kernels); 262,144 = 2^18 is as fast.
+    A large power-of-two factor suits pocketfft's single-precision kernels: for the thesis's
+    records (250,200 samples) 256,000 = 2^11 * 125 rather than ``next_fast_len``'s 253,125 =
+    3^4 * 5^5 (``benchmarks/bench_detection.py`` times the filter against an FFT of the record).
     """
     target = max(int(target), 1)
     best = None
@@ -377,7 +377,7 @@ def filtered_spectrum(
     ``single``). With ``single`` the result is complex64 (and so is ``envelope`` of it).
 
     ``single``: the record's FFT in float32 (copied with its zero padding into one float32
-    buffer, then one real FFT without further padding): about 1.3x faster than float64. The
+    buffer, then one real FFT without further padding), half the bytes of float64. The
     data are ADC codes of 12-16 bits, far inside float32's 24-bit mantissa; the FFT's relative
     rounding (~1e-7 of the record's RMS spectrum) is ~100 dB below the white noise of any real
     record, and only the decimated envelope (peak cell, noise median) comes from it: the TOF
@@ -505,7 +505,7 @@ def dc_correlation(
     partial: NDArray[np.complex128] | None = None,
 ) -> NDArray[np.complex128]:
     """Analytic correlation of constant rows (value ``dc``) with the template, at ``lags``,
-    samples outside the record counting as 0 (as in ``lags_time_domain`` / ``lags_by_fft``).
+    samples outside the record counting as 0 (as in ``lags_time_domain``).
 
     Parameters
     ----------
@@ -525,28 +525,6 @@ def dc_correlation(
     lo = np.minimum(np.maximum(-first, 0), taps.size)
     hi = np.minimum(np.maximum(n_samples - first, 0), taps.size)
     return dc[:, np.newaxis] * np.where(hi > lo, partial[hi] - partial[lo], 0.0)
-
-
-def lags_by_fft(
-    plan: MatchedPlan, rows: NDArray[np.float64], row_index: NDArray[np.intp], lags: NDArray[np.intp]
-) -> NDArray[np.complex128]:
-    """Same as ``lags_time_domain`` (to rounding), via short FFTs of the record segments.
-
-    Cheaper when many consecutive lags are wanted (the local matched filter's window): each
-    segment of w + m_a - 1 samples is convolved with the reversed analytic template.
-    """
-    import scipy.fft as sfft
-
-    taps = plan.analytic_template_conj
-    n = rows.shape[1]
-    w = lags.shape[1]
-    start = lags[:, 0] - plan.analytic_offset
-    index = start[:, np.newaxis] + np.arange(w + taps.size - 1)
-    inside = (index >= 0) & (index < n)
-    segment = np.where(inside, rows[row_index[:, np.newaxis], np.clip(index, 0, n - 1)], 0.0)
-    size = sfft.next_fast_len(segment.shape[1] + taps.size - 1)
-    product = sfft.fft(segment, size, axis=-1) * sfft.fft(taps[::-1], size)
-    return sfft.ifft(product, axis=-1)[:, taps.size - 1: taps.size - 1 + w]
 
 
 def lags_from_spectrum(plan: MatchedPlan, spectrum: NDArray[np.complex128], lags: NDArray[np.intp]) -> NDArray[np.complex128]:

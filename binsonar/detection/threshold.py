@@ -79,16 +79,79 @@ def crossing_time_offset(template: Template, amplitude_v: float, level_v: float)
     if amplitude_v < level_v:
         raise RecordingError(f"calibrate_amplitude_v={amplitude_v!r} is below the threshold level {level_v!r} V")
     i = int(first_crossings(s[np.newaxis], np.array([level_v]))[0])
-    frac = _fraction(np.abs(s[i - 1]) if i > 0 else 0.0, np.abs(s[i]), level_v)
+    frac = crossing_fraction(np.abs(s[i - 1]) if i > 0 else 0.0, np.abs(s[i]), level_v)
     return template.t0_s + (i - 1 + frac) / template.sample_rate_hz
 
 
-def _fraction(before: NDArray[np.float64] | float, after: NDArray[np.float64] | float, level: NDArray[np.float64] | float) -> NDArray[np.float64]:
+def crossing_fraction(before: NDArray[np.float64] | float, after: NDArray[np.float64] | float,
+                      level: NDArray[np.float64] | float) -> NDArray[np.float64]:
     """Linear-interpolation fraction in [0, 1] of the level between two samples."""
     before = np.asarray(before, dtype=float)
     after = np.asarray(after, dtype=float)
     rise = after - before
     return np.clip(np.where(rise > 0, (level - before) / np.where(rise > 0, rise, 1.0), 1.0), 0.0, 1.0)
+
+
+def crossing_measures(
+    rows: NDArray[np.float64], found: NDArray[np.intp], offset: NDArray[np.float64], window: int
+) -> NDArray[np.float64]:
+    """What the detector measures at each row's crossing: the numpy definition of the compiled
+    ``threshold_kernels.crossings``.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, n_samples)
+        Volts.
+    found : ndarray of int, shape (n_rows,)
+        Crossing sample of each row (``first_crossings``; -1: none).
+    offset : ndarray, shape (n_rows,)
+        DC offset of each row.
+    window : int
+        Samples measured from the crossing on (indices clipped to the row).
+
+    Returns
+    -------
+    ndarray, shape (n_rows, 4)
+        |x - offset| before the crossing (at it for sample 0) and at it, the largest |x - offset|
+        and the sum of (x - offset)^2 over the window; NaN where there is no crossing.
+    """
+    n_rows, n = rows.shape
+    out = np.full((n_rows, 4), np.nan)
+    hit = np.flatnonzero(found >= 0)
+    i = found[hit]
+    out[hit, 0] = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
+    out[hit, 1] = np.abs(rows[hit, i] - offset[hit])
+    segment = rows[hit[:, np.newaxis], np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)] - offset[hit, np.newaxis]
+    out[hit, 2] = np.abs(segment).max(axis=1)
+    out[hit, 3] = (segment ** 2).sum(axis=1)
+    return out
+
+
+def crossing_echo_values(found: NDArray[np.intp], measures: NDArray[np.float64], level: NDArray[np.float64],
+                         sigma: NDArray[np.float64], window: int, sample_rate_hz: float, t0_s: float,
+                         offset_s: float) -> NDArray[np.float64]:
+    """The echo values of each crossing: the numpy definition of the compiled
+    ``threshold_kernels.threshold_echoes`` (after ``crossing_measures``).
+
+    The TOF is the crossing linearly interpolated between the samples around it, minus the
+    offset; the amplitude the largest |x - dc| over the window; the SNR the window's energy
+    above the noise over sigma^2 (at least -30 dB; a noise-free record's capped near 200 dB);
+    the score amplitude / level; the TOF std sigma over the crossing's slope.
+
+    Returns
+    -------
+    ndarray, shape (n_hit, 5)
+        tof_s, amplitude, snr_db, score, tof_std_s of the rows that cross, in row order.
+    """
+    hit = np.flatnonzero(found >= 0)
+    i = found[hit]
+    before, after, amplitude, total = measures[hit].T
+    frac = np.where(i > 0, crossing_fraction(before, after, level[hit]), 0.0)
+    tof = t0_s + (i - 1 + frac) / sample_rate_hz - offset_s
+    noise_var = np.maximum(sigma[hit] ** 2, 1e-20 * total)
+    snr = np.maximum((total - window * sigma[hit] ** 2) / noise_var, 1e-3)
+    slope = np.maximum((after - before) * sample_rate_hz, np.finfo(float).tiny)
+    return np.stack([tof, amplitude, 10 * np.log10(snr), amplitude / level[hit], sigma[hit] / slope], axis=1)
 
 
 def detect_threshold(
@@ -158,7 +221,7 @@ def detect_threshold(
     fs = sample_rate_hz
     sigma = noise_sigma(rows, sample_rate_hz=fs, t0_s=t0_s, noise_window_s=noise_window_s, where=where,
                         floor_v=noise_floor_v, offset_v=dc_v, robust_v=robust_sigma_v, volts_per_code=volts_per_code)
-    offset = np.zeros(rows.shape[0]) if dc_v is None else np.asarray(dc_v, dtype=float).reshape(rows.shape[0])
+    offset = np.zeros(rows.shape[0]) if dc_v is None else np.ascontiguousarray(dc_v, dtype=float).reshape(rows.shape[0])
     if level_v is not None:
         if not (math.isfinite(level_v) and level_v > 0):
             raise RecordingError(f"{where}: level_v must be > 0, got {level_v!r}")
@@ -183,17 +246,16 @@ def detect_threshold(
         stop = min(n, int(math.floor((stop_s - t0_s) * fs)) + 1) if math.isfinite(stop_s) else n
         if stop - first < 2:
             raise RecordingError(f"{where}: search_window_s={search_window_s!r} holds fewer than 2 samples of the record")
+    from binsonar.detection.kernel_types import CROSSING_SEARCH, ECHO, record
     from binsonar.detection.threshold_kernels import threshold_echoes
 
-    # ``first_crossings``, the echo measures at the crossing and the echo values, compiled in one
-    # call: each searched sample read once, up to the crossing (tests/parity/test_detection_threshold_kernels.py).
-    rows = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)
-    per_row = np.empty((n_rows, 3))
-    per_row[:, 0] = level
-    per_row[:, 1] = offset
-    per_row[:, 2] = sigma
-    echoes = np.empty((n_rows, 6))
-    threshold_echoes(rows, 1.0 if volts_per_code is None else float(volts_per_code), per_row,
-                     np.array([first, stop, window], dtype=np.int64), np.array([fs, t0_s, offset_s]), echoes)
-    # One conversion to Python floats for all rows (``tolist``).
-    return [[tuple(echo[1:])] if echo[0] else [] for echo in echoes.tolist()]
+    # ``first_crossings``, ``crossing_measures`` and ``crossing_echo_values``, compiled in one
+    # call: each searched sample read once, up to the crossing.
+    samples = np.ascontiguousarray(rows, dtype=np.int16 if volts_per_code is not None else float)
+    search = record(CROSSING_SEARCH, scale=1.0 if volts_per_code is None else volts_per_code, first=first, stop=stop,
+                    window=window, sample_rate_hz=fs, t0_s=t0_s, offset_s=offset_s)
+    found = np.empty(n_rows, dtype=np.int64)
+    echoes = np.empty(n_rows, dtype=ECHO)
+    threshold_echoes(samples, offset, level, sigma, search, found, echoes)  # contiguous float64 rows of values
+    # One conversion to Python values for all rows (``tolist``: tuples of floats).
+    return [[echo] if i >= 0 else [] for echo, i in zip(echoes.tolist(), found.tolist())]

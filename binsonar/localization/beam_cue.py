@@ -12,7 +12,7 @@ and a window of microseconds needs a lower threshold than a whole record for the
 false-alarm probability.
 
 Decision: the window's largest |z|^2, z the correlation with the expected echo
-(``beam_refine.correlation_maximum``), against the filter's noise level, the median of |z|^2 over
+(``beam_correlation.correlation_maximum``), against the filter's noise level, the median of |z|^2 over
 the channel divided by ln 2 (the mean of an exponential variable from its median; robust to the
 few lags that echoes occupy, as the matched filter's own noise floor is), with the threshold of
 ``detection.matched.envelope_threshold_factor`` over the window (beta the RMS bandwidth of the
@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any, Sequence
+from typing import Any, Protocol, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from binsonar.localization.beam_model import PistonTransducers, expected_response
-from binsonar.localization.beam_refine import BeamRefinementConfig, CorrelationGrid, _segments, correlation_maximum
+from binsonar.localization.beam_correlation import CorrelationGrid, correlation_maximum, segment_spectra
+from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers, expected_response
 from binsonar.recording import Template
 
 PREDICTION_SIGMAS = 5.0
@@ -43,10 +43,28 @@ FALLBACK_TOF_STD_S = 1e-7
 """TOF std (s) assumed for an echo without one when the two echoes are weighted in the fit."""
 
 
+class CueSettings(Protocol):
+    """What the cued search reads of its settings (``beam_refine.BeamRefinementConfig`` has them)."""
+
+    @property
+    def model(self) -> BeamModelConfig:
+        """Target class and line-integral settings of the expected echo."""
+        ...
+
+    @property
+    def search_half_width_s(self) -> float:
+        """Half-width (s) of the window around the prediction, before the prediction's own spread."""
+        ...
+
+    @property
+    def cue_pfa(self) -> float:
+        """False-alarm probability of the search over its window."""
+        ...
+
+
 def cue_missing_echo(rows: ArrayLike, echoes: Sequence[Any], *, sample_rate_hz: float, t0_s: float,
                      template: Template, channel_positions_m: ArrayLike, sound_speed_m_s: float,
-                     transducers: PistonTransducers,
-                     config: BeamRefinementConfig = BeamRefinementConfig()) -> tuple[Any, Any, Any]:
+                     transducers: PistonTransducers, config: CueSettings) -> tuple[Any, Any, Any]:
     """The three echoes of one target, with the one missing channel searched where the others predict it.
 
     Parameters
@@ -56,8 +74,10 @@ def cue_missing_echo(rows: ArrayLike, echoes: Sequence[Any], *, sample_rate_hz: 
     echoes : sequence of 3 ``binsonar.detection.Echo`` or None
         The target's echoes per channel; exactly one None is searched, otherwise they are
         returned as they are.
-    sample_rate_hz, t0_s, template, channel_positions_m, sound_speed_m_s, transducers, config
+    sample_rate_hz, t0_s, template, channel_positions_m, sound_speed_m_s, transducers
         As ``beam_refine.refine_tofs``.
+    config : CueSettings
+        The window and false-alarm probability of the search (a ``BeamRefinementConfig``).
 
     Returns
     -------
@@ -107,7 +127,7 @@ def predicted_tof(echoes: Sequence[Any], channel: int, geometry: Any,
 
 def search_channel(rows: NDArray[np.float64], echoes: Sequence[Any], channel: int, *, sample_rate_hz: float,
                    t0_s: float, template: Template, channel_positions_m: ArrayLike, sound_speed_m_s: float,
-                   transducers: PistonTransducers, config: BeamRefinementConfig) -> Any:
+                   transducers: PistonTransducers, config: CueSettings) -> Any:
     """The echo of ``channel`` found by the cued search (module docstring), or None."""
     from binsonar.bounds import tof_crlb_s
     from binsonar.detection.matched import envelope_threshold_factor
@@ -133,7 +153,7 @@ def search_channel(rows: NDArray[np.float64], echoes: Sequence[Any], channel: in
     row = rows[channel] - np.median(rows[channel])
     centre = float(delay[channel])
     start = centre - half - grid.lead_s - 4.0 / fs
-    spectrum, _ = _segments(row[np.newaxis], t0_s, fs, np.array([start]), grid.n_fft, grid.bins)
+    spectrum, _ = segment_spectra(row[np.newaxis], t0_s, fs, np.array([start]), grid.n_fft, grid.bins)
     tof, peak = correlation_maximum(spectrum, expected[np.newaxis], grid.frequency_hz, np.array([centre]), half, fs)
     noise = filter_noise_level(row, expected, grid, half, fs)
     power = float(peak[0]) ** 2
@@ -178,4 +198,4 @@ def filter_noise_level(row: NDArray[np.float64], expected: NDArray[np.complex128
     return float(np.median(power) / math.log(2.0))
 
 
-__all__ = ("cue_missing_echo", "filter_noise_level", "predicted_tof", "search_channel")
+__all__ = ("CueSettings", "cue_missing_echo", "filter_noise_level", "predicted_tof", "search_channel")

@@ -20,29 +20,27 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from binsonar.localization.beam_types import EdgePoints, FrequencyLattice, JincTable, PistonRadii
+
 
 @njit(cache=True, nogil=True, fastmath=True)
-def edge_line_integral(weight: NDArray[np.float64], excess_s: NDArray[np.float64], sin_tx: NDArray[np.float64],
-                       sin_rx: NDArray[np.float64], radius_tx_m: float, radius_rx_m: NDArray[np.float64],
-                       f0_hz: float, df_hz: float, n_bins: int, sound_speed_m_s: float, table_step: float,
-                       table: NDArray[np.float64]) -> NDArray[np.complex128]:
+def edge_line_integral(points: EdgePoints, radii: PistonRadii, frequencies: FrequencyLattice, sound_speed_m_s: float,
+                       jinc: JincTable) -> NDArray[np.complex128]:
     """H (c, n_bins) of the line integral at f_k = f0 + k df (see the module docstring).
 
     Parameters
     ----------
-    weight, excess_s, sin_tx, sin_rx : ndarray, shape (c, n)
-        Per channel and point: the quadrature weight (0 behind a baffle), the excess delay (s),
-        sin of the transmitter's and the receiver's off-axis angles.
-    radius_tx_m : float
-    radius_rx_m : ndarray, shape (c,)
-    f0_hz, df_hz : float
-    n_bins : int
+    points : EdgePoints
+        C-contiguous arrays.
+    radii : PistonRadii
+    frequencies : FrequencyLattice
     sound_speed_m_s : float
-    table_step : float
-        Spacing of ``table`` in x.
-    table : ndarray
-        2 J1(x)/x at x = i table_step (held at its last value beyond its end).
+    jinc : JincTable
     """
+    weight, excess_s, sin_tx, sin_rx = points.weight, points.excess_s, points.sin_tx, points.sin_rx
+    radius_tx_m, radius_rx_m = radii.transmitter_m, radii.receivers_m
+    f0_hz, df_hz, n_bins = frequencies.f0_hz, frequencies.df_hz, frequencies.n_bins
+    table_step, table = jinc.step, jinc.values
     n_ch, n_pts = weight.shape
     out = np.zeros((n_ch, n_bins), dtype=np.complex128)
     last = table.size - 1

@@ -48,6 +48,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from binsonar.localization.beam_types import EdgePoints, FrequencyLattice, JincTable, PistonRadii
 from binsonar.recording import RecordingError
 
 TargetClass = Literal["point", "vertical-edge"]
@@ -203,10 +204,10 @@ JINC_STEP = 1.0 / 64.0
 """Spacing of the 2 J1(x)/x table in x: linear interpolation's error is below h^2 max|J''| / 8 = 1e-5."""
 
 
-def jinc_table(x_max: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """2 J1(x)/x on [0, x_max + 2 steps] every ``JINC_STEP`` (the grid and the values)."""
+def jinc_table(x_max: float) -> JincTable:
+    """2 J1(x)/x on [0, x_max + 2 steps] every ``JINC_STEP``."""
     grid = np.arange(int(math.ceil(max(x_max, 0.0) / JINC_STEP)) + 3) * JINC_STEP
-    return grid, piston_directivity(0.5 * np.pi, grid, 1.0, 2.0 * np.pi)
+    return JincTable(JINC_STEP, grid, piston_directivity(0.5 * np.pi, grid, 1.0, 2.0 * np.pi))
 
 
 def off_axis_angles(points_m: NDArray[np.float64], origin_m: NDArray[np.float64],
@@ -301,17 +302,17 @@ def _edge_response(f: NDArray[np.float64], p: NDArray[np.float64], tx: NDArray[n
     sin_rx = np.sin(np.stack([off_axis_angles(points[ch], rx[ch], axes[ch]) for ch in range(3)]))  # (3, n)
     front = ((points - tx) @ axes[itx] >= 0.0) & (np.einsum("cnj,cj->cn", points - rx[:, np.newaxis, :], axes) >= 0.0)
     weight = np.where(front, weight, 0.0)  # nothing behind a baffle
-    grid, table = jinc_table(2.0 * np.pi * (float(f.max()) if f.size else 1.0) * float(radii.max()) / c)
+    jinc = jinc_table(2.0 * np.pi * (float(f.max()) if f.size else 1.0) * float(radii.max()) / c)
+    edge = EdgePoints(*(np.ascontiguousarray(a, dtype=float) for a in (weight, excess, sin_tx, sin_rx)))
+    piston_radii = PistonRadii(float(radii[itx]), np.ascontiguousarray(radii, dtype=float))
     df = np.diff(f)
     if f.size > 1 and np.allclose(df, df[0], rtol=1e-9, atol=0.0) and df[0] > 0:
         from binsonar.localization.beam_kernels import edge_line_integral
 
-        response = edge_line_integral(np.ascontiguousarray(weight), np.ascontiguousarray(excess),
-                                      np.ascontiguousarray(sin_tx), np.ascontiguousarray(sin_rx), float(radii[itx]),
-                                      np.ascontiguousarray(radii), float(f[0]), float(df[0]), int(f.size), c,
-                                      JINC_STEP, table)
+        response = edge_line_integral(edge, piston_radii, FrequencyLattice(float(f[0]), float(df[0]), int(f.size)),
+                                      float(c), jinc)
     else:
-        response = edge_line_integral_numpy(weight, excess, sin_tx, sin_rx, float(radii[itx]), radii, f, c, grid, table)
+        response = edge_line_integral_numpy(edge, piston_radii, f, c, jinc)
     # Scale: the integral without directivity at the band's middle frequency (shape is what matters).
     f_mid = 0.5 * float(f.max()) if f.size else 1.0
     scale = np.abs(np.einsum("cn,cn->c", weight, np.exp(-2j * np.pi * excess * f_mid)))
@@ -363,20 +364,19 @@ def wedge_beta(interior_angle_deg: float, e: NDArray[np.float64], p: NDArray[np.
     return total
 
 
-def edge_line_integral_numpy(weight: NDArray[np.float64], excess_s: NDArray[np.float64], sin_tx: NDArray[np.float64],
-                             sin_rx: NDArray[np.float64], radius_tx_m: float, radius_rx_m: NDArray[np.float64],
-                             frequency_hz: NDArray[np.float64], sound_speed_m_s: float, grid: NDArray[np.float64],
-                             table: NDArray[np.float64]) -> NDArray[np.complex128]:
+def edge_line_integral_numpy(points: EdgePoints, radii: PistonRadii, frequency_hz: NDArray[np.float64],
+                             sound_speed_m_s: float, jinc: JincTable) -> NDArray[np.complex128]:
     """H (c, k) = sum_n w D(x_tx) D(x_rx) exp(-j 2 pi f e) with (c, n, k) temporaries, any frequencies.
 
     The definition ``beam_kernels.edge_line_integral`` computes on equally spaced frequencies
     (same table, same interpolation); arguments as there, ``frequency_hz`` of shape (k,).
     """
     kappa = 2.0 * np.pi * np.asarray(frequency_hz, dtype=float) / sound_speed_m_s
-    beam = np.interp((radius_tx_m * sin_tx)[..., np.newaxis] * kappa, grid, table)
-    beam *= np.interp((radius_rx_m[:, np.newaxis] * sin_rx)[..., np.newaxis] * kappa, grid, table)
-    phase = np.exp(-2j * np.pi * excess_s[..., np.newaxis] * np.asarray(frequency_hz, dtype=float))
-    return np.einsum("cn,cnk->ck", weight, beam * phase)
+    grid, table = jinc.grid, jinc.values
+    beam = np.interp((radii.transmitter_m * points.sin_tx)[..., np.newaxis] * kappa, grid, table)
+    beam *= np.interp((radii.receivers_m[:, np.newaxis] * points.sin_rx)[..., np.newaxis] * kappa, grid, table)
+    phase = np.exp(-2j * np.pi * points.excess_s[..., np.newaxis] * np.asarray(frequency_hz, dtype=float))
+    return np.einsum("cn,cnk->ck", points.weight, beam * phase)
 
 
 __all__ = (

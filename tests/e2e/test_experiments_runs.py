@@ -76,7 +76,7 @@ def test_nine_methods_tiny(tmp_path: Path) -> None:
     assert out["positions"] == 2 and out["pings"] == 4
     # Timed on the whole acquired record as the seed did (not a cut-out around the target): the
     # default sonar's 12.5 ms at 20 MHz, 250,000 samples per channel; the search is gated instead.
-    from acoustisim.experiments.point_target import edge_tank_scene
+    from acoustisim.experiments.edge_scene import edge_tank_scene
 
     sonar = edge_tank_scene().sonar
     full = int(round(sonar.record_length_s * sonar.sample_rate_hz))

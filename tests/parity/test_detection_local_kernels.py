@@ -1,17 +1,21 @@
-"""The local matched filter's compiled kernels against its numpy definitions (an independent
-implementation of each step: ``coarse_lags``, ``segment_correlation``, ``matched.lags_time_domain``
-minus ``matched.dc_correlation``, ``matched.refine``)."""
+"""The local matched filter's compiled kernels against its numpy definitions in the package (an
+independent implementation of each step: ``local.block_tone_power``, ``coarse_lags``,
+``segment_correlation``, ``numpy_peaks``; ``matched.lags_time_domain`` minus
+``matched.dc_correlation``, ``matched.refine``, ``matched.echo_values``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from binsonar.detection.kernel_types import ECHO
 from binsonar.detection.local import (
     REFINE_HALF_WIDTH,
-    _candidate_correlations,
+    block_tone_power,
+    candidate_correlations,
     coarse_lags,
     detect_local_matched,
+    numpy_peaks,
     plan_local,
     segment_correlation,
 )
@@ -25,6 +29,11 @@ N = 60_000
 def _template() -> Template:
     t = (np.arange(201) - 100) / FS
     return Template(np.exp(-13.8 * t**2 / 5e-6**2) * np.cos(2 * np.pi * 500e3 * t), FS, -100 / FS)
+
+
+def _dc(offsets: np.ndarray | None) -> np.ndarray:
+    """The kernels' offsets: zeros for none."""
+    return np.zeros(3) if offsets is None else offsets
 
 
 def _rows(seed: int, dc: bool) -> tuple[np.ndarray, np.ndarray | None]:
@@ -44,7 +53,7 @@ def test_candidates_and_stretch_correlations_match_the_numpy_definitions(dc, bou
     plan = plan_local(_template(), N, FS)
     rows, offsets = _rows(1, dc)
     k = 3
-    z, start = _candidate_correlations(plan, rows, k, bounds, offsets)
+    z, start = candidate_correlations(plan, rows, k, bounds, offsets)
     coarse = coarse_lags(plan, rows, k, bounds, offsets)
     width = 2 * plan.half + 1
     expected_start = np.maximum(np.minimum(coarse - plan.half, bounds[1] - (width - 1)), bounds[0]).reshape(-1)
@@ -66,12 +75,11 @@ def test_refinement_matches_the_full_filters_refinement(dc):
     matched = plan.matched
     rows, offsets = _rows(2, dc)
     lo, hi = 0, N - 201
-    z, start = _candidate_correlations(plan, rows, 3, (lo, hi), offsets)
+    z, start = candidate_correlations(plan, rows, 3, (lo, hi), offsets)
     n_lags = 2 * REFINE_HALF_WIDTH + 1
     values = np.empty((3, n_lags), dtype=complex)
     refined = np.empty((3, 2))
-    settings = np.array([3, 2 * plan.half + 1, lo, hi, matched.analytic_offset, 1])
-    local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
+    local_kernels.local_peaks(z, start, rows, _dc(offsets), plan.tap_parts, plan.search((lo, hi), 3, stride=1),
                               values, refined)
     # The numpy definition: the largest |z| over the candidates' lags, then the direct z.
     width = 2 * plan.half + 1
@@ -103,27 +111,6 @@ def test_non_contiguous_rows_give_the_same_echoes():
     assert detect_local_matched(strided, plan, t0_s=0.0) == detect_local_matched(rows, plan, t0_s=0.0)
 
 
-def _reference_peaks(plan, rows, k, bounds, dc):
-    """The local filter's lag and |z|^2 at the vertex, all in numpy (the pre-numba path)."""
-    lo, hi = bounds
-    n_rows = rows.shape[0]
-    coarse = coarse_lags(plan, rows, k, bounds, dc)
-    width = 2 * plan.half + 1
-    start = np.maximum(np.minimum(coarse - plan.half, hi - (width - 1)), lo).reshape(-1)
-    z = segment_correlation(plan, rows, np.repeat(np.arange(n_rows), k), start, dc)
-    power = np.abs(z) ** 2
-    lags = start[:, None] + np.arange(width)
-    power[(lags < lo) | (lags > hi)] = -1.0
-    best = np.argmax(power.reshape(n_rows, -1), axis=1)
-    peak_lag = lags.reshape(n_rows, -1)[np.arange(n_rows), best]
-    refine_lags = peak_lag[:, None] + np.arange(-REFINE_HALF_WIDTH, REFINE_HALF_WIDTH + 1)
-    direct = lags_time_domain(plan.matched, rows, np.arange(n_rows), refine_lags)
-    if dc is not None:
-        direct -= dc_correlation(plan.matched, rows.shape[1], dc, refine_lags, plan.tap_partial)
-    direct[(refine_lags < lo) | (refine_lags > hi)] = 0.0
-    return refine(direct, refine_lags)
-
-
 @pytest.mark.parametrize(
     "n, bounds, k, dc",
     [
@@ -141,12 +128,11 @@ def test_detection_path_equals_the_numpy_path_at_edges(n, bounds, k, dc):
     plan = plan_local(_template(), n, FS)
     rows, offsets = _rows(5, dc)
     rows = np.ascontiguousarray(rows[:, :n])
-    lag_ref, peak_ref = _reference_peaks(plan, rows, k, bounds, offsets)
-    z, start, *_ = _candidate_correlations(plan, rows, k, bounds, offsets)
+    lag_ref, peak_ref = numpy_peaks(plan, rows, k, bounds, offsets)
+    z, start, *_ = candidate_correlations(plan, rows, k, bounds, offsets)
     values = np.empty((3, 2 * REFINE_HALF_WIDTH + 1), dtype=complex)
     refined = np.empty((3, 2))
-    settings = np.array([k, 2 * plan.half + 1, bounds[0], bounds[1], plan.matched.analytic_offset, 1])
-    local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts, settings,
+    local_kernels.local_peaks(z, start, rows, _dc(offsets), plan.tap_parts, plan.search(bounds, k, stride=1),
                               values, refined)
     # Same picks and the same refinement up to the order of ~1000-term sums: lags to 1e-9
     # samples (50 fs) and powers to 1e-9 relative, as above.
@@ -158,7 +144,7 @@ def test_detection_path_equals_the_numpy_path_at_edges(n, bounds, k, dc):
 @pytest.mark.parametrize("bounds", [(1000, 1300), (N - 600, N - 201), (0, 64 * 42 * 3)])
 @pytest.mark.parametrize("flat", [False, True])
 def test_candidate_search_in_groups_keeps_ties_and_exhausted_windows(bounds, flat):
-    # The kernel scans groups of windows (``local_kernels._GROUP``) for each pick; the numpy
+    # The kernel scans groups of windows (``local_kernels``' groups of 64) for each pick; the numpy
     # definition scans every window. Few windows (every window blanked before the last pick:
     # the first one again), windows spanning exactly whole groups, and exactly equal windows
     # (zero rows: every statistic exactly 0, ties, the first window wins; a constant nonzero row
@@ -166,7 +152,7 @@ def test_candidate_search_in_groups_keeps_ties_and_exhausted_windows(bounds, fla
     # give the same picks.
     plan = plan_local(_template(), N, FS)
     rows = np.zeros((3, N)) if flat else _rows(3, False)[0]
-    z, start = _candidate_correlations(plan, rows, 3, bounds)
+    z, start = candidate_correlations(plan, rows, 3, bounds)
     coarse = coarse_lags(plan, rows, 3, bounds)
     width = 2 * plan.half + 1
     expected = np.maximum(np.minimum(coarse - plan.half, bounds[1] - (width - 1)), bounds[0]).reshape(-1)
@@ -190,11 +176,8 @@ def test_block_powers_with_padded_taps_equal_the_numpy_definition(n, first_block
     rows = np.ascontiguousarray(rows[:, :n])
     n_blocks = n // plan.block - first_block
     energy = np.empty((3, n_blocks))
-    tone_sum = plan.tone.sum(axis=0)
-    local_kernels._block_powers(rows, first_block, energy, plan.block, plan.tone_lanes, offsets * tone_sum[0],
-                                offsets * tone_sum[1], 1.0)
-    from binsonar.detection.local import block_tone_power
-
+    local_kernels.block_powers(rows, plan.tone_lanes, plan.search((0, n), 1), first_block, energy,
+                               *local_kernels.tone_offsets(_dc(offsets), plan.tone_lanes, plan.block))
     expected = block_tone_power(plan, rows, offsets)[:, first_block:]
     assert np.max(np.abs(energy - expected)) < 1e-12 * np.max(expected)
 
@@ -212,14 +195,13 @@ def test_compiled_echo_values_equal_the_matched_filters(t0_s, pfa):
     plan = plan_local(_template(), N, FS)
     refined = np.array([[1234.37, 5.2e3], [40_000.0, 2.0e2], [7.5, 3.1]])
     sigma = np.array([0.1, 0.0, 0.2])
-    constants = plan.echo_constants.copy()
-    constants[0] = t0_s
-    constants[-1] = plan.threshold_factor(pfa, N - 201)
-    assert constants[-1] == plan.matched.threshold_factor(pfa, N - 201)
-    echoes = np.empty((3, 5))
-    local_kernels.echo_rows(refined, sigma, constants, echoes)
+    factor = plan.threshold_factor(pfa, N - 201)
+    assert factor == plan.matched.threshold_factor(pfa, N - 201)
+    values = np.empty(3, dtype=ECHO)
+    local_kernels.echo_rows(refined, sigma, plan.echo_constants(t0_s, factor), values)
+    echoes = np.stack([values[name] for name in ECHO.names], axis=1)
     expected = np.stack(echo_values(plan.matched, refined[:, 0], refined[:, 1], white_noise_power(plan.matched, sigma),
-                                    constants[-1], t0_s), axis=1)
+                                    factor, t0_s), axis=1)
     assert np.all(np.abs(echoes - expected) <= 1e-15 * np.abs(expected))
     assert echoes[2, 3] < 1.0 < echoes[0, 3]
 
@@ -245,9 +227,9 @@ def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, 
     assert stride == 5 and plan.segment_fft // stride >= 2 * plan.segment_weights.size  # 625 -> 125 >= 90
     rows, offsets = _rows(5, dc)
     rows = np.ascontiguousarray(rows[:, :n])
-    lag_ref, peak_ref = _reference_peaks(plan, rows, k, bounds, offsets)
-    z_full, start = _candidate_correlations(plan, rows, k, bounds, offsets)
-    z, start_decimated = _candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
+    lag_ref, peak_ref = numpy_peaks(plan, rows, k, bounds, offsets)
+    z_full, start = candidate_correlations(plan, rows, k, bounds, offsets)
+    z, start_decimated = candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
     assert np.array_equal(start, start_decimated)
     # Exact sampling of the band-limited z, times the stride (the inverse FFT normalises by its
     # length, N / stride); float32 FFTs: 1e-6 of the peak, as above.
@@ -256,9 +238,8 @@ def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, 
     assert np.max(np.abs(z[:, :sampled.shape[1]] / stride - sampled)) < 1e-6 * np.max(np.abs(z_full))
     values = np.empty((3, 2 * (REFINE_HALF_WIDTH + stride - 1) + 1), dtype=complex)
     refined = np.empty((3, 2))
-    settings = np.array([k, width, bounds[0], bounds[1], plan.matched.analytic_offset, stride])
-    local_kernels.local_peaks(z, start, rows, 1.0, np.zeros(3) if offsets is None else offsets, plan.tap_parts,
-                              settings, values, refined)
+    local_kernels.local_peaks(z, start, rows, _dc(offsets), plan.tap_parts, plan.search(bounds, k, stride=stride),
+                              values, refined)
     # The same direct values around the same largest |z|: the vertex to 1e-9 samples, as above.
     assert np.max(np.abs(refined[:, 0] - lag_ref)) < 1e-9
     assert np.max(np.abs(refined[:, 1] / peak_ref - 1.0)) < 1e-9
@@ -279,7 +260,7 @@ def test_decimated_candidate_correlations_find_the_full_rate_peak(n, bounds, k, 
 @pytest.mark.parametrize("seed", [5, 6])
 def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed):
     # ``local_echoes`` (coarse pass, direct search every ``decimation`` lags, refinement, echo
-    # values in one call) against the FFT route it replaced (``_candidate_correlations``, then
+    # values in one call) against the FFT route it replaced (``candidate_correlations``, then
     # ``local_peaks`` and ``echo_rows``) and against the all-numpy path.
     from binsonar.detection import local_kernels
 
@@ -287,38 +268,33 @@ def test_one_call_equals_the_fft_route_and_the_numpy_path(n, bounds, k, dc, seed
     stride = plan.decimation
     rows, offsets = _rows(seed, dc)
     rows = np.ascontiguousarray(rows[:, :n])
-    dc_rows = np.zeros(3) if offsets is None else offsets
+    dc = _dc(offsets)
     sigma = np.array([0.01, 0.02, 0.03])
-    constants = plan.echo_constants.copy()
-    constants[0], constants[-1] = 1e-4, 2.5
-    reach = REFINE_HALF_WIDTH + stride - 1
-    settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], k, plan.half,
-                         plan.segment_length, plan.block, plan.matched.analytic_offset, stride, reach])
-    echoes = np.empty((3, 5))
-    extremes = np.empty((3, 2))
-    local_kernels.local_echoes(rows, 1.0, dc_rows, sigma, plan.tone_lanes, plan.tap_parts, plan.tap_parts32, settings,
-                               constants, echoes, extremes)
+    t0_s = 1e-4
+    constants = plan.echo_constants(t0_s, 2.5)
+    search = plan.search(bounds, k)
+    echoes, extremes = np.empty(3, dtype=ECHO), np.empty((3, 2))
+    local_kernels.local_echoes(rows, dc, sigma, plan.tone_lanes, plan.tap_parts, plan.tap_parts32, search, constants,
+                               echoes, extremes)
     assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1))
 
-    z, start = _candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
-    values = np.empty((3, 2 * reach + 1), dtype=complex)
+    z, start = candidate_correlations(plan, rows, k, bounds, offsets, 1.0, stride)
+    values = np.empty((3, 2 * search[0]["reach"] + 1), dtype=complex)
     refined = np.empty((3, 2))
-    local_kernels.local_peaks(z, start, rows, 1.0, dc_rows, plan.tap_parts,
-                              np.array([k, 2 * plan.half + 1, bounds[0], bounds[1], plan.matched.analytic_offset, stride]),
-                              values, refined)
-    expected = np.empty((3, 5))
+    local_kernels.local_peaks(z, start, rows, dc, plan.tap_parts, search, values, refined)
+    expected = np.empty(3, dtype=ECHO)
     local_kernels.echo_rows(refined, sigma, constants, expected)
     # The same direct z at the same lags, whichever sampled lag each search found largest (the
     # FFT's float32 |z| and the direct float64 |z| differ by ~1e-6 of the peak): bit-identical.
     assert np.array_equal(echoes, expected)
-    lag_ref, peak_ref = _reference_peaks(plan, rows, k, bounds, offsets)
+    lag_ref, peak_ref = numpy_peaks(plan, rows, k, bounds, offsets)
     # The numpy path: lags to 1e-9 samples and powers to 1e-9 relative (sums of ~1000 terms in
     # another order), as above; a wrong pick would be off by whole samples.
-    lag = (echoes[:, 0] - constants[0] + plan.matched.template.t0_s) * FS
+    lag = (echoes["tof_s"] - t0_s + plan.matched.template.t0_s) * FS
     # Back from a TOF of <= 3 ms: its float64 rounding (~4e-19 s) is ~1e-11 samples, far below 1e-9.
     assert np.max(np.abs(lag - lag_ref)) < 1e-9
     amplitude = np.sqrt(peak_ref) / plan.matched.peak_response * np.max(np.abs(plan.matched.template.samples))
-    assert np.max(np.abs(echoes[:, 1] / amplitude - 1.0)) < 1e-9
+    assert np.max(np.abs(echoes["amplitude"] / amplitude - 1.0)) < 1e-9
 
 
 @pytest.mark.parametrize("n, bounds", [(N, (0, N - 201)), (N, (30_000, 30_100)), (N, (N - 400, N - 201)),
@@ -337,12 +313,11 @@ def test_coarse_pass_measures_every_samples_extremes(n, bounds, codes):
         rows = np.rint(rows).astype(np.int16)
     rows = np.ascontiguousarray(rows)
     rows[0, 0], rows[1, -1], rows[2, n // 2] = 3000, -3000, 2500  # first, last and a middle sample
-    settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], 3, plan.half,
-                         plan.segment_length, plan.block])
+    search = plan.search(bounds, 3)
     starts, alone = np.empty(9, dtype=np.int64), np.empty(9, dtype=np.int64)
     extremes = np.empty((3, 2))
-    local_kernels.coarse_starts(rows, 1.0, np.zeros(3), plan.tone_lanes, settings, starts, extremes)
-    local_kernels.coarse_starts(rows, 1.0, np.zeros(3), plan.tone_lanes, settings, alone, np.empty((0, 2)))
+    local_kernels.coarse_starts(rows, np.zeros(3), plan.tone_lanes, search, starts, extremes)
+    local_kernels.coarse_starts(rows, np.zeros(3), plan.tone_lanes, search, alone, np.empty((0, 2)))
     assert np.array_equal(extremes, np.stack([rows.max(axis=1), rows.min(axis=1)], axis=1).astype(float))
     assert np.array_equal(starts, alone)
 
@@ -354,7 +329,6 @@ def test_codes_coarse_pass_in_single_precision(n, bounds, dc):
     # with the float64 definition to ~1e-7 of the largest (48-term float32 sums; a wrong tap or
     # block would be off by O(1)), and the whole one-call path gives the float64 table's echoes.
     from binsonar.detection import local_kernels
-    from binsonar.detection.local import block_tone_power
 
     plan = plan_local(_template(), n, FS)
     volts, offsets = _rows(9, dc)
@@ -362,19 +336,14 @@ def test_codes_coarse_pass_in_single_precision(n, bounds, dc):
     codes = np.ascontiguousarray(np.rint(volts[:, :n] / step).astype(np.int16))
     dc_v = np.zeros(3) if offsets is None else np.rint(offsets / step) * step
     energy = np.empty((3, n // plan.block))
-    tone_sum = plan.tone_lanes32.astype(float).sum(axis=1)
-    local_kernels._block_powers(codes, 0, energy, plan.block, plan.tone_lanes32, dc_v * tone_sum[0],
-                                dc_v * tone_sum[1], step)
+    search = plan.search(bounds, 3, step)
+    local_kernels.block_powers(codes, plan.tone_lanes32, search, 0, energy,
+                               *local_kernels.tone_offsets(dc_v, plan.tone_lanes32, plan.block))
     expected = block_tone_power(plan, codes.astype(float) * step, dc_v)
     assert np.max(np.abs(energy - expected)) < 1e-6 * np.max(expected)
-    stride = plan.decimation
-    settings = np.array([plan.span, plan.reference, plan.exclusion, bounds[0], bounds[1], 3, plan.half,
-                         plan.segment_length, plan.block, plan.matched.analytic_offset, stride,
-                         REFINE_HALF_WIDTH + stride - 1])
-    constants = plan.echo_constants.copy()
-    constants[-1] = 2.5
-    single, double = np.empty((3, 5)), np.empty((3, 5))
+    constants = plan.echo_constants(0.0, 2.5)
+    single, double = np.empty(3, dtype=ECHO), np.empty(3, dtype=ECHO)
     for lanes, echoes in ((plan.tone_lanes32, single), (plan.tone_lanes, double)):
-        local_kernels.local_echoes(codes, step, dc_v, np.full(3, 0.01), lanes, plan.tap_parts, plan.tap_parts32,
-                                   settings, constants, echoes, np.empty((0, 2)))
+        local_kernels.local_echoes(codes, dc_v, np.full(3, 0.01), lanes, plan.tap_parts, plan.tap_parts32, search,
+                                   constants, echoes, np.empty((0, 2)))
     assert np.array_equal(single, double)

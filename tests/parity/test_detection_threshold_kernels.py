@@ -1,49 +1,20 @@
-"""The threshold detector's compiled loop (``threshold_kernels``) against its numpy definition
-(``threshold.first_crossings`` and the numpy ``crossing_measures`` below)."""
+"""The threshold detector's compiled loop (``threshold_kernels``) against its numpy definitions
+in the package (``threshold.first_crossings``, ``crossing_measures``, ``crossing_echo_values``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from numpy.typing import NDArray
-
-from binsonar.detection.threshold import first_crossings
+from binsonar.detection.kernel_types import CROSSING_SEARCH, ECHO, record
+from binsonar.detection.threshold import crossing_echo_values, crossing_measures, first_crossings
 from binsonar.detection.threshold_kernels import CHUNK, crossings
 
 
-def crossing_measures(
-    rows: NDArray[np.float64], found: NDArray[np.intp], offset: NDArray[np.float64], window: int
-) -> NDArray[np.float64]:
-    """What the detector measures at each row's crossing (the numpy reference of the compiled
-    ``threshold_kernels.crossings``).
-
-    Parameters
-    ----------
-    rows : ndarray, shape (n_rows, n_samples)
-    found : ndarray of int, shape (n_rows,)
-        Crossing sample of each row (``first_crossings``; -1: none).
-    offset : ndarray, shape (n_rows,)
-        DC offset of each row.
-    window : int
-        Samples measured from the crossing on (indices clipped to the row).
-
-    Returns
-    -------
-    ndarray, shape (n_rows, 4)
-        |x - offset| before the crossing (at it for sample 0) and at it, the largest |x - offset|
-        and the sum of (x - offset)^2 over the window; NaN where there is no crossing.
-    """
-    n_rows, n = rows.shape
-    out = np.full((n_rows, 4), np.nan)
-    hit = np.flatnonzero(found >= 0)
-    i = found[hit]
-    out[hit, 0] = np.abs(rows[hit, np.maximum(i - 1, 0)] - offset[hit])
-    out[hit, 1] = np.abs(rows[hit, i] - offset[hit])
-    segment = rows[hit[:, np.newaxis], np.clip(i[:, np.newaxis] + np.arange(window), 0, n - 1)] - offset[hit, np.newaxis]
-    out[hit, 2] = np.abs(segment).max(axis=1)
-    out[hit, 3] = (segment ** 2).sum(axis=1)
-    return out
+def _search(first: int, stop: int, window: int, fs: float = 20e6, t0_s: float = 0.0, offset_s: float = 0.0,
+            scale: float = 1.0) -> np.ndarray:
+    return record(CROSSING_SEARCH, scale=scale, first=first, stop=stop, window=window, sample_rate_hz=fs, t0_s=t0_s,
+                  offset_s=offset_s)
 
 
 def _case(seed: int, n: int = 5000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -67,7 +38,7 @@ def test_compiled_crossings_equal_the_numpy_definition(first, stop):
     rows, level, offset = _case(1)
     found = np.empty(6, dtype=np.int64)
     measures = np.empty((6, 4))
-    crossings(rows, 1.0, level, offset, first, stop, 201, found, measures)
+    crossings(rows, offset, level, _search(first, stop, 201), found, measures)
     reference = first_crossings(rows[:, first:stop], level, offset)
     reference = np.where(reference >= 0, reference + first, -1)
     assert np.array_equal(found, reference)
@@ -81,30 +52,6 @@ def test_compiled_crossings_equal_the_numpy_definition(first, stop):
     assert np.allclose(measures[:, 3][ok[:, 3]], expected[:, 3][ok[:, 3]], rtol=1e-12, atol=0.0)
 
 
-def threshold_echo_values(found: NDArray[np.intp], measures: NDArray[np.float64], level: NDArray[np.float64],
-                          sigma: NDArray[np.float64], window: int, fs: float, t0_s: float,
-                          offset_s: float) -> NDArray[np.float64]:
-    """The echo values of each crossing: the numpy reference of the compiled
-    ``threshold_kernels.threshold_echoes`` (what ``detect_threshold`` computed with numpy).
-
-    Returns
-    -------
-    ndarray, shape (n_hit, 5)
-        tof_s, amplitude, snr_db, score, tof_std_s of the rows that cross, in row order.
-    """
-    from binsonar.detection.threshold import _fraction
-
-    hit = np.flatnonzero(found >= 0)
-    i = found[hit]
-    before, after, amplitude, total = measures[hit].T
-    frac = np.where(i > 0, _fraction(before, after, level[hit]), 0.0)
-    tof = t0_s + (i - 1 + frac) / fs - offset_s
-    noise_var = np.maximum(sigma[hit] ** 2, 1e-20 * total)
-    snr = np.maximum((total - window * sigma[hit] ** 2) / noise_var, 1e-3)
-    slope = np.maximum((after - before) * fs, np.finfo(float).tiny)
-    return np.stack([tof, amplitude, 10 * np.log10(snr), amplitude / level[hit], sigma[hit] / slope], axis=1)
-
-
 @pytest.mark.parametrize("first, stop", [(0, 5000), (10, 4990)])
 def test_compiled_echo_values_equal_the_numpy_definition(first, stop):
     from binsonar.detection.threshold_kernels import threshold_echoes
@@ -113,16 +60,17 @@ def test_compiled_echo_values_equal_the_numpy_definition(first, stop):
     sigma = np.array([0.1, 0.2, 1e-30, 0.05, 0.1, 0.1])  # 1e-30: a noise-free row (SNR capped)
     found = np.empty(6, dtype=np.int64)
     measures = np.empty((6, 4))
-    crossings(rows, 1.0, level, offset, first, stop, 201, found, measures)
+    crossings(rows, offset, level, _search(first, stop, 201), found, measures)
     fs, t0_s, offset_s = 20e6, 1e-4, 3e-7
-    echoes = np.empty((6, 6))
-    threshold_echoes(rows, 1.0, np.stack([level, offset, sigma], axis=1), np.array([first, stop, 201]),
-                     np.array([fs, t0_s, offset_s]), echoes)
-    assert echoes[:, 0].tolist() == (found >= 0).astype(float).tolist()
-    expected = threshold_echo_values(found, measures, level, sigma, 201, fs, t0_s, offset_s)
+    found_too = np.empty(6, dtype=np.int64)
+    values = np.empty(6, dtype=ECHO)
+    threshold_echoes(rows, offset, level, sigma, _search(first, stop, 201, fs, t0_s, offset_s), found_too, values)
+    assert np.array_equal(found_too, found)
+    echoes = np.stack([values[name] for name in ECHO.names], axis=1)
+    expected = crossing_echo_values(found, measures, level, sigma, 201, fs, t0_s, offset_s)
     # The same operations in the same order (numpy's log10 and numba's may differ by an ulp).
-    np.testing.assert_allclose(echoes[found >= 0, 1:], expected, rtol=1e-15, atol=0.0)
-    assert np.isnan(echoes[found < 0, 1:]).all()
+    np.testing.assert_allclose(echoes[found >= 0], expected, rtol=1e-15, atol=0.0)
+    assert np.isnan(echoes[found < 0]).all()
 
 
 def test_codes_cross_where_their_volts_do():
@@ -140,8 +88,8 @@ def test_codes_cross_where_their_volts_do():
     found_volts = np.empty(4, dtype=np.int64)
     measures_codes = np.empty((4, 4))
     measures_volts = np.empty((4, 4))
-    crossings(codes, step, level, offset, 0, 3000, 50, found_codes, measures_codes)
-    crossings(codes * step, 1.0, level, offset, 0, 3000, 50, found_volts, measures_volts)
+    crossings(codes, offset, level, _search(0, 3000, 50, scale=step), found_codes, measures_codes)
+    crossings(codes * step, offset, level, _search(0, 3000, 50), found_volts, measures_volts)
     assert found_codes.tolist() == found_volts.tolist() == [CHUNK, 2 * CHUNK - 1, 0, -1]
     np.testing.assert_array_equal(measures_codes[:3, :3], measures_volts[:3, :3])
     np.testing.assert_allclose(measures_codes[:3, 3], measures_volts[:3, 3], rtol=1e-12)

@@ -10,16 +10,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from acoustisim.experiments.point_target import (
+from acoustisim.experiments.edge_scene import (
     EDGE_M,
     GATE_HALF_WIDTH_M,
     edge_tank_scene,
-    measure_position,
-    nearest_echoes,
     prism_material,
     small_roughness_lambert_mu,
     solver_config,
 )
+from acoustisim.experiments.position_measurement import measure_position
+from acoustisim.experiments.sweep_detectors import nearest_echoes
 from acoustisim.experiments.runner import Trial
 
 
@@ -117,7 +117,8 @@ def test_beam_aware_refinement_removes_the_beam_bias_of_the_simulated_edge(range
     # tilt and the edge beyond 16 us of excess delay). 1 ns is 1/20 of the smallest bound at 50
     # averaged pings.
     from acoustisim.experiments.gating import gate_recording
-    from acoustisim.experiments.point_target import beam_matched_echoes, beam_transducers, position_setup
+    from acoustisim.experiments.edge_scene import position_setup
+    from acoustisim.experiments.sweep_detectors import beam_matched_echoes, beam_transducers
     from acoustisim.propagation import solve
     from acoustisim.propagation.paths import PathKind, Paths
     from acoustisim.simulation import simulate
@@ -132,7 +133,7 @@ def test_beam_aware_refinement_removes_the_beam_bias_of_the_simulated_edge(range
     record = gate_recording(replace(sim.recording, waveforms=np.asarray(sim.clean)[np.newaxis]), *gate)
     matched = detect(record, "matched")
     plain = np.array([e.tof_s for e in matched.first(0)]) - truth
-    refined = beam_matched_echoes(record, matched, beam_transducers(sonar), float(scene.medium.sound_speed))
+    refined = beam_matched_echoes(record, matched.first(0), beam_transducers(sonar), float(scene.medium.sound_speed))
     error = np.array([e.tof_s for e in refined]) - truth
     assert np.all(plain < -5e-9)
     assert np.max(np.abs(error)) < 1e-9
@@ -169,7 +170,7 @@ def test_calibrated_threshold_error_grows_with_range() -> None:
     # edge's echo is ~6 dB weaker (r^-3/2 each way), so it reaches the level later in its rise:
     # the range error grows by a few tenths of a millimetre (measured +0.4 mm at 2 m and +0.7 mm at
     # 2.5 m with 50 pings), while its noise jitter is ~0.01 mm.
-    from acoustisim.experiments.point_target import calibrate_threshold
+    from acoustisim.experiments.position_measurement import calibrate_threshold
 
     cal = calibrate_threshold(1.0, 2.0, n_pings=10, seed=2)
     assert cal["amplitude_v"] > 5 * cal["level_v"] > 0
@@ -182,26 +183,6 @@ def test_calibrated_threshold_error_grows_with_range() -> None:
         errors[range_m] = out["detectors"]["threshold"]["range_error_m"][0]
     assert abs(errors[1.0]) < 0.2e-3  # the edge's echo is not the template's shape: a residual of ~0.1 mm
     assert 0.2e-3 < errors[2.2] - errors[1.0] < 2e-3
-
-
-def test_echo_crlb_is_the_template_bound_in_white_noise_and_scales_with_the_noise_psd() -> None:
-    # Independent method: binsonar's bound 1 / (2 pi beta sqrt(2E/N0)) from the template's RMS
-    # bandwidth and sum(s^2) / sigma^2, for a Gaussian pulse in white noise of known variance.
-    from acoustisim.experiments.point_target import echo_tof_crlb_s
-    from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
-
-    fs, n, sigma = 20e6, 1 << 16, 1e-3
-    t = (np.arange(n) - n / 2) / fs
-    pulse = 0.01 * np.exp(-((t / 2.5e-6) ** 2)) * np.cos(2 * np.pi * 500e3 * t)
-    noise = np.random.default_rng(1).normal(0.0, sigma, (1, n))
-    expected = tof_crlb_s(np.sum(pulse**2) / sigma**2, rms_bandwidth_hz(pulse, fs))
-    std, snr_db = echo_tof_crlb_s(pulse[np.newaxis], noise, fs)
-    # Welch over 128 segments: the in-band PSD estimate is good to ~1 %; 3 % margin.
-    assert std[0] == pytest.approx(float(expected), rel=0.03)
-    assert snr_db[0] == pytest.approx(10 * np.log10(np.sum(pulse**2) / sigma**2), abs=0.15)
-    # Four times the noise power: twice the bound.
-    std4, _ = echo_tof_crlb_s(pulse[np.newaxis], 2.0 * noise, fs)
-    assert std4[0] == pytest.approx(2.0 * std[0], rel=1e-9)
 
 
 def test_chi2_exceedance_matches_the_two_degree_closed_form() -> None:
@@ -221,7 +202,7 @@ def test_recording_truth_scene_loads_back_with_the_machined_prism(tmp_path) -> N
 
     import h5py
 
-    from acoustisim.experiments.point_target import position_setup
+    from acoustisim.experiments.edge_scene import position_setup
     from acoustisim.materials import get_material
     from acoustisim.propagation import solve
     from acoustisim.propagation.paths import PathKind
@@ -259,7 +240,7 @@ def test_default_angle_sweep_range_has_no_specular_path_in_the_gate() -> None:
     <= 4 shares the edge's gate at any bearing: if the tank, the head's depth, the gate or the
     default range change, this fails."""
     from acoustisim.experiments.angle_sweep import DEFAULT_RANGE_M
-    from acoustisim.experiments.point_target import SWEEP_MAX_ORDER, position_setup
+    from acoustisim.experiments.edge_scene import SWEEP_MAX_ORDER, position_setup
     from acoustisim.propagation import solve
     from acoustisim.propagation.paths import PathKind
 
@@ -276,52 +257,6 @@ def test_default_angle_sweep_range_has_no_specular_path_in_the_gate() -> None:
     assert SWEEP_MAX_ORDER in set(int(v) for v in inside["order"])
 
 
-def _reverb_bound_inputs(seed: int = 3) -> tuple:
-    """An edge-like echo (the template at sample 700) in white noise, over a 1600-sample gate."""
-    from acoustisim.pulse import GaussianPulse
-
-    fs = 10e6
-    template = np.asarray(GaussianPulse().sampled(fs).samples, dtype=float)
-    rng = np.random.default_rng(seed)
-    echo = np.zeros((3, 1600))
-    for ch in range(3):
-        echo[ch, 700:700 + template.size] = 5e-3 * template / np.max(np.abs(template))
-    noise = 1e-4 * rng.standard_normal((3, 1600))
-    return echo, noise, template, fs, rng
-
-
-def test_reverb_bound_counts_the_reverberation_only_at_the_echo_s_delay() -> None:
-    from acoustisim.experiments.point_target import noise_bound, reverb_bound
-
-    echo, noise, template, fs, rng = _reverb_bound_inputs()
-    args = (template, fs, 1.0, 2.0, 1482.0, 0.065)
-    plain = noise_bound(echo, noise, *args)
-    # No reverberation: the noise-only bound (the same 2E/N0 as ``matched_snr``, to rounding).
-    zero = reverb_bound(echo, noise, [np.zeros_like(noise)], *args)
-    assert zero["range_m"] == pytest.approx(plain["range_m"], rel=1e-9)
-    # Reverberation only well before the echo (outside one template length of its peak): unchanged.
-    early = np.zeros_like(noise)
-    early[:, :200] = 1e-2 * rng.standard_normal((3, 200))
-    assert reverb_bound(echo, noise, [early], *args)["range_m"] == pytest.approx(plain["range_m"], rel=1e-9)
-    # White reverberation as strong as the white noise, around the echo, raises the bound: with its
-    # level at the matched filter's output equal to the noise's, 2E/N0 halves and the bound grows by
-    # sqrt(2). The level is estimated over one template length (about 100 correlated samples) per
-    # realisation; averaged over 16 realisations it is within about +/-1 dB (3 sigma).
-    scale = float(np.std(noise))
-    reverbs = []
-    for _ in range(16):
-        r = np.zeros_like(noise)
-        r[:, 550:1100] = scale * rng.standard_normal((3, 550))
-        reverbs.append(r)
-    out = reverb_bound(echo, noise, reverbs, *args)
-    assert all(-1.0 < v < 1.0 for v in out["reverb_to_noise_db"])
-    assert out["range_m"] / plain["range_m"] == pytest.approx(math.sqrt(2.0), rel=0.1)
-    # Averaging over realisations averages their levels: with as many zero ones, half the level.
-    half = reverb_bound(echo, noise, reverbs + [np.zeros_like(noise)] * 16, *args)
-    assert all(-4.0 < v < -2.0 for v in half["reverb_to_noise_db"])
-    assert plain["range_m"] < half["range_m"] < out["range_m"]
-
-
 def test_fresh_reverberation_draws_a_new_diffuse_field_per_measurement() -> None:
     params = (("range_m", 1.25), ("bearing_deg", 2.0), ("n_pings", 2), ("repeats", 3), ("detectors", ("matched",)))
     fresh = measure_position(Trial(0, 11, (*params, ("fresh_reverberation", True))))
@@ -336,7 +271,7 @@ def test_fresh_reverberation_draws_a_new_diffuse_field_per_measurement() -> None
     assert fresh["noise_free"]["edge"]["matched"] == frozen["noise_free"]["edge"]["matched"]
     assert fresh["noise_free"]["all"]["matched"] != frozen["noise_free"]["all"]["matched"]
     assert fresh["reverb_bound_range_m"] >= fresh["noise_bound_range_m"]
-    from acoustisim.experiments.point_target import summarise
+    from acoustisim.experiments.sweep_summary import summarise
 
     row = summarise([fresh], ("matched",))["positions"][0]["matched"]
     assert row["bias_range_m"] == pytest.approx(float(np.sqrt(np.mean(np.square(biases)))))

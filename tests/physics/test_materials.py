@@ -131,7 +131,7 @@ def test_machined_steel_is_steel_with_the_small_perturbation_mu():
     # The library value recomputed by the formula it came from (materials.py docstring): rms 3 um,
     # 500 kHz, c = 1482 m/s, 60 deg incidence. The library stores the formula's double (17 digits),
     # so they agree to rounding: 1e-14 allows a few ulp of platform libm differences in sin/sqrt/pi.
-    from acoustisim.experiments.point_target import small_roughness_lambert_mu
+    from acoustisim.experiments.edge_scene import small_roughness_lambert_mu
 
     machined, steel = get_material("steel-machined"), get_material("steel")
     mu = small_roughness_lambert_mu(3e-6, 500e3, 1482.0, 60.0)

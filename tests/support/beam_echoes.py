@@ -9,16 +9,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 from scipy.special import j1
 
 from binsonar.detection import detect
-from binsonar.detection.echo import Echo
-from binsonar.localization.beam_model import (
-    BeamModelConfig, PistonTransducers, edge_line_integral_numpy, expected_response, jinc_table, piston_directivity,
-    wedge_beta)
-from binsonar.localization.beam_refine import BeamRefinementConfig, refine_echoes, refine_tofs
-from binsonar.recording import RecordingError, Template
+from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers
+from binsonar.localization.beam_refine import BeamRefinementConfig, refine_tofs
+from binsonar.recording import Template
 
 FS = 20e6
 C = 1482.0

@@ -19,7 +19,8 @@ from binsonar.detection import detect
 from binsonar.localization.array_geometry import ArrayGeometry
 from binsonar.localization.beam_cue import cue_missing_echo, filter_noise_level, predicted_tof
 from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers
-from binsonar.localization.beam_refine import BeamRefinementConfig, CorrelationGrid, refine_echoes
+from binsonar.localization.beam_correlation import CorrelationGrid
+from binsonar.localization.beam_refine import BeamRefinementConfig, refine_echoes
 
 BEARING = math.radians(12.0)
 TARGET = np.array([math.sin(BEARING), math.cos(BEARING), 0.0])

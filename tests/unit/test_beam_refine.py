@@ -33,8 +33,8 @@ def test_piston_directivity_landmarks() -> None:
     values = piston_directivity(np.array([0.0, half, null, 2.0]), F0, RADIUS, C)
     # 1e-6: the landmarks' x are given to 7 digits (slope of 2 J1(x)/x there is <= 0.35)
     assert values == pytest.approx([1.0, 1 / math.sqrt(2), 0.0, 0.0], abs=1e-6)
-    grid, table = jinc_table(30.0)
-    assert np.max(np.abs(table - jinc(grid))) < 1e-14  # the table is the function at its nodes
+    table = jinc_table(30.0)
+    assert np.max(np.abs(table.values - jinc(table.grid))) < 1e-14  # the table is the function at its nodes
 
 
 def test_point_25_deg_off_axis_plain_bias_microseconds_adapted_below_2_ns() -> None:
@@ -142,12 +142,13 @@ def test_compiled_line_integral_equals_the_numpy_definition() -> None:
     sin_tx, sin_rx = rng.uniform(0, 1, (3, n)), rng.uniform(0, 1, (3, n))
     radii = np.array([0.009, 0.0095, 0.01])
     f = 5e4 + np.arange(120) * 9765.625
-    grid, table = jinc_table(2 * np.pi * f.max() * radii.max() / C)
+    table = jinc_table(2 * np.pi * f.max() * radii.max() / C)
     from binsonar.localization.beam_kernels import edge_line_integral
+    from binsonar.localization.beam_types import EdgePoints, FrequencyLattice, PistonRadii
 
-    fast = edge_line_integral(weight, excess, sin_tx, sin_rx, 0.0095, radii, float(f[0]), float(f[1] - f[0]),
-                              f.size, C, 1.0 / 64.0, table)
-    reference = edge_line_integral_numpy(weight, excess, sin_tx, sin_rx, 0.0095, radii, f, C, grid, table)
+    points, piston_radii = EdgePoints(weight, excess, sin_tx, sin_rx), PistonRadii(0.0095, radii)
+    fast = edge_line_integral(points, piston_radii, FrequencyLattice(float(f[0]), float(f[1] - f[0]), f.size), C, table)
+    reference = edge_line_integral_numpy(points, piston_radii, f, C, table)
     # Same table and interpolation; the phase recurrence and the summation order differ: 1e-10 of
     # the sum's scale (the recurrence's rounding is ~1e-14 per step over 120 bins).
     assert np.max(np.abs(fast - reference)) < 1e-10 * np.abs(reference).max()

@@ -11,8 +11,9 @@ import pytest
 
 from binsonar.detection import METHODS, detect
 from binsonar.detection.code_kernels import code_statistics, median_and_mad, row_extremes
-from binsonar.detection.inputs import MAD_TO_SIGMA, as_signals, robust_offsets
-from binsonar.detection.noise import robust_subsample, row_median
+from binsonar.detection.kernel_types import CODE_SCALE, record
+from binsonar.detection.inputs import as_signals, robust_offsets
+from binsonar.detection.noise import MAD_TO_SIGMA, robust_subsample, row_median
 from binsonar.recording import Recording, RecordingError, read_recording, write_recording
 from support.detection_signals import FS, echo_rows, noise_sigma_for, pulse_template
 
@@ -72,8 +73,8 @@ def test_code_statistics_equal_the_volts_robust_offsets_and_clipping():
     # Short rows: the whole row is the subsample.
     short = codes[..., :1000]
     out = np.empty((3, 3))
-    code_statistics(np.ascontiguousarray(short[0]), np.array([1000, 1000, 1], dtype=np.int64),
-                    np.array([Q, MAD_TO_SIGMA]), out)
+    scale = record(CODE_SCALE, period=1000, length=1000, segments=1, volts_per_code=Q, mad_to_sigma=MAD_TO_SIGMA)
+    code_statistics(np.ascontiguousarray(short[0]), scale, np.empty(0), out)
     assert np.array_equal(out[:, 0], row_median(short[0].astype(float)) * Q)
     assert not out[:, 2].any()  # no full scale given: no clipping test
     assert robust_subsample(short[0]).shape == (3, 1000)

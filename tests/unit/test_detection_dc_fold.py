@@ -1,4 +1,4 @@
-"""Detectors that fold the DC offset into their arithmetic (``api.FOLDS_DC``) give, on the
+"""Detectors that fold the DC offset into their arithmetic (``DetectionMethod.folds_dc``) give, on the
 record as recorded plus its offsets, what they give on the offset-free copy.
 
 The folded path subtracts the same per-row median from the same samples (block by block
@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from binsonar.detection.api import FOLDS_DC
 from binsonar.detection.inputs import as_signals
 from binsonar.detection.noise import noise_sigma
 from binsonar.detection.threshold import detect_threshold, first_crossings
@@ -79,12 +78,6 @@ def test_noise_sigma_with_offset_is_that_of_the_shifted_rows():
                           noise_sigma(shifted, sample_rate_hz=FS, t0_s=0.0))
 
 
-def test_the_folding_methods_are_known_base_methods():
-    from binsonar.detection.api import BASE_METHODS
-
-    assert FOLDS_DC and FOLDS_DC <= set(BASE_METHODS)
-
-
 def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
     from binsonar.detection.local import detect_local_matched, plan_local
 
@@ -108,8 +101,8 @@ def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
 
 
 def test_dc_correlation_is_the_correlation_of_a_constant_record():
-    from binsonar.detection.local import block_tone_power, dc_correlation, plan_local
-    from binsonar.detection.matched import lags_time_domain, plan_matched
+    from binsonar.detection.local import block_tone_power, plan_local
+    from binsonar.detection.matched import dc_correlation, lags_time_domain, plan_matched
 
     plan = plan_matched(pulse_template(), 1000, FS, full=False)
     constant = np.full((2, 1000), 1.0) * np.array([[0.7], [-2.0]])
