@@ -218,12 +218,19 @@ def test_not_utf8(tmp_path):
 
 
 def test_unreadable_mesh_branch(tmp_path, monkeypatch):
-    # As root a mode-000 file stays readable, so force the permission check to fail.
-    import scenes.scene_file as scene_file
+    # As root a mode-000 file stays readable, so make the open itself fail as it would for a user.
+    import scenes.file_access as file_access
 
     path = _write(tmp_path, lambda d, _: None)
-    monkeypatch.setattr(scene_file.os, "access", lambda *_: False)
-    with pytest.raises(SceneFileError, match=r"objects\[2\]\.path = 'rock.stl': mesh file not readable"):
+    real_open = file_access.os.open
+
+    def refuse(name, *args, **kwargs):
+        if str(name).endswith("rock.stl"):
+            raise PermissionError(13, "Permission denied")
+        return real_open(name, *args, **kwargs)
+
+    monkeypatch.setattr(file_access.os, "open", refuse)
+    with pytest.raises(SceneFileError, match=r"objects\[2\]\.path = 'rock.stl'.*cannot open \(Permission denied\)"):
         load_scene(path)
 
 
