@@ -48,8 +48,8 @@ BAND_LEVEL_DB = -40.0
 """The pulse's band ends where its spectrum falls this far below its peak (dB)."""
 
 
-def _raise_hint(name: str) -> str:
-    return f"raise it with {FLAGS[name]} or {ENVIRONMENT[name]}"
+def _raise_hint(name: str, flags: bool) -> str:
+    return f"raise it with {FLAGS[name]} or {ENVIRONMENT[name]}" if flags else f"raise it with {ENVIRONMENT[name]}"
 
 
 def check_types(scene: Any, sonar: Any = None, config: Any = None) -> tuple[Scene, SonarHead, "SolverConfig"]:
@@ -129,8 +129,11 @@ def _memory_message(estimate: ResourceEstimate, sonar: SonarHead, pings_key: str
 
 
 def check_resources(estimate: ResourceEstimate, limits: ResourceLimits, sonar: SonarHead, *, source: str = "",
-                    pings_key: str = "n_pings", order_key: str = "max_order") -> None:
+                    pings_key: str = "n_pings", order_key: str = "max_order", flags: bool = True) -> None:
     """Compare an estimate with the limits.
+
+    ``flags``: name the command-line options that raise each limit besides its environment
+    variable (False for ``dataset generate``, whose workers read only the environment).
 
     Raises
     ------
@@ -141,26 +144,26 @@ def check_resources(estimate: ResourceEstimate, limits: ResourceLimits, sonar: S
     if estimate.objects > limits.max_objects:
         raise ResourceLimitError(
             f"{prefix}{estimate.objects:,} objects, more than the limit of {limits.max_objects:,.0f}"
-            f" ({_raise_hint('max_objects')})")
+            f" ({_raise_hint('max_objects', flags)})")
     if estimate.triangles > limits.max_triangles:
         raise ResourceLimitError(
             f"{prefix}the objects have {estimate.triangles:,} triangles, more than the limit of"
-            f" {limits.max_triangles:,.0f} ({_raise_hint('max_triangles')})")
+            f" {limits.max_triangles:,.0f} ({_raise_hint('max_triangles', flags)})")
     if estimate.rays > limits.max_rays:
         raise ResourceLimitError(
             f"{prefix}solver diffuse_rays x diffuse_bounces = {estimate.rays:,} ray-bounces, more than the limit of"
-            f" {limits.max_rays:,.0f} ({_raise_hint('max_rays')})")
+            f" {limits.max_rays:,.0f} ({_raise_hint('max_rays', flags)})")
     if estimate.chains > limits.max_chains:
         raise ResourceLimitError(
             f"{prefix}up to {estimate.chains:.3g} specular reflector sequences ({estimate.reflectors:,} reflecting"
-            f" surfaces, {order_key} as set), more than the limit of {limits.max_chains:.3g}"
-            f" ({_raise_hint('max_chains')}, or lower {order_key})")
+            f" surfaces, {order_key} = {estimate.max_order}), more than the limit of {limits.max_chains:.3g}"
+            f" ({_raise_hint('max_chains', flags)}, or lower {order_key})")
     limit_bytes = limits.max_memory_gb * GIB
     if estimate.memory_bytes > limit_bytes:
         raise ResourceLimitError(
             f"{prefix}needs about {estimate.memory_bytes / GIB:.3g} GiB of memory"
             f" ({_memory_message(estimate, sonar, pings_key)}), more than the limit of {limits.max_memory_gb:g} GiB"
-            f" ({_raise_hint('max_memory_gb')})")
+            f" ({_raise_hint('max_memory_gb', flags)})")
 
 
 def check_run_options(n_pings: Any, snr_db: Any, *, pings_key: str = "n_pings", snr_key: str = "snr_db") -> int:

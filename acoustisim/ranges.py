@@ -60,6 +60,10 @@ LENGTH_M = PhysicalRange(1.0e-5, 1.0e5, "m", "sizes from 10 um to 100 km; " + FL
 ANGLE_DEG = PhysicalRange(-3600.0, 3600.0, "deg", "more than ten turns is certainly a mistake")
 """Orientation angles (yaw, pitch, roll, facing; degrees)."""
 
+INTERIOR_ANGLE_DEG = PhysicalRange(
+    0.1, 179.9, "deg", "a thinner or flatter wedge has faces closer than float32 ray tracing resolves")
+"""Interior angle of an edge prism at its sharp edge (degrees)."""
+
 CENTRE_FREQUENCY_HZ = PhysicalRange(
     1.0, 1.0e8, "Hz", "acoustic sonars work between a few hertz and a few tens of megahertz")
 """Pulse carrier f0 (Hz)."""
@@ -72,11 +76,12 @@ PULSE_OFFSET_S = PhysicalRange(-3600.0, 3600.0, "s", "a sampled pulse starts wit
 """Time of a sampled pulse's first sample relative to its reference instant (s)."""
 
 SOURCE_LEVEL_PA = PhysicalRange(
-    0.0, 1.0e9, "Pa", "1e9 Pa at 1 m (300 dB re 1 uPa) is far beyond cavitation; more overflows the receiver "
-    "chain's arithmetic", low_open=True)
+    1.0e-6, 1.0e9, "Pa", "from 1 uPa at 1 m (0 dB re 1 uPa), below the thermal noise of water, to 1e9 Pa (300 dB),"
+    " far beyond cavitation; beyond either the receiver chain's arithmetic underflows or overflows")
 """Peak source pressure at 1 m on axis (Pa)."""
 
-SAMPLE_RATE_HZ = PhysicalRange(0.0, 1.0e11, "Hz", "no digitiser samples faster than 100 GS/s", low_open=True)
+SAMPLE_RATE_HZ = PhysicalRange(
+    2.0, 1.0e11, "Hz", "twice the lowest centre frequency, up to 100 GS/s (no digitiser is faster)")
 """Digitiser sample rate (Hz); the pulse's band sets a lower bound (the pre-flight checks it)."""
 
 RECORD_LENGTH_S = PhysicalRange(
@@ -115,6 +120,7 @@ __all__ = (
     "CENTRE_FREQUENCY_HZ",
     "COORDINATE_M",
     "DEPTH_M",
+    "INTERIOR_ANGLE_DEG",
     "LENGTH_M",
     "PH",
     "PULSE_DURATION_S",

@@ -196,6 +196,8 @@ class ResourceEstimate:
         Diffuse ray-bounces.
     reflectors : int
         Reflecting surfaces M (tank planes, cylinder sides and caps, polyhedron faces, spheres).
+    max_order : int
+        Most reflections per path the solver looks for.
     chains : float
         Upper bound on the specular reflector sequences (see :class:`ResourceLimits`).
     """
@@ -211,6 +213,7 @@ class ResourceEstimate:
     mesh_bytes: int = 0
     rays: int = 0
     reflectors: int = 0
+    max_order: int = 0
     chains: float = 0.0
 
     @property
@@ -241,16 +244,34 @@ def signal_estimate(sonar: "SonarHead", n_pings: int) -> ResourceEstimate:
     return ResourceEstimate(n_pings=n_pings, n_samples=n_samples, recording_bytes=recording, synthesis_bytes=synthesis)
 
 
+def _caps_off_the_tank(scene: "Scene", primitive: Any) -> int:
+    """A cylinder's caps that do not lie on a tank boundary (a post's caps lie on the floor and
+    the surface: no wave reflects off them)."""
+    tank = scene.tank
+    if tank is None:
+        return 2
+    axis = np.asarray(primitive.axis, dtype=float)
+    centre = np.asarray(primitive.center_m, dtype=float)
+    extent = np.array([tank.length_m, tank.width_m, tank.water_depth_m])
+    caps = 0
+    for sign in (-1.0, 1.0):
+        cap = centre + sign * 0.5 * primitive.length_m * axis
+        on_boundary = any(abs(axis[i]) > 1.0 - 1e-9 and min(abs(cap[i]), abs(cap[i] - extent[i])) <= 1e-9 * max(1.0, extent[i])
+                          for i in range(3))
+        caps += 0 if on_boundary else 1
+    return caps
+
+
 def reflector_count(scene: "Scene") -> int:
-    """Reflecting surfaces M: tank planes, one per sphere, three per cylinder (side and caps),
-    each planar patch of a polyhedral mesh, one per smooth mesh."""
+    """Reflecting surfaces M: tank planes, one per sphere, one per cylinder side and one per cap
+    off the tank's boundaries, each planar patch of a polyhedral mesh, one per smooth mesh."""
     count = len(scene.boundaries)
     for obj in scene.objects:
         primitive = type(obj.primitive).__name__ if obj.primitive is not None else None
         if primitive == "SpherePrimitive":
             count += 1
         elif primitive == "CylinderPrimitive":
-            count += 3
+            count += 1 + _caps_off_the_tank(scene, obj.primitive)
         elif len(obj.mesh.faces) > MAX_POLYHEDRON_FACES:
             count += 1
         else:
@@ -287,7 +308,8 @@ def geometry_estimate(scene: "Scene", config: "SolverConfig") -> ResourceEstimat
     rows = 3 + 3 * rays + 3 * EDGE_ROWS_PER_EDGE * edges
     return ResourceEstimate(path_rows=rows, path_table_bytes=rows * PATH_ROW_BYTES, objects=len(scene.objects),
                             triangles=triangles,
-                            mesh_bytes=triangles * TRIANGLE_BYTES, rays=rays, reflectors=reflectors, chains=chains)
+                            mesh_bytes=triangles * TRIANGLE_BYTES, rays=rays, reflectors=reflectors,
+                            max_order=int(config.max_order), chains=chains)
 
 
 def combined(signal: ResourceEstimate, geometry: ResourceEstimate) -> ResourceEstimate:

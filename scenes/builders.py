@@ -232,9 +232,7 @@ def edge_prism(
     """
     owner = _owner(name)
     edge = _vector(owner, "edge_m", edge_m, 2)
-    angle = _number(owner, "interior_angle_deg", interior_angle_deg)
-    if not 0.0 < angle < 180.0:
-        raise InputError(f"{owner}.interior_angle_deg = {interior_angle_deg!r}: must lie in (0, 180)")
+    angle = _number(owner, "interior_angle_deg", interior_angle_deg, allowed=ranges.INTERIOR_ANGLE_DEG)
     facing = _number(owner, "facing_deg", facing_deg, allowed=ranges.ANGLE_DEG)
     size = _number(owner, "size_m", size_m, positive=True)
     bottom, top = _vertical_extent(owner, bottom_m, water_depth_m)
@@ -388,6 +386,9 @@ def load_mesh_file(path: str | os.PathLike[str], owner: str = "mesh", *, label: 
     except SceneFileError as exc:
         raise InputError(str(exc)) from None
     suffix = Path(text).suffix.lower().lstrip(".")
+    if suffix not in trimesh.available_formats():
+        raise InputError(f"{where}: unknown mesh format {suffix!r} (the file name must end in one of"
+                         f" .stl, .obj, .ply, .off, .glb, ...)")
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=suffix, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file

@@ -45,6 +45,7 @@ from acoustisim.sonar import SonarHead
 from scenes import builders
 from scenes.builtin import builtin_scene, builtin_scene_names
 from acoustisim.preflight import check_resources
+from acoustisim.ranges import INTERIOR_ANGLE_DEG, LENGTH_M
 from acoustisim.resources import ResourceEstimate, current_limits
 from scenes.errors import SceneFileError
 from scenes.file_access import lookup, path_text, read_regular_file, shown_path
@@ -182,8 +183,8 @@ def _rows3x3(ctx: _Context, key: str, value: Any) -> tuple[tuple[float, ...], ..
 
 def _angle_interior(ctx: _Context, key: str, value: Any) -> float:
     x = _number(ctx, key, value)
-    if not 0.0 < x < 180.0:
-        raise ctx.error(key, value, "must lie strictly between 0 and 180 degrees")
+    if not INTERIOR_ANGLE_DEG.contains(x):
+        raise ctx.error(key, value, INTERIOR_ANGLE_DEG.describe())
     return x
 
 
@@ -302,8 +303,8 @@ def _planned_triangles(table: Any) -> int:
             r = float(radius)
         except OverflowError:
             return 0
-        if not (math.isfinite(r) and r > 0.0):
-            return 0
+        if not LENGTH_M.contains(r):
+            return 0  # refused when the object is built
         return 20 * 4 ** icosphere_subdivisions(r) if kind == "sphere" else 4 * circle_segments(r)
     return 0
 
