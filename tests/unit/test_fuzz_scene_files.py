@@ -31,7 +31,7 @@ DATA = Path(__file__).resolve().parents[2] / "scenes" / "data"
 SHORT_RECORD_S = 2.0e-4
 """Record length of the simulated fuzz scenes (keeps a run to a fraction of a second)."""
 
-FAST = settings(derandomize=True, database=None, deadline=None, max_examples=40,
+FAST = settings(derandomize=True, database=None, deadline=None, max_examples=30,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 DEEP = settings(database=None, deadline=None, max_examples=600,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
