@@ -20,13 +20,17 @@ import numpy as np
 from acoustisim.errors import InputError, InputTypeError
 from acoustisim.ranges import PhysicalRange
 
-_REPR = reprlib.Repr()
-_REPR.maxlevel = 3
-_REPR.maxstring = 60
-_REPR.maxother = 60
-_REPR.maxlong = 40
-_REPR.maxlist = _REPR.maxtuple = 8
-_REPR.maxdict = 6
+class _ShortRepr(reprlib.Repr):
+    """``repr`` bounded in depth, string length, digits and items."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.maxlevel = 3
+        self.maxstring = 60
+        self.maxother = 60
+        self.maxlong = 40
+        self.maxlist = self.maxtuple = 8
+        self.maxdict = 6
 
 
 def shown(value: Any) -> str:
@@ -34,7 +38,7 @@ def shown(value: Any) -> str:
     if isinstance(value, float):
         return repr(value)
     try:
-        text = _REPR.repr(value)
+        text = _ShortRepr().repr(value)
     except Exception:  # noqa: BLE001 - a hostile __repr__ must not hide the real error
         text = f"<{type(value).__name__}>"
     return " ".join(text.split())
@@ -119,6 +123,16 @@ def vector(owner: str, key: str, value: Any, n: int, allowed: PhysicalRange | No
     return numbers_
 
 
+def direction(owner: str, key: str, value: Any, n: int = 3) -> tuple[float, ...]:
+    """The unit vector along ``n`` finite numbers (any length, even 1e300 or 1e-300: scaled by
+    the largest component before the norm, so nothing overflows or underflows)."""
+    raw = vector(owner, key, value, n, nonzero=True)
+    scale = max(abs(v) for v in raw)
+    scaled = [v / scale for v in raw]
+    norm = math.sqrt(sum(v * v for v in scaled))
+    return tuple(v / norm for v in scaled)
+
+
 def text(owner: str, key: str, value: Any) -> str:
     """A non-empty string."""
     if not isinstance(value, str):
@@ -144,5 +158,5 @@ def instance(owner: str, key: str, value: Any, kind: type | tuple[type, ...], ex
     return value
 
 
-__all__ = ("choice", "instance", "integer", "is_number", "real", "shown", "text", "type_error", "value_error",
+__all__ = ("choice", "direction", "instance", "integer", "is_number", "real", "shown", "text", "type_error", "value_error",
            "vector", "where")

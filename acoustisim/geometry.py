@@ -7,7 +7,6 @@ specular points and curvature; their mesh serves occlusion and diffuse scatterin
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,12 +20,7 @@ def _vec3(owner: str, name: str, value: object) -> tuple[float, float, float]:
 
 
 def _unit3(owner: str, name: str, value: object) -> tuple[float, float, float]:
-    v = np.asarray(checks.vector(owner, name, value, 3), dtype=float)
-    norm = float(np.linalg.norm(v))
-    if not (norm >= 1e-12 and math.isfinite(norm)):
-        raise checks.value_error(owner, name, value, "must be a non-zero vector")
-    v = v / norm
-    return (float(v[0]), float(v[1]), float(v[2]))
+    return checks.direction(owner, name, value, 3)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)

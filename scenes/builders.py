@@ -318,9 +318,8 @@ def plate(
     """
     owner = _owner(name)
     center = _vector(owner, "center_m", center_m, 3)
-    n = np.asarray(_vector(owner, "normal", normal, 3, unit=True))
-    n = n / np.linalg.norm(n)
-    up_vec = np.asarray(_vector(owner, "up", up, 3, unit=True))
+    n = np.asarray(checks.direction(owner, "normal", normal))
+    up_vec = np.asarray(checks.direction(owner, "up", up))
     width = _number(owner, "width_m", width_m, positive=True)
     height = _number(owner, "height_m", height_m, positive=True)
     thickness = _number(owner, "thickness_m", thickness_m, positive=True)

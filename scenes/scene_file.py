@@ -365,7 +365,7 @@ def _object(ctx: _Context, index: int, table: Any, tank: Tank | None, base_dir: 
     if "kind" not in table:
         raise SceneFileError(f"{ctx.source}: {prefix}.kind: missing (required)")
     kind = table["kind"]
-    if kind not in _OBJECTS:
+    if not isinstance(kind, str) or kind not in _OBJECTS:
         raise ctx.error(f"{prefix}.kind", kind, f"unknown kind (known: {', '.join(_OBJECTS)})")
     v = _read_table(ctx, prefix, table, _OBJECTS[kind])
     name = v.get("name", f"{kind}-{index + 1}")

@@ -26,6 +26,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
@@ -47,7 +48,7 @@ MAX_ARRIVALS = 1_000_000
 ARRIVAL_ROW_BYTES = 8 * 24
 """Bytes of one stored arrival row (float64 fields)."""
 
-REFLECTORS_PER_KIND: Mapping[str, int] = {"sphere": 1, "post": 3, "cylinder": 3, "edge": 5, "plate": 6}
+REFLECTORS_PER_KIND: Mapping[str, int] = MappingProxyType({"sphere": 1, "post": 3, "cylinder": 3, "edge": 5, "plate": 6})
 """Reflecting surfaces of one object of each kind (see :func:`acoustisim.resources.reflector_count`)."""
 
 
