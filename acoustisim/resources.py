@@ -62,10 +62,11 @@ PATH_ROW_BYTES = 3 * 243
 """Per path-table row: 243 B, kept three times (solver parts, sorted table, arrivals)."""
 TRIANGLE_BYTES = 1024
 """Per triangle: trimesh caches, the Embree scene, the solver's per-face arrays."""
-EDGE_ROWS_PER_EDGE = 250
-"""Path rows one sharp edge makes per channel, on average over a scene: the thesis tank's 229
-edges (most of them the tank's corners and rims far from the sonar) make 23, the free-field
-60 degree prism's 9 edges 1 m ahead make 600."""
+EDGE_ROWS_PER_METRE = 2000
+"""Path rows per metre of an object's sharp edges and per channel. Measured: the free-field
+60 degree prism (3.6 m of edges, 1 m ahead) makes 1,500; the free cylinder's rims 2,200;
+the thesis tank's objects (5.5 m) 960. The tank's own corners are left out: far from the
+sonar and graded coarsely, its 52 m of corners add a few thousand rows."""
 SHARP_ANGLE_DEG = 30.0
 """A mesh edge whose faces turn by more than this diffracts (the solver's default)."""
 MAX_POLYHEDRON_FACES = 4096
@@ -185,7 +186,7 @@ class ResourceEstimate:
     synthesis_bytes : int
         Everything else the synthesis holds at its peak (working spectra, per-ping temporaries).
     path_rows : int
-        Path-table rows expected at most (direct, edge and diffuse rows).
+        Path-table rows expected (direct, diffuse receptions, edge elements).
     path_table_bytes : int
     objects : int
         Objects in the scene.
@@ -287,14 +288,17 @@ def chain_bound(reflectors: int, max_order: int) -> float:
     return float(sum(m * max(m - 1.0, 0.0) ** (k - 1) for k in range(1, max_order + 1)))
 
 
-def sharp_edge_count(scene: "Scene") -> int:
-    """Mesh edges (objects and the tank's 12 corners) whose faces turn by more than 30 degrees."""
-    count = 12 if scene.tank is not None else 0
+def sharp_edge_length(scene: "Scene") -> float:
+    """Total length (m) of the objects' mesh edges whose faces turn by more than 30 degrees."""
+    total = 0.0
     limit = math.radians(SHARP_ANGLE_DEG)
     for obj in scene.objects:
-        angles = np.asarray(obj.mesh.face_adjacency_angles, dtype=float)
-        count += int(np.count_nonzero(angles > limit))
-    return count
+        mesh = obj.mesh
+        sharp = np.asarray(mesh.face_adjacency_angles, dtype=float) > limit
+        if np.any(sharp):
+            ends = np.asarray(mesh.vertices, dtype=float)[np.asarray(mesh.face_adjacency_edges)[sharp]]
+            total += float(np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1).sum())
+    return total
 
 
 def geometry_estimate(scene: "Scene", config: "SolverConfig") -> ResourceEstimate:
@@ -304,8 +308,8 @@ def geometry_estimate(scene: "Scene", config: "SolverConfig") -> ResourceEstimat
     rays = int(config.diffuse_rays) * int(config.diffuse_bounces) if "diffuse" in mechanisms else 0
     reflectors = reflector_count(scene) if "specular" in mechanisms else 0
     chains = chain_bound(reflectors, int(config.max_order)) if reflectors else 0.0
-    edges = sharp_edge_count(scene) if "edge" in mechanisms else 0
-    rows = 3 + 3 * rays + 3 * EDGE_ROWS_PER_EDGE * edges
+    edge_metres = sharp_edge_length(scene) if "edge" in mechanisms else 0.0
+    rows = 3 + 3 * rays + 3 * int(math.ceil(EDGE_ROWS_PER_METRE * edge_metres))
     return ResourceEstimate(path_rows=rows, path_table_bytes=rows * PATH_ROW_BYTES, objects=len(scene.objects),
                             triangles=triangles,
                             mesh_bytes=triangles * TRIANGLE_BYTES, rays=rays, reflectors=reflectors,
@@ -329,6 +333,6 @@ __all__ = (
     "geometry_estimate",
     "reflector_count",
     "resource_limits",
-    "sharp_edge_count",
+    "sharp_edge_length",
     "signal_estimate",
 )
