@@ -4,6 +4,7 @@ Usage
 -----
     python benchmarks/hostile_corpus.py [--tree DIR] [--jobs 2] [--timeout 60] [--memory-gb 8]
                                         [--kinds toml,files,...] [--show BAD] [--json OUT.json]
+                                        [--fuzz N [--seed S]]
 
 Each case is one command (``acoustisim ...`` or ``binsonar ...``) run in a subprocess whose
 ``PYTHONPATH`` is ``--tree`` (default: this checkout; pass ``/work/wt/baseline`` for the code
@@ -24,7 +25,12 @@ by kind:
 - ``arguments``: option values (empty, negative, nan, inf, 1e300, huge integers) and argparse
   errors for ``scene``, ``simulate``, ``demo``, ``dataset`` and ``binsonar``;
 - ``spec``: dataset specifications at the same edges;
-- ``valid``: inputs that must succeed (exit 0), so the corpus also catches over-refusal.
+- ``valid``: inputs that must succeed (exit 0), so the corpus also catches over-refusal;
+- with ``--fuzz N``: ``fuzz-scenes``, N seeded mutations of the conventions example and a
+  free-field scene (float edges, wrong types, deleted and added keys, 40-deep nesting, scaled
+  numbers, duplicated objects) through ``scene validate``, and ``fuzz-arguments``, N seeded
+  ``simulate`` argument lists; these run in-process, 50 to a child process, each under a
+  ``SIGALRM`` timeout (a child stuck in C past it is killed and its case counts as a timeout).
 
 Each run is classified as ``clean-2`` (exit 2, one line on stderr, no usage block), ``ok-0``
 (exit 0 on an input that may succeed), ``accepted`` (exit 0 on an input that must be
@@ -566,6 +572,150 @@ def build_cases() -> tuple[list[Case], dict[str, str]]:
     return cases, files
 
 
+# ----------------------------------------------------------------------------- fuzz
+FUZZ_EDGES: tuple[Any, ...] = (1e300, -1e300, 1e-300, -1e-300, 5e-324, 0.0, -0.0, float("nan"), float("inf"),
+                               float("-inf"), 1e308, 10**400, -(10**30), 2**64, 0, 1, -1, 1e-12, 1e12, "", "x" * 300,
+                               True, [], {}, [[1.0]], {"a": 1})
+FUZZ_BASES: tuple[dict[str, Any], ...] = (
+    BASE_SCENE,
+    {"free_field": True, "sonar": {"position_m": [0.0, 0.0, 0.0], "record_length_s": 0.002},
+     "objects": [{"kind": "sphere", "name": "ball", "center_m": [1.05, 0.0, 0.0], "radius_m": 0.05},
+                 {"kind": "edge", "name": "edge", "edge_m": [2.0, 0.5], "interior_angle_deg": 60.0,
+                  "facing_deg": 180.0, "size_m": 0.1, "bottom_m": -0.5, "top_m": 0.5}]},
+)
+
+
+def _fuzz_paths(node: Any, prefix: tuple = ()) -> list[tuple]:
+    found = [prefix] if prefix else []
+    if isinstance(node, dict):
+        for key, child in node.items():
+            found += _fuzz_paths(child, prefix + (key,))
+    elif isinstance(node, list):
+        for index, child in enumerate(node):
+            found += _fuzz_paths(child, prefix + (index,))
+    return found
+
+
+def fuzz_scene_texts(count: int, seed: int) -> list[str]:
+    """``count`` mutated scene files (seeded): values set to float edges and wrong types, keys
+    deleted or added, values nested deep, numbers scaled by 10^k, objects duplicated."""
+    import random
+
+    rng = random.Random(seed)
+    texts = []
+    for _ in range(count):
+        doc = json.loads(json.dumps(rng.choice(FUZZ_BASES)))
+        for _ in range(rng.randint(1, 3)):
+            paths = _fuzz_paths(doc)
+            path = rng.choice(paths)
+            parent = doc
+            for key in path[:-1]:
+                parent = parent[key]
+            key = path[-1]
+            operation = rng.choice(("edge", "edge", "scale", "delete", "add", "nest", "duplicate"))
+            if operation == "edge":
+                parent[key] = rng.choice(FUZZ_EDGES)
+            elif operation == "scale" and isinstance(parent[key], (int, float)) and not isinstance(parent[key], bool):
+                try:
+                    parent[key] = float(parent[key]) * 10.0 ** rng.randint(-330, 330)
+                except OverflowError:
+                    parent[key] = float("inf")
+            elif operation == "delete":
+                del parent[key]
+            elif operation == "add":
+                (parent[key] if isinstance(parent[key], dict) else doc)[f"extra{rng.randint(0, 9)}"] = rng.choice(FUZZ_EDGES)
+            elif operation == "nest":
+                value = parent[key]
+                for _ in range(rng.randint(1, 40)):
+                    value = [value] if rng.random() < 0.5 else {"k": value}
+                parent[key] = value
+            elif operation == "duplicate" and isinstance(doc.get("objects"), list) and doc["objects"]:
+                doc["objects"] = doc["objects"] * rng.randint(2, 40)
+        try:
+            texts.append(_toml(doc))
+        except (TypeError, ValueError):
+            texts.append(_toml(json.loads(json.dumps(rng.choice(FUZZ_BASES)))))
+    return texts
+
+
+def fuzz_argument_lists(count: int, seed: int, scene: str) -> list[tuple[str, ...]]:
+    """``count`` argument lists for ``simulate`` on a short-record scene (seeded)."""
+    import random
+
+    rng = random.Random(seed)
+    values = ("", "-1", "0", "1", "3", "nan", "inf", "1e300", "1e-300", "1e309", "abc", "9" * 30, "9" * 5000,
+              "--pings", "free-sphere")
+    options = ("--seed", "--snr-db", "--snr-echo", "--pings", "--max-order", "--backend", "--max-memory-gb")
+    lists = []
+    for index in range(count):
+        argv = ["simulate", rng.choice((scene, scene, "", "nowhere", "a_folder")), "-o",
+                rng.choice((f"out/fuzz{index}.h5", ""))]
+        for _ in range(rng.randint(0, 3)):
+            argv += [rng.choice(options), rng.choice(values)]
+        if rng.random() < 0.3:
+            argv.append(rng.choice(("--keep-all-paths", "--average", "--json", "--bogus")))
+        lists.append(tuple(argv))
+    return lists
+
+
+_BATCH_DRIVER = """
+import contextlib, io, json, resource, signal, sys, time, traceback
+limit, timeout = int(sys.argv[1]), float(sys.argv[2])
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+from acoustisim.cli.main import main
+class Expired(BaseException):
+    pass
+def expire(signum, frame):
+    raise Expired()
+signal.signal(signal.SIGALRM, expire)
+for argv in json.loads(sys.stdin.read()):
+    out, err = io.StringIO(), io.StringIO()
+    start = time.perf_counter()
+    print(json.dumps({"start": argv}), flush=True)
+    signal.setitimer(signal.ITIMER_REAL, timeout)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(list(argv))
+    except Expired:
+        code = None
+    except BaseException:
+        code, err = 1, io.StringIO(err.getvalue() + "Traceback (most recent call last):\n" + traceback.format_exc())
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+    print(json.dumps({"argv": argv, "code": code, "err": err.getvalue()[-2000:],
+                      "seconds": time.perf_counter() - start}), flush=True)
+"""
+
+
+def run_batch(cases: list[Case], folder: Path, tree: Path, timeout_s: float, memory_bytes: int) -> list[Outcome]:
+    """Run many ``acoustisim`` cases in one child process (in-process calls of ``main``), each
+    under a ``SIGALRM`` timeout; a child stuck past every timeout is killed, its current case
+    counts as a timeout and the rest run in a new child."""
+    outcomes: list[Outcome] = []
+    pending = list(cases)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("ACOUSTISIM_MAX_")}
+    env.update(PYTHONPATH=str(tree), MPLBACKEND="Agg", PYTHONWARNINGS="ignore")
+    while pending:
+        process = subprocess.Popen([sys.executable, "-c", _BATCH_DRIVER, str(memory_bytes), str(timeout_s)],
+                                   cwd=folder, env=env, text=True, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                   stderr=subprocess.DEVNULL, start_new_session=True)
+        try:
+            stdout, _ = process.communicate(json.dumps([list(c.argv) for c in pending]),
+                                            timeout=timeout_s * (len(pending) + 2))
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            stdout, _ = process.communicate()
+        done = [json.loads(line) for line in stdout.splitlines() if line.startswith("{")]
+        finished = [d for d in done if "argv" in d]
+        for case, result in zip(pending, finished):
+            outcomes.append(Outcome(case, result["code"], result["seconds"], result["err"]))
+        pending = pending[len(finished):]
+        if pending:  # the child died or hung inside this case (no Python-level timeout possible)
+            outcomes.append(Outcome(pending[0], None, timeout_s, "killed"))
+            pending = pending[1:]
+    return outcomes
+
+
 # ----------------------------------------------------------------------------- running
 def _limit_memory(limit_bytes: int) -> None:
     os.setsid()
@@ -635,12 +785,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kinds", default=None, help="comma-separated kinds to run (default all)")
     parser.add_argument("--show", default="", help="comma-separated classes whose runs are listed with stderr")
     parser.add_argument("--json", type=Path, default=None, help="write every outcome to this JSON file")
+    parser.add_argument("--fuzz", type=int, default=0, metavar="N",
+                        help="also N seeded mutated scene files (scene validate) and N simulate argument lists,"
+                             " run in-process in batches (kinds fuzz-scenes, fuzz-arguments)")
+    parser.add_argument("--seed", type=int, default=18, help="seed of the fuzz inputs (default 18)")
     args = parser.parse_args(argv)
 
     cases, files = build_cases()
+    batched: list[Case] = []
+    if args.fuzz:
+        for index, text in enumerate(fuzz_scene_texts(args.fuzz, args.seed)):
+            files[f"fuzz_{index}.toml"] = text
+            batched.append(Case("fuzz-scenes", f"fuzz_{index}", _validate(f"fuzz_{index}.toml"), "any"))
+        for index, argv_ in enumerate(fuzz_argument_lists(args.fuzz, args.seed, "res_short.toml")):
+            batched.append(Case("fuzz-arguments", f"args_{index}", argv_, "any"))
     if args.kinds:
         wanted = set(args.kinds.split(","))
         cases = [c for c in cases if c.kind in wanted]
+        batched = [c for c in batched if c.kind in wanted]
     tree = args.tree.resolve()
     with tempfile.TemporaryDirectory(prefix="hostile-") as scratch:
         folder = Path(scratch)
@@ -651,9 +813,12 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 (folder / name).write_text(text, encoding="utf-8")
         started = time.perf_counter()
+        memory = int(args.memory_gb * 2**30)
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-            outcomes = list(pool.map(lambda c: run_case(c, folder, tree, args.timeout, int(args.memory_gb * 2**30)),
-                                     cases))
+            outcomes = list(pool.map(lambda c: run_case(c, folder, tree, args.timeout, memory), cases))
+            batches = [batched[i:i + 50] for i in range(0, len(batched), 50)]
+            for result in pool.map(lambda b: run_batch(b, folder, tree, args.timeout, memory), batches):
+                outcomes += result
         elapsed = time.perf_counter() - started
     for outcome in outcomes:
         outcome.verdict = classify(outcome)
