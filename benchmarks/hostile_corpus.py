@@ -678,11 +678,14 @@ for argv in json.loads(sys.stdin.read()):
             code = main(list(argv))
     except Expired:
         code = None
+    except SystemExit as exc:  # argparse's exit in older trees: its code, after its output
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except BaseException:
-        code, err = 1, io.StringIO(err.getvalue() + "Traceback (most recent call last):\n" + traceback.format_exc())
+        code, err = 1, io.StringIO(err.getvalue() + "Traceback (most recent call last):\\n" + traceback.format_exc())
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
-    print(json.dumps({"argv": argv, "code": code, "err": err.getvalue()[-2000:],
+    text = err.getvalue()
+    print(json.dumps({"argv": argv, "code": code, "err": text if len(text) < 4000 else text[:1000] + text[-3000:],
                       "seconds": time.perf_counter() - start}), flush=True)
 """
 
@@ -698,14 +701,16 @@ def run_batch(cases: list[Case], folder: Path, tree: Path, timeout_s: float, mem
     while pending:
         process = subprocess.Popen([sys.executable, "-c", _BATCH_DRIVER, str(memory_bytes), str(timeout_s)],
                                    cwd=folder, env=env, text=True, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                   stderr=subprocess.DEVNULL, start_new_session=True)
+                                   stderr=subprocess.PIPE, start_new_session=True)
         try:
-            stdout, _ = process.communicate(json.dumps([list(c.argv) for c in pending]),
-                                            timeout=timeout_s * (len(pending) + 2))
+            stdout, stderr = process.communicate(json.dumps([list(c.argv) for c in pending]),
+                                                 timeout=timeout_s * (len(pending) + 2))
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
-            stdout, _ = process.communicate()
+            stdout, stderr = process.communicate()
         done = [json.loads(line) for line in stdout.splitlines() if line.startswith("{")]
+        if not done:  # the driver itself failed before its first case: a bug here, not a verdict
+            raise RuntimeError(f"the batch driver did not start: {stderr[-2000:]}")
         finished = [d for d in done if "argv" in d]
         for case, result in zip(pending, finished):
             outcomes.append(Outcome(case, result["code"], result["seconds"], result["err"]))
