@@ -5,4 +5,11 @@ One hierarchy for the whole project, defined in :mod:`binsonar.errors` (the lowe
 
 from binsonar.errors import InputError, InputTypeError
 
-__all__ = ("InputError", "InputTypeError")
+
+class ResourceLimitError(InputError):
+    """A simulation that would need more memory, triangles, rays or reflector sequences than the
+    limits in force (:mod:`acoustisim.resources`); the message gives the estimate, the limit and
+    how to raise it."""
+
+
+__all__ = ("InputError", "InputTypeError", "ResourceLimitError")

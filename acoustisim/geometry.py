@@ -7,27 +7,20 @@ specular points and curvature; their mesh serves occlusion and diffuse scatterin
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from acoustisim import checks, ranges
+
 
 def _vec3(owner: str, name: str, value: object) -> tuple[float, float, float]:
-    arr = np.asarray(value, dtype=float).ravel()
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{owner}.{name} must be 3 finite numbers, got {value!r}")
-    return (float(arr[0]), float(arr[1]), float(arr[2]))
+    return checks.vector(owner, name, value, 3, ranges.COORDINATE_M)  # type: ignore[return-value]
 
 
 def _unit3(owner: str, name: str, value: object) -> tuple[float, float, float]:
-    v = np.asarray(_vec3(owner, name, value))
-    norm = float(np.linalg.norm(v))
-    if norm < 1e-12:
-        raise ValueError(f"{owner}.{name} must be a non-zero vector, got {value!r}")
-    v = v / norm
-    return (float(v[0]), float(v[1]), float(v[2]))
+    return checks.direction(owner, name, value, 3)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -63,8 +56,7 @@ class SpherePrimitive:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "center_m", _vec3("sphere", "center_m", self.center_m))
-        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
-            raise ValueError(f"sphere.radius_m must be > 0, got {self.radius_m!r}")
+        object.__setattr__(self, "radius_m", checks.real("sphere", "radius_m", self.radius_m, ranges.LENGTH_M))
 
     def outward_normal(self, points_m: NDArray[np.float64]) -> NDArray[np.float64]:
         """Unit outward normals (n, 3) at points (n, 3) on or near the surface."""
@@ -95,9 +87,7 @@ class CylinderPrimitive:
         object.__setattr__(self, "center_m", _vec3("cylinder", "center_m", self.center_m))
         object.__setattr__(self, "axis", _unit3("cylinder", "axis", self.axis))
         for name in ("radius_m", "length_m"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"cylinder.{name} must be > 0, got {value!r}")
+            object.__setattr__(self, name, checks.real("cylinder", name, getattr(self, name), ranges.LENGTH_M))
 
     def outward_normal(self, points_m: NDArray[np.float64]) -> NDArray[np.float64]:
         """Unit outward normals (n, 3) of the curved side at points (n, 3)."""

@@ -21,6 +21,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from acoustisim import checks, ranges
+
 WaterKind = Literal["fresh", "sea"]
 SoundSpeedFormula = Literal["auto", "marczak", "mackenzie", "unesco"]
 
@@ -173,26 +175,15 @@ class Medium:
     formula: SoundSpeedFormula = "auto"
 
     def __post_init__(self) -> None:
-        for name in ("temperature_c", "salinity_ppt", "depth_m", "ph"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise ValueError(f"medium.{name} must be finite, got {value!r}")
-        if self.water not in ("fresh", "sea"):
-            raise ValueError(f"medium.water must be 'fresh' or 'sea', got {self.water!r}")
-        if self.formula not in ("auto", "marczak", "mackenzie", "unesco"):
-            raise ValueError(f"medium.formula: unknown formula {self.formula!r}")
-        if not -2.0 <= self.temperature_c <= 95.0:
-            raise ValueError(f"medium.temperature_c must lie in [-2, 95] C, got {self.temperature_c!r}")
-        if not 0.0 <= self.salinity_ppt <= 45.0:
-            raise ValueError(f"medium.salinity_ppt must lie in [0, 45], got {self.salinity_ppt!r}")
-        if self.depth_m < 0.0:
-            raise ValueError(f"medium.depth_m must be >= 0, got {self.depth_m!r}")
-        if self.sound_speed_m_s is not None and not (
-            math.isfinite(self.sound_speed_m_s) and 1300.0 <= self.sound_speed_m_s <= 1700.0
-        ):
-            raise ValueError(
-                f"medium.sound_speed_m_s must lie in [1300, 1700] m/s, got {self.sound_speed_m_s!r}"
-            )
+        owner = "medium"
+        checks.choice(owner, "water", self.water, ("fresh", "sea"))
+        checks.choice(owner, "formula", self.formula, ("auto", "marczak", "mackenzie", "unesco"))
+        for name, allowed in (("temperature_c", ranges.TEMPERATURE_C), ("salinity_ppt", ranges.SALINITY_PPT),
+                              ("depth_m", ranges.DEPTH_M), ("ph", ranges.PH)):
+            object.__setattr__(self, name, checks.real(owner, name, getattr(self, name), allowed))
+        if self.sound_speed_m_s is not None:
+            object.__setattr__(self, "sound_speed_m_s",
+                               checks.real(owner, "sound_speed_m_s", self.sound_speed_m_s, ranges.SOUND_SPEED_M_S))
 
     @property
     def sound_speed(self) -> float:

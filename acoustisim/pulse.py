@@ -14,6 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from acoustisim import checks, ranges
+from acoustisim.errors import InputError
+
 
 @dataclass(frozen=True)
 class GaussianPulse:
@@ -35,10 +38,9 @@ class GaussianPulse:
     amplitude_pa: float = 1.0e5
 
     def __post_init__(self) -> None:
-        for name in ("centre_frequency_hz", "duration_s", "amplitude_pa"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"pulse.{name} must be finite and > 0, got {value!r}")
+        for name, allowed in (("centre_frequency_hz", ranges.CENTRE_FREQUENCY_HZ),
+                              ("duration_s", ranges.PULSE_DURATION_S), ("amplitude_pa", ranges.SOURCE_LEVEL_PA)):
+            object.__setattr__(self, name, checks.real("pulse", name, getattr(self, name), allowed))
 
     @property
     def support_s(self) -> tuple[float, float]:
@@ -89,13 +91,20 @@ class SampledPulse:
     t0_s: float = 0.0
 
     def __post_init__(self) -> None:
-        samples = np.array(self.samples, dtype=float, copy=True)
+        raw = self.samples
+        if isinstance(raw, (str, bytes)) or not isinstance(raw, (np.ndarray, list, tuple)):
+            raise checks.type_error("pulse", "samples", raw, "a 1-D array of numbers")
+        try:
+            samples = np.array(raw, dtype=float, copy=True)
+        except (TypeError, ValueError):
+            raise checks.type_error("pulse", "samples", raw, "a 1-D array of numbers") from None
         if samples.ndim != 1 or samples.size < 2:
-            raise ValueError(f"pulse samples must be a 1-D array of >= 2 values, got shape {samples.shape}")
+            raise InputError(f"pulse.samples: expected a 1-D array of >= 2 values, got shape {samples.shape}")
         if not np.all(np.isfinite(samples)):
-            raise ValueError("pulse samples contain NaN or infinite values")
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
-            raise ValueError(f"pulse sample_rate_hz must be > 0, got {self.sample_rate_hz!r}")
+            raise InputError("pulse.samples: contain NaN or infinite values")
+        object.__setattr__(self, "sample_rate_hz",
+                           checks.real("pulse", "sample_rate_hz", self.sample_rate_hz, ranges.SAMPLE_RATE_HZ))
+        object.__setattr__(self, "t0_s", checks.real("pulse", "t0_s", self.t0_s, ranges.PULSE_OFFSET_S))
         samples.setflags(write=False)
         object.__setattr__(self, "samples", samples)
 

@@ -6,7 +6,6 @@ Builders that make the objects' meshes live in the ``scenes`` package.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Literal
@@ -14,6 +13,8 @@ from typing import Any, Literal
 import numpy as np
 import trimesh
 
+from acoustisim import checks, ranges
+from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, PlanePrimitive, Primitive, SpherePrimitive
 from acoustisim.materials import Material, get_material
 from acoustisim.medium import Medium
@@ -60,6 +61,26 @@ class SceneObject:
     mesh: trimesh.Trimesh = field(compare=False, repr=False)
     primitive: SpherePrimitive | CylinderPrimitive | None = None
     parameters: tuple[tuple[str, Any], ...] = ()
+
+    def __post_init__(self) -> None:
+        owner = checks.text("scene object", "name", self.name)
+        checks.text(owner, "kind", self.kind)
+        checks.instance(owner, "material", self.material, Material, "a Material (acoustisim.materials.get_material)")
+        checks.instance(owner, "mesh", self.mesh, trimesh.Trimesh, "a trimesh.Trimesh")
+        if self.primitive is not None:
+            checks.instance(owner, "primitive", self.primitive, (SpherePrimitive, CylinderPrimitive),
+                            "a SpherePrimitive, a CylinderPrimitive or None")
+        checks.instance(owner, "parameters", self.parameters, tuple, "a tuple of (key, value) pairs")
+        vertices = np.asarray(self.mesh.vertices)
+        faces = np.asarray(self.mesh.faces)
+        if faces.ndim != 2 or faces.shape[0] == 0:
+            raise checks.value_error(owner, "mesh", self.mesh, "has no triangles")
+        if vertices.dtype.kind != "f" or not np.all(np.isfinite(vertices)):
+            raise checks.value_error(owner, "mesh", self.mesh, "has non-finite (NaN or infinite) vertex coordinates")
+        extent = ranges.COORDINATE_M
+        if vertices.size and (vertices.min() < extent.low or vertices.max() > extent.high):
+            raise checks.value_error(owner, "mesh", self.mesh, f"reaches {np.abs(vertices).max():.3g} m from the origin:"
+                                     f" every vertex coordinate {extent.describe()}")
 
     @property
     def bounds_m(self) -> np.ndarray:
@@ -116,11 +137,14 @@ class Tank:
 
     def __post_init__(self) -> None:
         for name in ("length_m", "width_m", "water_depth_m"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"tank.{name} must be a finite number > 0, got {value!r}")
+            object.__setattr__(self, name, checks.real("tank", name, getattr(self, name), ranges.LENGTH_M))
         for name in ("wall_material", "floor_material", "surface_material"):
-            self.material(name)  # raises InputError naming the value
+            material_name = checks.text("tank", name, getattr(self, name))
+            try:
+                get_material(material_name, self.materials)
+            except (KeyError, InputError) as exc:
+                problem = exc.args[0] if exc.args else "unknown material"
+                raise checks.value_error("tank", name, material_name, str(problem)) from None
 
     def material(self, which: str) -> Material:
         """The material named by ``which`` ("wall_material", "floor_material" or
@@ -180,6 +204,19 @@ class Scene:
     sonar: SonarHead = field(default_factory=SonarHead)
     tank: Tank | None = field(default_factory=Tank)
     objects: tuple[SceneObject, ...] = ()
+
+    def __post_init__(self) -> None:
+        owner = "scene"
+        checks.text(owner, "name", self.name)
+        checks.instance(owner, "medium", self.medium, Medium, "a Medium")
+        checks.instance(owner, "sonar", self.sonar, SonarHead, "a SonarHead")
+        if self.tank is not None:
+            checks.instance(owner, "tank", self.tank, Tank, "a Tank or None (free field)")
+        if not isinstance(self.objects, (tuple, list)):
+            raise checks.type_error(owner, "objects", self.objects, "a tuple of SceneObject")
+        for index, obj in enumerate(self.objects):
+            checks.instance(owner, f"objects[{index}]", obj, SceneObject, "a SceneObject (see scenes.builders)")
+        object.__setattr__(self, "objects", tuple(self.objects))
 
     @property
     def boundaries(self) -> tuple[Boundary, ...]:

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
+from acoustisim.preflight import check_simulation
 from acoustisim.propagation.paths import Paths, PathKind
 from acoustisim.scene import Scene
 from acoustisim.sonar import CHANNEL_NAMES, SonarHead
@@ -269,6 +270,7 @@ def simulate(
     InputError
         Bad parameters (the message names the field and the value).
     """
+    check_simulation(scene, sonar, solver_config, chain=chain, n_pings=n_pings, snr_db=snr_db, solving=paths is None)
     sonar = scene.sonar if sonar is None else sonar
     if snr_db is not None and not (isinstance(snr_db, (int, float, np.floating)) and np.isfinite(snr_db)):
         raise InputError(f"snr_db must be a finite number, got {snr_db!r}")

@@ -11,13 +11,13 @@ as R = Rz(yaw) R0 Rx(pitch) Ry(roll) with R0 the yaw-0 mapping head (x, y, z) ->
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from acoustisim import checks, ranges
 from acoustisim.pulse import GaussianPulse, SampledPulse
 
 CHANNEL_NAMES: tuple[str, str, str] = ("left", "centre", "right")
@@ -46,11 +46,6 @@ class Transducer:
     position_head_m: tuple[float, float, float]
     axis_head: tuple[float, float, float]
     radius_m: float
-
-
-def _check_finite_positive(owner: str, name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{owner}.{name} must be a finite number > 0, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -102,35 +97,53 @@ class SonarHead:
     custom_pulse: SampledPulse | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
-        position = tuple(float(v) for v in np.asarray(self.position_m, dtype=float).ravel())
-        if len(position) != 3 or not all(math.isfinite(v) for v in position):
-            raise ValueError(f"sonar.position_m must be 3 finite numbers, got {self.position_m!r}")
-        object.__setattr__(self, "position_m", position)
+        owner = "sonar"
+        set_ = object.__setattr__
+        set_(self, "position_m", checks.vector(owner, "position_m", self.position_m, 3, ranges.COORDINATE_M))
         for name in ("yaw_deg", "pitch_deg", "roll_deg"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise ValueError(f"sonar.{name} must be finite, got {value!r}")
-        for name in (
-            "separation_m",
-            "transducer_diameter_m",
-            "centre_frequency_hz",
-            "pulse_duration_s",
-            "source_level_pa",
-            "sample_rate_hz",
-            "record_length_s",
+            set_(self, name, checks.real(owner, name, getattr(self, name), ranges.ANGLE_DEG))
+        for name, allowed in (
+            ("separation_m", ranges.LENGTH_M),
+            ("transducer_diameter_m", ranges.LENGTH_M),
+            ("centre_frequency_hz", ranges.CENTRE_FREQUENCY_HZ),
+            ("pulse_duration_s", ranges.PULSE_DURATION_S),
+            ("source_level_pa", ranges.SOURCE_LEVEL_PA),
+            ("sample_rate_hz", ranges.SAMPLE_RATE_HZ),
+            ("record_length_s", ranges.RECORD_LENGTH_S),
         ):
-            _check_finite_positive("sonar", name, getattr(self, name))
-        if not (isinstance(self.adc_bits, int) and 2 <= self.adc_bits <= 24):
-            raise ValueError(f"sonar.adc_bits must be an integer in [2, 24], got {self.adc_bits!r}")
+            set_(self, name, checks.real(owner, name, getattr(self, name), allowed))
+        set_(self, "adc_bits", checks.integer(owner, "adc_bits", self.adc_bits,
+                                              minimum=int(ranges.ADC_BITS.low), maximum=int(ranges.ADC_BITS.high)))
         if self.channel_positions_m is not None:
-            positions = np.asarray(self.channel_positions_m, dtype=float)
-            if positions.shape != (3, 3) or not np.all(np.isfinite(positions)):
-                raise ValueError(
-                    f"sonar.channel_positions_m must be 3 rows of 3 finite numbers, got {self.channel_positions_m!r}"
-                )
-            object.__setattr__(
-                self, "channel_positions_m", tuple(tuple(float(v) for v in row) for row in positions)
-            )
+            rows = self.channel_positions_m
+            if isinstance(rows, np.ndarray) and rows.ndim == 2:
+                rows = list(rows)
+            if not isinstance(rows, (list, tuple)):
+                raise checks.type_error(owner, "channel_positions_m", rows, "three rows [x, y, z] (left, centre, right)")
+            if len(rows) != 3:
+                raise checks.value_error(owner, "channel_positions_m", rows,
+                                         "expected three rows [x, y, z] (left, centre, right)")
+            set_(self, "channel_positions_m", tuple(
+                checks.vector(owner, f"channel_positions_m[{i}]", row, 3, ranges.COORDINATE_M)
+                for i, row in enumerate(rows)))
+        if self.custom_pulse is not None:
+            checks.instance(owner, "custom_pulse", self.custom_pulse, SampledPulse, "a SampledPulse or None")
+        self._check_layout()
+
+    def _check_layout(self) -> None:
+        """Refuse transducers whose face centres are closer than a piston radius: two pistons
+        cannot share a place, and the solver would meet a receiver inside the transmitter."""
+        rows = self.channel_positions_head
+        a = self.piston_radius_m
+        for i, j in ((0, 1), (2, 1), (0, 2)):
+            gap = float(np.linalg.norm(rows[i] - rows[j]))
+            if gap < a:
+                key = "channel_positions_m" if self.channel_positions_m is not None else "separation_m"
+                value = self.channel_positions_m if self.channel_positions_m is not None else self.separation_m
+                raise checks.value_error(
+                    "sonar", key, value,
+                    f"the {CHANNEL_NAMES[i]} transducer coincides with the {CHANNEL_NAMES[j]} one ({gap:.3g} m apart,"
+                    f" less than the piston radius {a:g} m of sonar.transducer_diameter_m = {self.transducer_diameter_m!r})")
 
     # ----------------------------------------------------------------- geometry
     @property

@@ -13,6 +13,7 @@ Bad arguments raise :class:`acoustisim.errors.InputError` naming the object and 
 
 from __future__ import annotations
 
+import io
 import math
 import os
 from pathlib import Path
@@ -22,7 +23,9 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
+from acoustisim import checks, ranges
 from acoustisim.errors import InputError
+from acoustisim.ranges import PhysicalRange
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material, get_material
 from acoustisim.scene import SceneObject
@@ -31,36 +34,35 @@ from scenes.tessellation import circle_segments, icosphere_subdivisions
 
 
 # --------------------------------------------------------------------------- argument checks
-def _number(owner: str, key: str, value: Any, *, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputError(f"{owner}.{key} = {value!r}: expected a number")
-    x = float(value)
-    if not math.isfinite(x):
-        raise InputError(f"{owner}.{key} = {value!r}: must be finite")
-    if positive and x <= 0.0:
-        raise InputError(f"{owner}.{key} = {value!r}: must be > 0")
-    return x
+def _number(owner: str, key: str, value: Any, *, positive: bool = False,
+            allowed: PhysicalRange | None = None) -> float:
+    """A finite number (> 0 with ``positive``, inside ``allowed`` when given)."""
+    if positive and allowed is None:
+        allowed = ranges.LENGTH_M
+    return checks.real(owner, key, value, allowed, positive=positive)
+
+
+def _owner(name: Any) -> str:
+    """The object's name, which prefixes its messages."""
+    return checks.text("object", "name", name)
 
 
 def _vector(owner: str, key: str, value: Any, n: int, *, unit: bool = False) -> tuple[float, ...]:
-    try:
-        arr = np.asarray(value, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise InputError(f"{owner}.{key} = {value!r}: expected {n} numbers") from None
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise InputError(f"{owner}.{key} = {value!r}: expected {n} finite numbers")
-    if unit and float(np.linalg.norm(arr)) < 1e-12:
-        raise InputError(f"{owner}.{key} = {value!r}: must be a non-zero vector")
-    return tuple(float(v) for v in arr)
+    """``n`` finite numbers: a position (inside the coordinate range) or, with ``unit``, a
+    non-zero direction."""
+    if unit:
+        return checks.vector(owner, key, value, n, nonzero=True)
+    return checks.vector(owner, key, value, n, ranges.COORDINATE_M)
 
 
 def _material(owner: str, material: str | Material) -> Material:
     if isinstance(material, Material):
         return material
+    name = checks.text(owner, "material", material)
     try:
-        return get_material(material)
-    except InputError as exc:
-        raise InputError(f"{owner}.material = {material!r}: {exc}") from None
+        return get_material(name)
+    except (KeyError, InputError) as exc:
+        raise checks.value_error(owner, "material", name, str(exc.args[0]) if exc.args else "unknown material") from None
 
 
 # --------------------------------------------------------------------------- mesh helpers
@@ -112,8 +114,8 @@ def _outward(mesh: trimesh.Trimesh, owner: str) -> trimesh.Trimesh:
 
 
 def _vertical_extent(owner: str, bottom_m: float, top_m: float) -> tuple[float, float]:
-    bottom = _number(owner, "bottom_m", bottom_m)
-    top = _number(owner, "top_m", top_m)
+    bottom = _number(owner, "bottom_m", bottom_m, allowed=ranges.COORDINATE_M)
+    top = _number(owner, "top_m", top_m, allowed=ranges.COORDINATE_M)
     if top <= bottom:
         raise InputError(f"{owner}.top_m = {top!r}: must be above bottom_m = {bottom!r}")
     return bottom, top
@@ -143,7 +145,7 @@ def cylinder(
     material : str or Material
         Material name in the library, or a Material.
     """
-    owner = name
+    owner = _owner(name)
     center = _vector(owner, "center_m", center_m, 3)
     direction = _vector(owner, "axis", axis, 3, unit=True)
     radius = _number(owner, "radius_m", radius_m, positive=True)
@@ -188,7 +190,7 @@ def post(
     bottom_m : float, keyword-only
         z of the bottom (m): 0 (the floor) in a tank.
     """
-    owner = name
+    owner = _owner(name)
     center = _vector(owner, "center_m", center_m, 2)
     radius = _number(owner, "radius_m", radius_m, positive=True)
     bottom, top = _vertical_extent(owner, bottom_m, water_depth_m)
@@ -228,12 +230,10 @@ def edge_prism(
     bottom_m : float, keyword-only
         z of the bottom (m): 0 (the floor) in a tank.
     """
-    owner = name
+    owner = _owner(name)
     edge = _vector(owner, "edge_m", edge_m, 2)
-    angle = _number(owner, "interior_angle_deg", interior_angle_deg)
-    if not 0.0 < angle < 180.0:
-        raise InputError(f"{owner}.interior_angle_deg = {interior_angle_deg!r}: must lie in (0, 180)")
-    facing = _number(owner, "facing_deg", facing_deg)
+    angle = _number(owner, "interior_angle_deg", interior_angle_deg, allowed=ranges.INTERIOR_ANGLE_DEG)
+    facing = _number(owner, "facing_deg", facing_deg, allowed=ranges.ANGLE_DEG)
     size = _number(owner, "size_m", size_m, positive=True)
     bottom, top = _vertical_extent(owner, bottom_m, water_depth_m)
     mat = _material(owner, material)
@@ -274,7 +274,7 @@ def sphere(
         Radius (m), > 0.
     material : str or Material
     """
-    owner = name
+    owner = _owner(name)
     center = _vector(owner, "center_m", center_m, 3)
     radius = _number(owner, "radius_m", radius_m, positive=True)
     mat = _material(owner, material)
@@ -316,11 +316,10 @@ def plate(
         The direction of the height, projected onto the plate's plane; must not be parallel
         to ``normal``.
     """
-    owner = name
+    owner = _owner(name)
     center = _vector(owner, "center_m", center_m, 3)
-    n = np.asarray(_vector(owner, "normal", normal, 3, unit=True))
-    n = n / np.linalg.norm(n)
-    up_vec = np.asarray(_vector(owner, "up", up, 3, unit=True))
+    n = np.asarray(checks.direction(owner, "normal", normal))
+    up_vec = np.asarray(checks.direction(owner, "up", up))
     width = _number(owner, "width_m", width_m, positive=True)
     height = _number(owner, "height_m", height_m, positive=True)
     thickness = _number(owner, "thickness_m", thickness_m, positive=True)
@@ -334,36 +333,80 @@ def plate(
     mesh = trimesh.creation.box(extents=(width, height, thickness), transform=_transform(rotation, center))
     parameters = (
         ("center_m", center),
-        ("normal", _vector(owner, "normal", normal, 3)),
+        ("normal", _vector(owner, "normal", normal, 3, unit=True)),
         ("width_m", width),
         ("height_m", height),
         ("thickness_m", thickness),
-        ("up", _vector(owner, "up", up, 3)),
+        ("up", _vector(owner, "up", up, 3, unit=True)),
     )
     return SceneObject(name, "plate", mat, _outward(mesh, owner), None, parameters)
 
 
-def load_mesh_file(path: str | os.PathLike[str], owner: str = "mesh") -> trimesh.Trimesh:
-    """Read a mesh file (STL, OBJ, PLY, ... anything trimesh reads), repaired when possible.
+MESH_FILE_BYTES_PER_TRIANGLE = 300
+"""Bytes a mesh file may hold per triangle the limits allow (ASCII STL takes about 250)."""
 
+MIN_MESH_FILE_LIMIT_BYTES = 1 << 20
+"""A mesh file may always hold 1 MiB, whatever the triangle limit."""
+
+
+def load_mesh_file(path: str | os.PathLike[str], owner: str = "mesh", *, label: str | None = None) -> trimesh.Trimesh:
+    """Read a mesh file (STL, OBJ, PLY, GLB, ... anything trimesh reads from one file), repaired when possible.
+
+    Only the named regular file is read (:mod:`scenes.file_access`), at most
+    ``MESH_FILE_BYTES_PER_TRIANGLE`` bytes per triangle the limits in force allow
+    (:func:`acoustisim.resources.current_limits`); trimesh parses its bytes, so a format that
+    refers to other files (an OBJ's material library, a glTF's buffers) gets none of them.
     Holes are filled and normals made consistent and outward when trimesh can; a mesh that
-    stays open is rejected.
+    stays open, or has non-finite vertices, or more triangles than the limit, is rejected.
+
+    Parameters
+    ----------
+    path : str or path-like
+    owner : str
+        The object's name, which prefixes messages.
+    label : str, optional
+        The message prefix instead of ``"<owner>.path = '<path>'"``.
 
     Raises
     ------
     InputError
-        Missing, unreadable or empty file, or a mesh that cannot be made watertight.
+        Missing, unreadable, non-regular, oversized or empty file, or a bad mesh.
     """
-    file = Path(path)
-    if not file.is_file():
-        raise InputError(f"{owner}.path = {str(path)!r}: no such file")
+    from acoustisim.resources import current_limits
+    from scenes.errors import SceneFileError
+    from scenes.file_access import path_text, read_regular_file
+
+    text = path_text(path, f"{owner}.path")
+    where = label if label is not None else f"{owner}.path = {checks.shown(text)}"
+    limits = current_limits()
+    max_bytes = max(MIN_MESH_FILE_LIMIT_BYTES, int(limits.max_triangles * MESH_FILE_BYTES_PER_TRIANGLE))
     try:
-        loaded = trimesh.load(file, force="mesh", process=True)
+        data = read_regular_file(text, max_bytes=max_bytes, label=where)
+    except SceneFileError as exc:
+        raise InputError(str(exc)) from None
+    suffix = Path(text).suffix.lower().lstrip(".")
+    if suffix not in trimesh.available_formats():
+        raise InputError(f"{where}: unknown mesh format {suffix!r} (the file name must end in one of"
+                         f" .stl, .obj, .ply, .off, .glb, ...)")
+    try:
+        loaded = trimesh.load(io.BytesIO(data), file_type=suffix, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file
-        raise InputError(f"{owner}.path = {str(path)!r}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+        problem = " ".join(str(exc).split())[:200]
+        raise InputError(f"{where}: cannot read the mesh ({type(exc).__name__}: {problem})") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise InputError(f"{owner}.path = {str(path)!r}: the file holds no triangles")
-    mesh = loaded
+        raise InputError(f"{where}: the file holds no triangles")
+    if len(loaded.faces) > limits.max_triangles:
+        raise InputError(f"{where}: {len(loaded.faces):,} triangles, more than the limit of"
+                         f" {limits.max_triangles:,.0f} (raise it with --max-triangles or ACOUSTISIM_MAX_TRIANGLES)")
+    vertices = np.asarray(loaded.vertices, dtype=float)
+    if not np.all(np.isfinite(vertices)):
+        raise InputError(f"{where}: the mesh has non-finite (NaN or infinite) vertex coordinates")
+    faces = np.asarray(loaded.faces)
+    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise InputError(f"{where}: the mesh's faces refer to vertices it does not have")
+    mesh = trimesh.Trimesh(vertices, faces, process=True)
+    if len(mesh.faces) == 0:
+        raise InputError(f"{where}: the file holds no usable triangles")
     if not (mesh.is_watertight and mesh.is_winding_consistent):
         mesh.merge_vertices()
         mesh.update_faces(mesh.nondegenerate_faces())
@@ -372,7 +415,7 @@ def load_mesh_file(path: str | os.PathLike[str], owner: str = "mesh") -> trimesh
         trimesh.repair.fill_holes(mesh)
         trimesh.repair.fix_normals(mesh)
     if not (mesh.is_watertight and mesh.is_winding_consistent):
-        raise InputError(f"{owner}.path = {str(path)!r}: the mesh is not watertight and trimesh cannot repair it")
+        raise InputError(f"{where}: the mesh is not watertight and trimesh cannot repair it")
     if mesh.volume < 0.0:
         mesh.invert()
     return mesh
@@ -387,6 +430,8 @@ def user_mesh(
     roll_deg: float = 0.0,
     scale: float = 1.0,
     material: str | Material = "concrete",
+    *,
+    mesh: trimesh.Trimesh | None = None,
 ) -> SceneObject:
     """A mesh from a file, scaled, rotated (:func:`euler_rotation`) and moved.
 
@@ -402,17 +447,29 @@ def user_mesh(
     scale : float
         Uniform scale applied first (the file's units to metres), > 0.
     material : str or Material
+    mesh : trimesh.Trimesh, keyword-only, optional
+        The file's mesh as :func:`load_mesh_file` returned it (read here when not given).
     """
-    owner = name
+    owner = _owner(name)
     position = _vector(owner, "position_m", position_m, 3)
-    yaw = _number(owner, "yaw_deg", yaw_deg)
-    pitch = _number(owner, "pitch_deg", pitch_deg)
-    roll = _number(owner, "roll_deg", roll_deg)
-    factor = _number(owner, "scale", scale, positive=True)
+    yaw = _number(owner, "yaw_deg", yaw_deg, allowed=ranges.ANGLE_DEG)
+    pitch = _number(owner, "pitch_deg", pitch_deg, allowed=ranges.ANGLE_DEG)
+    roll = _number(owner, "roll_deg", roll_deg, allowed=ranges.ANGLE_DEG)
+    factor = _number(owner, "scale", scale, allowed=ranges.SCALE)
     mat = _material(owner, material)
-    mesh = load_mesh_file(path, owner).copy()
-    mesh.apply_scale(factor)
-    mesh.apply_transform(_transform(euler_rotation(yaw, pitch, roll), position))
+    source = load_mesh_file(path, owner) if mesh is None else checks.instance(
+        owner, "mesh", mesh, trimesh.Trimesh, "a trimesh.Trimesh")
+    placed = source.copy()
+    placed.apply_scale(factor)
+    placed.apply_transform(_transform(euler_rotation(yaw, pitch, roll), position))
+    lo, hi = np.asarray(placed.bounds, dtype=float)
+    reach = float(np.max(np.abs(placed.vertices)))
+    if reach > ranges.COORDINATE_M.high:
+        raise checks.value_error(owner, "scale", factor, f"the placed mesh reaches {reach:.3g} m from the origin;"
+                                 f" coordinates {ranges.COORDINATE_M.describe()}")
+    if float(np.max(hi - lo)) < ranges.LENGTH_M.low:
+        raise checks.value_error(owner, "scale", factor, f"the placed mesh is {float(np.max(hi - lo)):.3g} m across;"
+                                 f" sizes {ranges.LENGTH_M.describe()}")
     parameters = (
         ("path", str(Path(path).resolve())),
         ("position_m", position),
@@ -421,7 +478,7 @@ def user_mesh(
         ("roll_deg", roll),
         ("scale", factor),
     )
-    return SceneObject(name, "mesh", mat, _outward(mesh, owner), None, parameters)
+    return SceneObject(name, "mesh", mat, _outward(placed, owner), None, parameters)
 
 
 def default_sonar() -> SonarHead:

@@ -26,6 +26,7 @@ value. Saving writes every value explicitly, so that load -> save -> load gives 
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import re
@@ -37,6 +38,7 @@ from typing import Any, Callable, Mapping
 
 import tomli_w
 
+from acoustisim.checks import shown
 from acoustisim.errors import InputError
 from acoustisim.materials import Material, get_material, material_library
 from acoustisim.medium import Medium
@@ -44,18 +46,32 @@ from acoustisim.scene import Scene, SceneObject, Tank
 from acoustisim.sonar import SonarHead
 from scenes import builders
 from scenes.builtin import builtin_scene, builtin_scene_names
+from acoustisim.preflight import check_resources
+from acoustisim.ranges import INTERIOR_ANGLE_DEG, LENGTH_M
+from acoustisim.resources import ResourceEstimate, current_limits
 from scenes.errors import SceneFileError
 from scenes.materials_table import materials_to_toml, read_materials_table
+from scenes.file_access import lookup, path_text, read_regular_file, shown_path
+from scenes.tessellation import circle_segments, icosphere_subdivisions
 from scenes.validation import validate_scene
 
 __all__ = ["SceneFileError", "load_scene", "read_scene_file", "save_scene", "scene_to_toml", "scene_from_toml"]
 
 
 # --------------------------------------------------------------------------- value checks
+MAX_SCENE_FILE_BYTES = 16 << 20
+"""Largest scene file read (bytes): 16 MiB hold some 100,000 objects, ten times the default limit."""
+
+MAX_TOML_DEPTH = 16
+"""Deepest nesting of tables and arrays accepted (the format itself needs 4: objects, a table,
+channel_positions_m, a row)."""
+
+MAX_NAME_CHARS = 200
+"""Longest scene or object name (a label in tables and messages)."""
+
+
 def _show(value: Any) -> str:
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    return repr(value)
+    return shown(value)
 
 
 @dataclass(frozen=True)
@@ -84,9 +100,13 @@ def _is_number(value: Any) -> bool:
 def _number(ctx: _Context, key: str, value: Any) -> float:
     if not _is_number(value):
         raise ctx.error(key, value, "expected a number")
-    if not math.isfinite(value):
+    try:
+        x = float(value)
+    except OverflowError:
+        raise ctx.error(key, value, "too large for a floating-point number") from None
+    if not math.isfinite(x):
         raise ctx.error(key, value, "must be finite")
-    return float(value)
+    return x
 
 
 def _positive(ctx: _Context, key: str, value: Any) -> float:
@@ -121,6 +141,13 @@ def _string(ctx: _Context, key: str, value: Any) -> str:
     return value
 
 
+def _name(ctx: _Context, key: str, value: Any) -> str:
+    name = _string(ctx, key, value)
+    if len(name) > MAX_NAME_CHARS or not name.isprintable():
+        raise ctx.error(key, value, f"a name is at most {MAX_NAME_CHARS} printable characters")
+    return name
+
+
 def _choice(*options: str) -> Callable[[_Context, str, Any], str]:
     def check(ctx: _Context, key: str, value: Any) -> str:
         if value not in options:
@@ -142,11 +169,12 @@ def _vector(n: int, *, nonzero: bool = False) -> Callable[[_Context, str, Any], 
     def check(ctx: _Context, key: str, value: Any) -> tuple[float, ...]:
         if not isinstance(value, list) or len(value) != n or not all(_is_number(v) for v in value):
             raise ctx.error(key, value, f"expected a list of {n} numbers")
-        if not all(math.isfinite(v) for v in value):
+        numbers = tuple(_number(ctx, key, v) if not isinstance(v, float) else v for v in value)
+        if not all(math.isfinite(v) for v in numbers):
             raise ctx.error(key, value, "must be finite")
-        if nonzero and all(v == 0 for v in value):
+        if nonzero and all(v == 0 for v in numbers):
             raise ctx.error(key, value, "must be a non-zero vector")
-        return tuple(float(v) for v in value)
+        return tuple(float(v) for v in numbers)
 
     return check
 
@@ -159,8 +187,8 @@ def _rows3x3(ctx: _Context, key: str, value: Any) -> tuple[tuple[float, ...], ..
 
 def _angle_interior(ctx: _Context, key: str, value: Any) -> float:
     x = _number(ctx, key, value)
-    if not 0.0 < x < 180.0:
-        raise ctx.error(key, value, "must lie strictly between 0 and 180 degrees")
+    if not INTERIOR_ANGLE_DEG.contains(x):
+        raise ctx.error(key, value, INTERIOR_ANGLE_DEG.describe())
     return x
 
 
@@ -220,7 +248,7 @@ _SONAR = MappingProxyType({
     "channel_positions_m": _Field(_rows3x3),
 })
 
-_COMMON = MappingProxyType({"kind": _Field(_string, required=True), "name": _Field(_string), "material": _Field(_material)})
+_COMMON = MappingProxyType({"kind": _Field(_string, required=True), "name": _Field(_name), "material": _Field(_material)})
 _VERTICAL = MappingProxyType({"bottom_m": _Field(_number), "top_m": _Field(_number)})
 
 _OBJECTS: Mapping[str, Mapping[str, _Field]] = MappingProxyType({
@@ -266,6 +294,35 @@ _DEFAULT_MATERIAL = MappingProxyType({"post": "pvc", "edge": "steel", "cylinder"
 
 
 # --------------------------------------------------------------------------- reading
+def _planned_triangles(table: Any) -> int:
+    """Triangles an object table will make, from its kind and size alone (0 when unknown:
+    the built mesh is counted again by the pre-flight)."""
+    if not isinstance(table, dict):
+        return 0
+    kind, radius = table.get("kind"), table.get("radius_m")
+    if kind in ("edge", "plate"):
+        return 8 if kind == "edge" else 12
+    if kind in ("post", "cylinder", "sphere") and _is_number(radius):
+        try:
+            r = float(radius)
+        except OverflowError:
+            return 0
+        if not LENGTH_M.contains(r):
+            return 0  # refused when the object is built
+        return 20 * 4 ** icosphere_subdivisions(r) if kind == "sphere" else 4 * circle_segments(r)
+    return 0
+
+
+def _check_planned_size(ctx: _Context, objects_data: list[Any], sonar: SonarHead) -> None:
+    """Refuse, before any mesh is built, more objects or triangles than the limits in force."""
+    planned = ResourceEstimate(objects=len(objects_data),
+                               triangles=sum(_planned_triangles(table) for table in objects_data))
+    try:
+        check_resources(planned, current_limits(), sonar, source=ctx.source)
+    except InputError as exc:
+        raise SceneFileError(str(exc)) from None
+
+
 def _medium(ctx: _Context, table: Any) -> Medium:
     values = _read_table(ctx, "medium", table, _MEDIUM)
     try:
@@ -276,7 +333,10 @@ def _medium(ctx: _Context, table: Any) -> Medium:
 
 def _tank(ctx: _Context, table: Any) -> Tank:
     values = _read_table(ctx, "tank", table, _TANK)
-    return Tank(**values, materials=ctx.materials)
+    try:
+        return Tank(**values, materials=ctx.materials)
+    except InputError as exc:
+        raise SceneFileError(f"{ctx.source}: {exc}") from None
 
 
 def _sonar(ctx: _Context, table: Any) -> SonarHead:
@@ -309,7 +369,7 @@ def _object(ctx: _Context, index: int, table: Any, tank: Tank | None, base_dir: 
     if "kind" not in table:
         raise SceneFileError(f"{ctx.source}: {prefix}.kind: missing (required)")
     kind = table["kind"]
-    if kind not in _OBJECTS:
+    if not isinstance(kind, str) or kind not in _OBJECTS:
         raise ctx.error(f"{prefix}.kind", kind, f"unknown kind (known: {', '.join(_OBJECTS)})")
     v = _read_table(ctx, prefix, table, _OBJECTS[kind])
     name = v.get("name", f"{kind}-{index + 1}")
@@ -333,15 +393,18 @@ def _object(ctx: _Context, index: int, table: Any, tank: Tank | None, base_dir: 
                 name, v["center_m"], v["normal"], v["width_m"], v["height_m"], v["thickness_m"], material,
                 v.get("up", (0.0, 0.0, 1.0)),
             )
-        path = Path(os.path.expanduser(v["path"]))
+        path = Path(os.path.expanduser(v["path"])) if v["path"].startswith("~") else Path(v["path"])
         resolved = path if path.is_absolute() else base_dir / path
-        if not resolved.is_file():
-            raise ctx.error(f"{prefix}.path", v["path"], f"no such mesh file ({resolved})")
-        if not os.access(resolved, os.R_OK):
-            raise ctx.error(f"{prefix}.path", v["path"], f"mesh file not readable ({resolved})")
+        label = f"{ctx.source}: {prefix}.path = {shown(v['path'])}"
+        if len(str(resolved)) != len(v["path"]):
+            label += f" ({shown_path(str(resolved))})"
+        try:
+            mesh = builders.load_mesh_file(resolved, name, label=label)
+        except InputError as exc:
+            raise SceneFileError(str(exc)) from None
         return builders.user_mesh(
             name, resolved, v["position_m"], v.get("yaw_deg", 0.0), v.get("pitch_deg", 0.0),
-            v.get("roll_deg", 0.0), v.get("scale", 1.0), material,
+            v.get("roll_deg", 0.0), v.get("scale", 1.0), material, mesh=mesh,
         )
     except SceneFileError:
         raise
@@ -378,11 +441,13 @@ def scene_from_toml(
     ------
     SceneFileError
     """
+    if not isinstance(data, Mapping):
+        raise _Context(source).error("scene", data, "expected a table (the parsed scene file)")
     ctx = _Context(source, read_materials_table(data.get("materials", []), source))
     for key in data:
         if key not in _TOP_KEYS:
             raise ctx.error(key, data[key], f"unknown key (known: {', '.join(_TOP_KEYS)})")
-    name = _string(ctx, "name", data["name"]) if "name" in data else default_name
+    name = _name(ctx, "name", data["name"]) if "name" in data else default_name
     free_field = _boolean(ctx, "free_field", data["free_field"]) if "free_field" in data else False
     if free_field and "tank" in data:
         raise ctx.error("free_field", True, "a free-field scene cannot have a [tank] table")
@@ -394,6 +459,7 @@ def scene_from_toml(
     objects_data = data.get("objects", [])
     if not isinstance(objects_data, list):
         raise ctx.error("objects", objects_data, "expected an array of tables [[objects]]")
+    _check_planned_size(ctx, objects_data, sonar)
     objects = tuple(_object(ctx, i, table, tank, Path(base_dir)) for i, table in enumerate(objects_data))
     scene = Scene(name=name, medium=medium, sonar=sonar, tank=tank, objects=objects)
     if validate:
@@ -409,20 +475,15 @@ def read_scene_file(path: str | os.PathLike[str], validate: bool = True) -> Scen
     SceneFileError
         Missing, unreadable or invalid file; any bad key or value.
     """
-    file = Path(path)
-    source = str(path)
+    text_path = path_text(path, "scene file")
+    source = shown_path(text_path)
+    raw = read_regular_file(text_path, max_bytes=MAX_SCENE_FILE_BYTES, label=source)
     try:
-        text = file.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise SceneFileError(f"{source}: no such file") from None
-    except IsADirectoryError:
-        raise SceneFileError(f"{source}: is a directory, not a scene file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneFileError(f"{source}: cannot read ({type(exc).__name__}: {exc})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneFileError(f"{source}: not valid TOML: {exc}") from None
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneFileError(f"{source}: cannot read (not UTF-8 text: {exc.reason} at byte {exc.start})") from None
+    data = parse_toml(text, source)
+    file = Path(text_path)
     return scene_from_toml(data, source, file.resolve().parent, file.stem, validate)
 
 
@@ -436,17 +497,63 @@ def load_scene(path_or_name: str | os.PathLike[str], validate: bool = True) -> S
     SceneFileError
         Neither a file nor a built-in name, or a bad file.
     """
-    text = os.fspath(path_or_name)
-    if Path(text).exists():
+    text = path_text(path_or_name, "scene")
+    status = lookup(text)
+    if not isinstance(status, OSError):  # an existing file wins over a built-in name
         return read_scene_file(text, validate)
     if text in builtin_scene_names():
         scene = builtin_scene(text)
         if validate:
             validate_scene(scene, text)
         return scene
+    if status.errno not in (errno.ENOENT, errno.ENOTDIR):
+        raise SceneFileError(f"{shown_path(text)}: cannot open ({status.strerror or type(status).__name__})")
     raise SceneFileError(
-        f"{text}: no such scene file or built-in scene (built-in: {', '.join(builtin_scene_names())})"
+        f"{shown_path(text)}: no such scene file or built-in scene (built-in: {', '.join(builtin_scene_names())})"
     )
+
+
+def _depth(data: Any) -> int:
+    """Deepest nesting of dicts and lists in ``data`` (iterative: no recursion limit)."""
+    deepest = 0
+    stack = [(data, 0)]
+    while stack:
+        node, level = stack.pop()
+        if isinstance(node, dict):
+            children = node.values()
+        elif isinstance(node, list):
+            children = node
+        else:
+            continue
+        level += 1
+        deepest = max(deepest, level)
+        if deepest > MAX_TOML_DEPTH:
+            return deepest
+        stack.extend((child, level) for child in children)
+    return deepest
+
+
+def parse_toml(text: str, source: str) -> dict[str, Any]:
+    """Parse scene-file text, refusing nesting deeper than :data:`MAX_TOML_DEPTH`.
+
+    Raises
+    ------
+    SceneFileError
+        Not TOML, nested too deeply, or an integer literal too long to convert.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneFileError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SceneFileError(f"{source}: not a scene file: tables or arrays nested too deeply"
+                             f" (at most {MAX_TOML_DEPTH} levels)") from None
+    except ValueError as exc:  # e.g. an integer literal of more than 4300 digits
+        raise SceneFileError(f"{source}: not valid TOML: {' '.join(str(exc).split())[:200]}") from None
+    if _depth(data) > MAX_TOML_DEPTH:
+        raise SceneFileError(f"{source}: not a scene file: tables or arrays nested more than"
+                             f" {MAX_TOML_DEPTH} levels deep")
+    return data
 
 
 # --------------------------------------------------------------------------- writing

@@ -42,7 +42,10 @@ def circle_segments(radius_m: float, sagitta_m: float = SAGITTA_TOLERANCE_M) -> 
     """
     if sagitta_m >= radius_m:
         return MIN_SEGMENTS
-    n = math.ceil(math.pi / math.acos(1.0 - sagitta_m / radius_m))
+    half_angle = math.acos(1.0 - sagitta_m / radius_m)
+    if half_angle <= math.pi / MAX_SEGMENTS:  # (also 0 when the ratio rounds away) the cap applies
+        return MAX_SEGMENTS
+    n = math.ceil(math.pi / half_angle)
     return int(min(max(n, MIN_SEGMENTS), MAX_SEGMENTS))
 
 

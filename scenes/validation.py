@@ -9,6 +9,11 @@ Rules
 - No two objects intersect (their closed meshes neither cross nor contain one another).
 - Each of the sonar's three transducer faces lies in the water at least one piston radius
   from every boundary, outside every object and at least one piston radius from its surface.
+- The sample rate carries the pulse and the receiver's band-pass, and the record holds the
+  pulse (:func:`acoustisim.preflight.check_sampling`).
+
+Objects are tested for intersection only where their bounding boxes overlap (sort and sweep,
+:func:`overlapping_pairs`), so thousands of scattered objects validate in well under a second.
 """
 
 from __future__ import annotations
@@ -16,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from acoustisim import checks
+from acoustisim.errors import InputError
 from acoustisim.scene import Scene, SceneObject
 from acoustisim.sonar import CHANNEL_NAMES
 from scenes.errors import SceneFileError
@@ -116,33 +123,61 @@ def _check_in_water(scene: Scene, source: str) -> None:
             )
 
 
+def overlapping_pairs(bounds: np.ndarray) -> np.ndarray:
+    """Index pairs (i, j), i < j, of boxes that overlap, in lexicographic order.
+
+    Sort and sweep along x: each box meets only those whose x interval starts before its own
+    ends, so n scattered objects cost O(n log n) rather than n^2 / 2 mesh tests.
+
+    Parameters
+    ----------
+    bounds : ndarray, shape (n, 2, 3)
+        Each box's low and high corners (m).
+
+    Returns
+    -------
+    ndarray of int64, shape (k, 2)
+    """
+    n = len(bounds)
+    if n < 2:
+        return np.empty((0, 2), dtype=np.int64)
+    order = np.argsort(bounds[:, 0, 0], kind="stable")
+    lo_x = bounds[order, 0, 0]
+    stop = np.searchsorted(lo_x, bounds[order, 1, 0], side="right")  # boxes starting before i's end
+    pairs = []
+    for rank in range(n):
+        others = order[rank + 1:stop[rank]]
+        if others.size == 0:
+            continue
+        i = order[rank]
+        meet = np.all((bounds[others, 0] <= bounds[i, 1]) & (bounds[i, 0] <= bounds[others, 1]), axis=1)
+        pairs.extend((min(i, j), max(i, j)) for j in others[meet])
+    if not pairs:
+        return np.empty((0, 2), dtype=np.int64)
+    result = np.array(pairs, dtype=np.int64)
+    return result[np.lexsort((result[:, 1], result[:, 0]))]
+
+
 def _check_apart(scene: Scene, source: str) -> None:
     objects = scene.objects
-    for i in range(len(objects)):
-        for j in range(i + 1, len(objects)):
-            if meshes_intersect(objects[i].mesh, objects[j].mesh):
-                raise SceneFileError(
-                    f"{source}: {_placement(j, objects[j])}: object {objects[j].name!r} intersects"
-                    f" objects[{i}] ({objects[i].name!r})"
-                )
+    bounds = np.array([obj.bounds_m for obj in objects], dtype=float).reshape(-1, 2, 3)
+    for i, j in overlapping_pairs(bounds):
+        if meshes_intersect(objects[i].mesh, objects[j].mesh):
+            raise SceneFileError(
+                f"{source}: {_placement(j, objects[j])}: object {objects[j].name!r} intersects"
+                f" objects[{i}] ({objects[i].name!r})"
+            )
 
 
 def _check_sampling(scene: Scene, source: str) -> None:
-    """The sample rate must carry the pulse (twice its -40 dB band top) and the default receiver
-    chain's band-pass (its upper corner below Nyquist), as ``acoustisim simulate`` needs."""
-    from acoustisim.synthesis.chain import ReceiverChain
-    from acoustisim.synthesis.transducer import pulse_band_top_hz
+    """The sample rate must carry the pulse and the default receiver chain's band-pass, and the
+    record hold the pulse, as ``acoustisim simulate`` needs (:func:`acoustisim.preflight.check_sampling`)."""
+    from acoustisim.preflight import check_sampling
 
-    sonar = scene.sonar
-    fs = float(sonar.sample_rate_hz)
-    band_top = pulse_band_top_hz(sonar.pulse)
-    corner = ReceiverChain().bandpass_high_hz
-    needed = max(2.0 * band_top, 0.0 if corner is None else 2.0 * corner)
-    if fs <= needed:
-        raise SceneFileError(
-            f"{source}: sonar.sample_rate_hz = {fs:g} must exceed {needed:g} Hz (twice the pulse's band top "
-            f"{band_top:g} Hz and the receiver's band-pass corner {corner or 0.0:g} Hz)"
-        )
+    try:
+        check_sampling(scene.sonar, source=source)
+    except InputError as exc:
+        raise SceneFileError(str(exc)) from None
 
 
 def _check_sonar(scene: Scene, source: str) -> None:
@@ -188,6 +223,7 @@ def validate_scene(scene: Scene, source: str | None = None) -> None:
     SceneFileError
         The first problem found, on one line naming the source, the key and the value.
     """
+    checks.instance("", "scene", scene, Scene, "a Scene")
     where = source if source is not None else scene.name
     _check_names(scene, where)
     _check_in_water(scene, where)

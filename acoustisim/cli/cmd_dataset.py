@@ -9,7 +9,9 @@
 - ``acoustisim dataset info DATA.zarr [--json]``
 
 A bad spec raises ``SpecError`` (naming the key and the value): the main wrapper prints one line
-and exits with 2, before any work starts.
+and exits with 2, before any work starts. The spec's pre-flight (its worst sample and chunk
+against the resource limits) uses the limits of the environment (``ACOUSTISIM_MAX_MEMORY_GB``
+and the like), which the workers inherit.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from acoustisim.cli.arguments import int_at_least, path_argument
 
 
 def _generate(args: argparse.Namespace) -> int:
@@ -88,9 +91,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     sub.required = True
 
     gen = sub.add_parser("generate", help="generate or resume a dataset from a spec file")
-    gen.add_argument("spec", metavar="SPEC.toml", help="dataset specification (see examples/dataset_spec.toml)")
-    gen.add_argument("--out", required=True, metavar="DATA.zarr", help="Zarr store to create or resume")
-    gen.add_argument("--workers", type=int, default=None, metavar="N",
+    gen.add_argument("spec", metavar="SPEC.toml", type=path_argument,
+                     help="dataset specification (see examples/dataset_spec.toml)")
+    gen.add_argument("--out", required=True, type=path_argument, metavar="DATA.zarr",
+                     help="Zarr store to create or resume")
+    gen.add_argument("--workers", type=int_at_least(0), default=None, metavar="N",
                      help="worker processes of the local Dask cluster (default: CPU count; 0: no Dask, this process)")
     gen.add_argument("--scheduler", default=None, metavar="ADDRESS",
                      help="use a running dask.distributed scheduler (its workers must see --out at the same "
@@ -103,12 +108,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     gen.set_defaults(run=_generate)
 
     ver = sub.add_parser("verify", help="check completeness and per-sample checksums (exit 1 if not OK)")
-    ver.add_argument("data", metavar="DATA.zarr")
+    ver.add_argument("data", metavar="DATA.zarr", type=path_argument)
     ver.add_argument("--json", action="store_true")
     ver.set_defaults(run=_verify)
 
     inf = sub.add_parser("info", help="describe a dataset (card, counts, SNR histogram)")
-    inf.add_argument("data", metavar="DATA.zarr")
+    inf.add_argument("data", metavar="DATA.zarr", type=path_argument)
     inf.add_argument("--json", action="store_true")
     inf.set_defaults(run=_info)
 

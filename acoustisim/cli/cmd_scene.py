@@ -14,6 +14,8 @@ import argparse
 import json
 from typing import Any
 
+from acoustisim.cli.arguments import add_limit_arguments, with_limits
+
 
 def _list(args: argparse.Namespace) -> int:
     from scenes.builtin import builtin_scene_names
@@ -27,9 +29,12 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
+    from acoustisim.preflight import preflight
+    from scenes.file_access import shown_path
     from scenes.scene_file import load_scene
 
     scene = load_scene(args.scene)  # raises SceneFileError on any problem
+    preflight(scene, source=shown_path(args.scene))  # one ping, the default solver, the limits in force
     if args.json:
         print(json.dumps({"scene": args.scene, "name": scene.name, "valid": True, "objects": len(scene.objects)}))
     else:
@@ -104,7 +109,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     validate = actions.add_parser("validate", help="check a scene file or built-in scene (exit 2 if bad)")
     validate.add_argument("scene", metavar="FILE_OR_NAME", help="scene file (TOML) or built-in scene name")
     validate.add_argument("--json", action="store_true", help="print one JSON object")
-    validate.set_defaults(run=_validate)
+    add_limit_arguments(validate)
+    validate.set_defaults(run=with_limits(_validate))
 
     show = actions.add_parser(
         "show", help="objects, kinds, materials, bounds, triangle counts, sonar pose, sound speed"
@@ -114,4 +120,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     form.add_argument("--json", action="store_true", help="print one JSON object on stdout, nothing else")
     form.add_argument("--toml", action="store_true",
                       help="print the scene as a scene file (TOML; mesh paths absolute), e.g. to start your own")
-    show.set_defaults(run=_show)
+    add_limit_arguments(show)
+    show.set_defaults(run=with_limits(_show))

@@ -11,22 +11,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import warnings
 
-from acoustisim.cli.arguments import int_at_least
-
-
-def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
-
+from acoustisim.cli.arguments import add_limit_arguments, finite_float, int_at_least, path_argument, seed, with_limits
+from acoustisim.ranges import SNR_DB
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -42,6 +31,12 @@ def _run(args: argparse.Namespace) -> int:
         amplitude_floor_db=None if args.keep_all_paths else SolverConfig().amplitude_floor_db,
         backend=args.backend,
     )
+    from acoustisim.preflight import preflight
+    from scenes.file_access import shown_path
+
+    # everything checked before any work, with the options named as the user typed them
+    preflight(scene, config=config, n_pings=args.pings, snr_db=args.snr_db, source=shown_path(args.scene),
+              pings_key="--pings", order_key="--max-order")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         sim = simulate(
@@ -90,10 +85,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Trace the scene's paths, synthesise the three digitised channels and write the recording.",
     )
     parser.add_argument("scene", metavar="FILE_OR_NAME", help="scene file (TOML) or built-in scene name")
-    parser.add_argument("-o", "--output", required=True, metavar="PING.h5", help="recording file to write")
-    parser.add_argument("--seed", type=int_at_least(0), default=0, help="noise seed (default 0)")
+    parser.add_argument("-o", "--output", required=True, type=path_argument, metavar="PING.h5",
+                        help="recording file to write")
+    parser.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
     parser.add_argument(
-        "--snr-db", type=_finite_float, default=None, metavar="X",
+        "--snr-db", type=finite_float(SNR_DB), default=None, metavar="X",
         help="set 2E/N0 (dB) of the named echo on each channel with white noise",
     )
     parser.add_argument(
@@ -103,9 +99,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--pings", type=int_at_least(1), default=1, metavar="N", help="pings (independent noise)")
     parser.add_argument("--max-order", type=int_at_least(1), default=None, metavar="N", help="most reflections per path")
     parser.add_argument("--keep-all-paths", action="store_true", help="turn off the solver's amplitude floor")
-    parser.add_argument("--backend", default="fast", metavar="{fast,reference}",
+    parser.add_argument("--backend", default="fast", choices=("fast", "reference"),
                         help="propagation engine: fast (compiled, default) or reference (plain numpy, "
                              "one module per mechanism; the same paths, slower)")
     parser.add_argument("--average", action="store_true", help="store the mean of the pings as one ping")
     parser.add_argument("--json", action="store_true", help="print one JSON object (arrivals table) on stdout")
-    parser.set_defaults(run=_run)
+    add_limit_arguments(parser)
+    parser.set_defaults(run=with_limits(_run))

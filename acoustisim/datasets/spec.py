@@ -26,12 +26,30 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
 
+from acoustisim.checks import shown
 from acoustisim.errors import InputError
 from acoustisim.materials import material_library
+from acoustisim.ranges import LENGTH_M
+
+MAX_SPEC_FILE_BYTES = 1 << 20
+"""Largest spec file read (bytes)."""
+
+MAX_SAMPLES = 10_000_000
+"""Most samples in one dataset: the driver draws every sample's plan before any work."""
+
+MAX_ARRIVALS = 1_000_000
+"""Most arrival rows stored per sample (a dense array per sample in every chunk)."""
+
+ARRIVAL_ROW_BYTES = 8 * 24
+"""Bytes of one stored arrival row (float64 fields)."""
+
+REFLECTORS_PER_KIND: Mapping[str, int] = MappingProxyType({"sphere": 1, "post": 3, "cylinder": 3, "edge": 5, "plate": 6})
+"""Reflecting surfaces of one object of each kind (see :func:`acoustisim.resources.reflector_count`)."""
 
 
 class SpecError(InputError):
@@ -216,6 +234,16 @@ class DatasetSpec:
 
 
 # ----------------------------------------------------------------------------- parsing
+def _finite(value: Any) -> bool:
+    """A real number (not a bool) that converts to a finite float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 def _where(source: str, key: str) -> str:
     return f"{source}: {key}" if source else key
 
@@ -234,7 +262,7 @@ class _Reader:
         return _where(self.source, f"{self.section}.{key}" if self.section else key)
 
     def fail(self, key: str, value: Any, problem: str) -> SpecError:
-        return SpecError(f"{self.key(key)} = {value!r}: {problem}")
+        return SpecError(f"{self.key(key)} = {shown(value)}: {problem}")
 
     def number(self, key: str, default: float | None = None, *, positive: bool = False, minimum: float | None = None) -> float:
         if key not in self.table:
@@ -242,7 +270,7 @@ class _Reader:
                 raise SpecError(f"{self.key(key)}: required key missing")
             return float(default)
         value = self.table.pop(key)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if not _finite(value):
             raise self.fail(key, value, "expected a finite number")
         if positive and value <= 0:
             raise self.fail(key, value, "must be > 0")
@@ -250,7 +278,8 @@ class _Reader:
             raise self.fail(key, value, f"must be >= {minimum}")
         return float(value)
 
-    def integer(self, key: str, default: int | None = None, *, minimum: int = 0) -> int:
+    def integer(self, key: str, default: int | None = None, *, minimum: int = 0, maximum: int | None = None,
+                reason: str = "") -> int:
         if key not in self.table:
             if default is None:
                 raise SpecError(f"{self.key(key)}: required key missing")
@@ -260,6 +289,8 @@ class _Reader:
             raise self.fail(key, value, "expected an integer")
         if value < minimum:
             raise self.fail(key, value, f"must be >= {minimum}")
+        if maximum is not None and value > maximum:
+            raise self.fail(key, value, f"must be <= {maximum:,}" + (f" ({reason})" if reason else ""))
         return int(value)
 
     def string(self, key: str, default: str | None = None, choices: tuple[str, ...] | None = None) -> str:
@@ -284,11 +315,7 @@ class _Reader:
             return Range(float(default[0]), float(default[1]))
         value = self.table.pop(key)
         pair = [value, value] if isinstance(value, (int, float)) and not isinstance(value, bool) else value
-        if (
-            not isinstance(pair, list)
-            or len(pair) != 2
-            or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in pair)
-        ):
+        if not isinstance(pair, list) or len(pair) != 2 or not all(_finite(v) for v in pair):
             raise self.fail(key, value, "expected a number or a [low, high] pair of finite numbers")
         low, high = float(pair[0]), float(pair[1])
         if low > high:
@@ -300,6 +327,13 @@ class _Reader:
         if maximum is not None and high > maximum:
             raise self.fail(key, value, f"must be <= {maximum}")
         return Range(low, high)
+
+    def length(self, key: str, default: tuple[float, float] | None = None) -> Range:
+        """A range of sizes (m), inside :data:`acoustisim.ranges.LENGTH_M`."""
+        r = self.range(key, default, positive=True)
+        if not (LENGTH_M.contains(r.low) and LENGTH_M.contains(r.high)):
+            raise self.fail(key, [r.low, r.high], LENGTH_M.describe())
+        return r
 
     def int_range(self, key: str, default: tuple[int, int]) -> IntRange:
         if key not in self.table:
@@ -451,7 +485,7 @@ def _object_spec(table: Any, index: int, source: str) -> ObjectSpec:
             if key == "interior_angle_deg":
                 r = reader.range(key, minimum=1.0, maximum=179.0)
             else:
-                r = reader.range(key, positive=True)
+                r = reader.length(key)
         elif key in reader.table:
             r = reader.range(key, minimum=-180.0 if angle else None, maximum=180.0 if angle else None)
         else:
@@ -486,10 +520,12 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
 
     d = sections["dataset"]
     name = d.string("name", default="dataset")
-    n_samples = d.integer("n_samples", minimum=1)
-    seed = d.integer("seed", minimum=0)
+    n_samples = d.integer("n_samples", minimum=1, maximum=MAX_SAMPLES,
+                          reason="the driver plans every sample before any work")
+    seed = d.integer("seed", minimum=0, maximum=2**63 - 1)
     n_pings = d.integer("n_pings", default=1, minimum=1)
-    max_arrivals = d.integer("max_arrivals", default=1024, minimum=1)
+    max_arrivals = d.integer("max_arrivals", default=1024, minimum=1, maximum=MAX_ARRIVALS,
+                             reason="each sample stores this many rows")
     samples_per_chunk = d.integer("samples_per_chunk", default=DEFAULT_SAMPLES_PER_CHUNK, minimum=1)
     d.done()
 
@@ -504,9 +540,9 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
 
     t = sections["tank"]
     tank = TankSpec(
-        t.range("length_m", (9.0, 9.0), positive=True),
-        t.range("width_m", (3.0, 3.0), positive=True),
-        t.range("water_depth_m", (1.0, 1.0), positive=True),
+        t.length("length_m", (9.0, 9.0)),
+        t.length("width_m", (3.0, 3.0)),
+        t.length("water_depth_m", (1.0, 1.0)),
         t.materials("wall_materials", ("concrete",)),
         t.materials("floor_materials", ("concrete",)),
     )
@@ -555,7 +591,7 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
     objects = tuple(_object_spec(table, i, source) for i, table in enumerate(objects_raw))
     check_objects_fit(objects, tank, placement, source)
 
-    return DatasetSpec(
+    spec = DatasetSpec(
         name=name,
         n_samples=n_samples,
         seed=seed,
@@ -571,23 +607,87 @@ def parse_spec(data: Mapping[str, Any], source: str = "") -> DatasetSpec:
         samples_per_chunk=samples_per_chunk,
         source=source,
     )
+    check_spec_resources(spec)
+    return spec
+
+
+def _worst_triangles(obj: ObjectSpec) -> int:
+    """Triangles of the largest object an ``[[objects]]`` entry can draw."""
+    from scenes.tessellation import circle_segments, icosphere_subdivisions
+
+    if obj.kind == "sphere":
+        return 20 * 4 ** icosphere_subdivisions(obj.range("radius_m").high)
+    if obj.kind in ("post", "cylinder"):
+        return 4 * circle_segments(obj.range("radius_m").high)
+    return 8 if obj.kind == "edge" else 12
+
+
+def check_spec_resources(spec: DatasetSpec) -> None:
+    """The pre-flight of a dataset: the sampling of its sonar, and the worst sample and chunk
+    against the limits in force (:func:`acoustisim.resources.current_limits`; a worker checks
+    every sample again when it simulates it).
+
+    Raises
+    ------
+    SpecError
+        The message names the spec file, the estimate and the limit.
+    """
+    from acoustisim.preflight import check_resources, check_sampling
+    from acoustisim.propagation.config import SolverConfig
+    from acoustisim.resources import PATH_ROW_BYTES, ResourceEstimate, chain_bound, current_limits, signal_estimate
+    from scenes.builders import default_sonar
+
+    where = spec.source or spec.name
+    sonar = dataclasses.replace(default_sonar(), **dict(spec.sonar.overrides))
+    config = SolverConfig(**dict(spec.solver))
+    try:
+        check_sampling(sonar, source=f"{where}: [sonar]")
+        signal = signal_estimate(sonar, spec.n_pings)
+        chunk = spec.samples_per_chunk
+        reflectors = 6 + sum(REFLECTORS_PER_KIND[o.kind] * o.count.high for o in spec.objects)
+        mechanisms = tuple(config.mechanisms)
+        rays = int(config.diffuse_rays) * int(config.diffuse_bounces) if "diffuse" in mechanisms else 0
+        triangles = sum(_worst_triangles(o) * o.count.high for o in spec.objects)
+        estimate = ResourceEstimate(
+            n_pings=spec.n_pings, n_samples=signal.n_samples,
+            recording_bytes=chunk * (signal.recording_bytes + spec.max_arrivals * ARRIVAL_ROW_BYTES),
+            synthesis_bytes=signal.synthesis_bytes, path_rows=3 + 3 * rays, path_table_bytes=(3 + 3 * rays) * PATH_ROW_BYTES,
+            objects=spec.max_objects, triangles=triangles, rays=rays, reflectors=reflectors,
+            max_order=int(config.max_order),
+            chains=chain_bound(reflectors, int(config.max_order)) if "specular" in mechanisms else 0.0)
+        check_resources(estimate, current_limits(), sonar, source=where, pings_key="[dataset] n_pings",
+                        order_key="[solver] max_order", flags=False)
+    except InputError as exc:
+        raise SpecError(str(exc)) from None
 
 
 def loads_spec(text: str, source: str = "") -> DatasetSpec:
-    """Parse and validate spec text (TOML)."""
+    """Parse and validate spec text (TOML): bounded nesting, every key checked, the pre-flight."""
+    from scenes.scene_file import parse_toml
+
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{source or 'spec'}: not valid TOML: {exc}") from None
+        data = parse_toml(text, source or "spec")
+    except InputError as exc:
+        raise SpecError(str(exc)) from None
     return parse_spec(data, source)
 
 
 def load_spec(path: str | Path) -> DatasetSpec:
-    """Read and validate a spec file."""
-    p = Path(path)
-    if not p.is_file():
-        raise SpecError(f"{p}: spec file not found")
-    return loads_spec(p.read_text(encoding="utf-8"), str(p))
+    """Read and validate a spec file (a regular file of at most :data:`MAX_SPEC_FILE_BYTES`)."""
+    from scenes.file_access import path_text, read_regular_file, shown_path
+
+    try:
+        text_path = path_text(path, "spec file")
+        source = shown_path(text_path)
+        raw = read_regular_file(text_path, max_bytes=MAX_SPEC_FILE_BYTES, label=source)
+    except InputError as exc:
+        message = str(exc)
+        raise SpecError(message.replace(": no such file", ": spec file not found")) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"{source}: cannot read (not UTF-8 text: {exc.reason} at byte {exc.start})") from None
+    return loads_spec(text, text_path)
 
 
 def spec_from_dict(data: Mapping[str, Any]) -> DatasetSpec:

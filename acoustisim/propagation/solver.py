@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
+from acoustisim.preflight import check_solve
 from acoustisim.propagation.config import MECHANISMS, SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.engine import engine_for
@@ -104,6 +105,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     InputError
         Degenerate meshes, a transducer touching a surface or coincident with the transmitter.
     """
+    check_solve(scene, sonar, config)  # types and resource limits before any work (acoustisim.preflight)
     config = SolverConfig() if config is None else config
     if not isinstance(config, SolverConfig):
         raise InputError(f"solver config must be a SolverConfig, got {type(config).__name__}")

@@ -92,9 +92,11 @@ def test_sonar_touching_or_inside_an_object():
 
 
 def test_receiver_coincident_with_transmitter():
-    sonar = replace(SonarHead(), channel_positions_m=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.065, 0.0, 0.0)))
-    with pytest.raises(InputError, match="left receiver.*coincides"):
-        solve(_scene(sonar=sonar), config=DETERMINISTIC)
+    """Two transducers on one spot are refused when the head is described, before any solve."""
+    with pytest.raises(InputError, match="channel_positions_m.*left transducer coincides with the centre"):
+        replace(SonarHead(), channel_positions_m=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.065, 0.0, 0.0)))
+    with pytest.raises(InputError, match="left transducer coincides with the right"):
+        replace(SonarHead(), channel_positions_m=((0.1, 0.0, 0.0), (0.0, 0.0, 0.0), (0.1, 0.0, 0.001)))
 
 
 def test_wrong_config_type():

@@ -146,7 +146,53 @@ CASES = [
      "objects[0].bottom_m", "missing"),
     ("missing-tank", lambda d, _: d.pop("tank"), "tank", "missing"),
     ("bad-channel-rows", _set("sonar.channel_positions_m", [[0, 0, 0]]), "sonar.channel_positions_m", "[[0, 0, 0]]"),
+    # numbers at the edges of floating point, and values no simulation can use
+    ("sphere-radius-1e300", _set("objects.1.radius_m", 1e300), "objects[1].radius_m", "1e+300"),
+    ("sphere-radius-1e-300", _set("objects.1.radius_m", 1e-300), "objects[1].radius_m", "1e-300"),
+    ("post-radius-1e300", _set("objects.0.radius_m", 1e300), "objects[0].radius_m", "1e+300"),
+    ("post-radius-1e308", _set("objects.0.radius_m", 1e308), "objects[0].radius_m", "1e+308"),
+    ("radius-400-digits", _set("objects.1.radius_m", 10**400), "objects[1].radius_m", "too large"),
+    ("pulse-1e300", _set("sonar.pulse_duration_s", 1e300), "sonar.pulse_duration_s", "1e+300"),
+    ("pulse-1e-300", _set("sonar.pulse_duration_s", 1e-300), "sonar.pulse_duration_s", "1e-300"),
+    ("ph-1e300", _set("medium.ph", 1e300), "medium.ph", "1e+300"),
+    ("depth-1e300", _set("medium.depth_m", 1e300), "medium.depth_m", "1e+300"),
+    ("centre-frequency-1e300", _set("sonar.centre_frequency_hz", 1e300), "sonar.centre_frequency_hz", "1e+300"),
+    ("centre-frequency-above-nyquist", _set("sonar.centre_frequency_hz", 15e6), "sonar.centre_frequency_hz",
+     "1.5e+07"),
+    ("source-level-1e300", _set("sonar.source_level_pa", 1e300), "sonar.source_level_pa", "1e+300"),
+    ("sample-rate-1e12", _set("sonar.sample_rate_hz", 1e12), "sonar.sample_rate_hz", "1000000000000.0"),
+    ("record-1e6", _set("sonar.record_length_s", 1e6), "sonar.record_length_s", "1000000.0"),
+    ("record-1e-12", _set("sonar.record_length_s", 1e-12), "sonar.record_length_s", "1e-12"),
+    ("tank-1e300", _set("tank.length_m", 1e300), "tank.length_m", "1e+300"),
+    ("yaw-1e300", _set("sonar.yaw_deg", 1e300), "sonar.yaw_deg", "1e+300"),
+    ("edge-angle-1e-10", _set("objects.3.interior_angle_deg", 1e-10), "objects[3].interior_angle_deg", "1e-10"),
+    ("coincident-channels", _set("sonar.channel_positions_m", [[0, 0, 0], [0, 0, 0], [0.065, 0, 0]]),
+     "sonar.channel_positions_m", "coincides with the centre"),
+    ("separation-1e-300", _set("sonar.separation_m", 1e-300), "sonar.separation_m", "1e-300"),
+    ("name-1000-chars", _set("objects.0.name", "n" * 1000), "objects[0].name", "at most 200"),
+    ("mesh-nan-vertices", lambda d, directory: (
+        (directory / "nan.stl").write_text(_NAN_STL), d["objects"][2].update(path="nan.stl")),
+     "objects[2].path", "non-finite"),
+    ("mesh-dev-zero", _set("objects.2.path", "/dev/zero"), "objects[2].path", "character device"),
+    ("mesh-directory", _set("objects.2.path", "."), "objects[2].path", "directory"),
+    ("mesh-300-char-name", _set("objects.2.path", "m" * 300 + ".stl"), "objects[2].path", "File name too long"),
+    ("mesh-5000-char-path", _set("objects.2.path", "m" * 5000 + ".stl"), "objects[2].path", "File name too long"),
+    ("mesh-not-a-mesh-format", lambda d, directory: (
+        (directory / "notes.txt").write_text("not a mesh"), d["objects"][2].update(path="notes.txt")),
+     "objects[2].path", "unknown mesh format"),
 ]
+
+
+_NAN_STL = """solid t
+facet normal 0 0 0
+outer loop
+vertex nan 0 0
+vertex 0.1 0 0
+vertex 0 0.1 0
+endloop
+endfacet
+endsolid t
+"""
 
 
 def _write(tmp_path: Path, mutate) -> Path:
@@ -218,13 +264,76 @@ def test_not_utf8(tmp_path):
 
 
 def test_unreadable_mesh_branch(tmp_path, monkeypatch):
-    # As root a mode-000 file stays readable, so force the permission check to fail.
+    # As root a mode-000 file stays readable, so make the open itself fail as it would for a user.
+    import scenes.file_access as file_access
+
+    path = _write(tmp_path, lambda d, _: None)
+    real_open = file_access.os.open
+
+    def refuse(name, *args, **kwargs):
+        if str(name).endswith("rock.stl"):
+            raise PermissionError(13, "Permission denied")
+        return real_open(name, *args, **kwargs)
+
+    monkeypatch.setattr(file_access.os, "open", refuse)
+    with pytest.raises(SceneFileError, match=r"objects\[2\]\.path = 'rock.stl'.*cannot open \(Permission denied\)"):
+        load_scene(path)
+
+
+def test_centre_frequency_blames_itself_not_the_sample_rate(tmp_path):
+    for value in (1e300, 15e6):
+        path = _write(tmp_path, _set("sonar.centre_frequency_hz", value))
+        with pytest.raises(SceneFileError) as info:
+            load_scene(path)
+        assert str(info.value).split(": ")[1].startswith("sonar.centre_frequency_hz"), str(info.value)
+
+
+def test_scene_files_that_are_not_regular_files(tmp_path, capsys):
+    for target, needle in ((tmp_path, "is a directory"), (Path("/dev/null"), "is a character device"),
+                           (tmp_path / ("b" * 300 + ".toml"), "File name too long"),
+                           (tmp_path / ("c" * 5000), "File name too long")):
+        with pytest.raises(SceneFileError, match=needle):
+            load_scene(target)
+        assert main(["scene", "validate", str(target)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err and len(err) < 600  # long paths are shortened
+    (tmp_path / "loop_a.toml").symlink_to(tmp_path / "loop_b.toml")
+    (tmp_path / "loop_b.toml").symlink_to(tmp_path / "loop_a.toml")
+    with pytest.raises(SceneFileError, match="Too many levels of symbolic links"):
+        load_scene(tmp_path / "loop_a.toml")
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("x = " + "[" * 10_000 + "]" * 10_000, "nested too deeply"),
+    ("x = " + "{a = " * 3_000 + "1" + "}" * 3_000, "nested too deeply"),
+    ("a" + ".a" * 5_000 + " = 1", "nested more than 16 levels"),
+    ("[tank]\nlength_m = " + "9" * 5_000, "not valid TOML: Exceeds the limit"),
+])
+def test_toml_nesting_and_number_length_are_bounded(tmp_path, text, needle):
+    path = tmp_path / "deep.toml"
+    path.write_text(text)
+    with pytest.raises(SceneFileError, match=needle):
+        load_scene(path)
+
+
+def test_scene_file_size_is_bounded(tmp_path, monkeypatch):
     import scenes.scene_file as scene_file
 
     path = _write(tmp_path, lambda d, _: None)
-    monkeypatch.setattr(scene_file.os, "access", lambda *_: False)
-    with pytest.raises(SceneFileError, match=r"objects\[2\]\.path = 'rock.stl': mesh file not readable"):
+    monkeypatch.setattr(scene_file, "MAX_SCENE_FILE_BYTES", 100)
+    with pytest.raises(SceneFileError, match=r"bytes, more than the 100 accepted"):
         load_scene(path)
+
+
+def test_too_many_objects_are_refused_before_they_are_built(tmp_path):
+    from acoustisim.resources import ResourceLimits, resource_limits
+
+    path = _write(tmp_path, lambda d, _: d.update(objects=d["objects"][:1] * 50))
+    with resource_limits(ResourceLimits(max_objects=10)), pytest.raises(SceneFileError, match="50 objects"):
+        load_scene(path)
+    big = _write(tmp_path, lambda d, _: d["objects"][1].update(radius_m=0.4))  # 81,920-triangle icosphere
+    with resource_limits(ResourceLimits(max_triangles=1000)), pytest.raises(SceneFileError, match="triangles"):
+        load_scene(big)
 
 
 def test_sample_rate_too_low_for_the_pulse_and_the_receiver(tmp_path, capsys):
