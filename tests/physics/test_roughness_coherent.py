@@ -76,7 +76,7 @@ def test_corner_of_a_post_and_the_floor_splits_the_turn_by_the_normals(backend, 
     # one point, the leg between them of zero length. By hand: the incoming direction d hits the
     # floor at sin g = |d_z| and the post (vertical axis, horizontal radial normal n) at
     # |d . n| (the floor reflection flips d_z only). Different h on the two surfaces make a wrong
-    # split visible (an equal split of the turn would give S 2.9 times larger here).
+    # split visible (an equal split of the turn would give S 5.4 times larger here).
     scene = rough_thesis_tank
     paths = solve(scene, config=SolverConfig(mechanisms=DETERMINISTIC, backend=backend))
     rows = rows_touching(paths, 2, "post-1", "floor")
