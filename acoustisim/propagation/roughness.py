@@ -251,9 +251,9 @@ def apply_coherent_roughness(rows: NDArray[Any], prepared: PreparedScene, contex
     heights = surface_rms_heights(prepared.scene)
     if rows.size == 0 or not np.any(heights > 0.0):
         return
-    ids = rows["object_ids"].astype(np.intp)
-    touches = np.any((ids >= 0) & (np.append(heights, 0.0)[ids] > 0.0), axis=1)
-    at = np.flatnonzero(touches & (rows["kind"] == PathKind.SPECULAR))
+    specular = np.flatnonzero(rows["kind"] == PathKind.SPECULAR)
+    rough = np.append(heights, 0.0) > 0.0  # index -1 (padding): smooth
+    at = specular[np.any(rough[rows["object_ids"][specular]], axis=1)]
     if at.size == 0:
         return
     s = roughness_m2(rows[at], prepared, context.transmitter_m, context.receivers_m)
