@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from acoustisim.materials import get_material
+from acoustisim.materials import get_material, material_library
 from acoustisim.propagation import SolverConfig, solve
 from acoustisim.propagation import solver as solver_module
 from acoustisim.propagation.paths import PathKind
@@ -169,8 +169,10 @@ def test_synthesised_floor_echo_is_the_smooth_one_times_exp_minus_s_k_squared(th
 
 
 def test_smooth_scenes_are_untouched_byte_for_byte(thesis_tank, monkeypatch):
-    # Every built-in material is smooth: the roughness step leaves the thesis tank's rows and
-    # its recording (every mechanism, diffuse included) exactly as they are without the step.
+    # Every built-in material is smooth (materials.py says why): the roughness step leaves the
+    # thesis tank's rows and its recording (every mechanism, diffuse included) exactly as they
+    # are without the step.
+    assert all(m.roughness_rms_m == 0.0 for m in material_library().values())
     config = SolverConfig(diffuse_rays=3000)
     with_step = simulate(thesis_tank, solver_config=config, seed=3)
     monkeypatch.setattr(solver_module, "apply_coherent_roughness", lambda rows, prepared, context: None)
