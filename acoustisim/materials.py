@@ -40,8 +40,23 @@ and shear waves. With time dependence exp(-i w t) a wave of speed c and loss fac
 wavenumber k = (w / c)(1 + i eta / 2) (structural-acoustics convention, ``conventions.md``); the
 attenuation is alpha = eta w / (2 c) Np/m, i.e. eta = alpha c / (pi f) (constant over the band:
 attenuation proportional to frequency). ``roughness_rms_m`` is the rms height h of the face, for
-the coherent-reflection (Kirchhoff / Eckart) factor of :mod:`acoustisim.scattering.roughness`
-(0 for every built-in: the tank's faces are not characterised; a scene file sets it).
+the coherent-reflection (Kirchhoff / Eckart) factor of :mod:`acoustisim.scattering.roughness`:
+every specular reflection on the face loses exp(-2 (k h sin g)^2) of its pressure
+(:mod:`acoustisim.propagation.roughness`) and the diffuse tracer scatters the lost energy on top
+of the face's own mu (:mod:`acoustisim.propagation.reference.diffuse`).
+
+Roughness defaults: 0 for every built-in material. The sources cited here give no surface
+heights, neither for the tank's concrete nor for its objects. The only heights this module
+derives are those behind the Lambert strengths (steel's mu = 0.002 is about 31 um rms, the
+machined finish 3 um; by the same relation, mu proportional to h^2, concrete's 0.01 would be
+at least 68 um and PVC's 0.003 at least 37 um): a roughness on the scale of the wavelength whose
+scattered energy ``diffuse_mu`` already carries. Giving that roughness to ``roughness_rms_m``
+too would count its energy twice in the diffuse part, for a coherent loss that would be small
+anyway (68 um at 500 kHz: 0.36 dB per reflection at normal incidence, 0.09 dB at 30 deg). A
+long-correlation roughness such as issue 17's example floor (0.5 mm rms: 4.9 dB per reflection
+at 30 deg grazing, 19.5 dB at normal incidence) changes the tank's echoes a lot and is a
+property of one tank that no cited source measures: a scene file sets it
+(``[[materials]]`` with ``roughness_rms_m``, and ``diffuse_mu`` for the scattering on top).
 
 Sources of the built-in elastic values (rho kg/m^3, c_L / c_S m/s) are the handbook values of
 ``physics.md`` section 3 (PVC 1380, 2380/1060; concrete 2300, 4000/2300; glass 2500,

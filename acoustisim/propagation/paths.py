@@ -59,7 +59,7 @@ PATH_DTYPE = np.dtype(
         ("directivity_tx", np.float64),  # 2 J1(x)/x at the centre frequency
         ("directivity_rx", np.float64),  # 2 J1(x)/x at the centre frequency
         ("absorption_db", np.float64),  # at the centre frequency (dB, positive = loss)
-        ("amplitude", np.float64),  # |echo pressure factor| at the centre frequency
+        ("amplitude", np.float64),  # |echo pressure factor| at f0, coherent-roughness factor included
         ("departure_dir", np.float64, (3,)),  # unit vector leaving the transmitter (tank frame)
         ("arrival_dir", np.float64, (3,)),  # unit vector of propagation arriving at the receiver
         ("object_ids", np.int16, (MAX_INTERACTIONS,)),  # index into Paths.surface_names, -1 pad
@@ -180,12 +180,21 @@ class Paths:
         return out[np.lexsort((out["delay_s"], out["channel"]))]
 
     def arrivals_table(self) -> list[dict[str, Any]]:
-        """The arrivals as JSON-ready dictionaries (columns of ``conventions.md``)."""
+        """The arrivals as JSON-ready dictionaries (columns of ``conventions.md``).
+
+        Beyond those columns, ``roughness_loss_db``: the coherent-roughness loss at the centre
+        frequency (dB, positive; 0 for smooth surfaces), 20 S k0^2 / ln 10 of the row's
+        ``roughness_m2`` S (k0 = 2 pi f0 / c), already included in ``amplitude``
+        (:mod:`acoustisim.propagation.roughness`).
+        """
         arrivals = Paths(self.arrivals(), self.surface_names, self.centre_frequency_hz, self.sound_speed_m_s)
         labels = arrivals.object_labels()
         channel_names = ("left", "centre", "right")
+        k0 = 2.0 * np.pi * self.centre_frequency_hz / self.sound_speed_m_s
+        # the coherent-roughness loss at f0 (dB, positive), already in "amplitude": -20 log10 exp(-S k0^2)
+        roughness_loss = arrivals.rows["roughness_m2"] * (k0 * k0 * 20.0 / np.log(10.0))
         table = []
-        for row, label in zip(arrivals.rows, labels):
+        for i, (row, label) in enumerate(zip(arrivals.rows, labels)):
             n = int(row["order"])
             table.append(
                 {
@@ -199,6 +208,7 @@ class Paths:
                     "directivity_rx": float(row["directivity_rx"]),
                     "absorption_db": float(row["absorption_db"]),
                     "amplitude": float(row["amplitude"]),
+                    "roughness_loss_db": float(roughness_loss[i]),
                     "path_length_m": float(row["path_length_m"]),
                     "departure_dir": [float(v) for v in row["departure_dir"]],
                     "arrival_dir": [float(v) for v in row["arrival_dir"]],

@@ -5,7 +5,9 @@ asks the engine ``config.backend`` names (:func:`~acoustisim.propagation.engine.
 for each mechanism named in ``config.mechanisms``, in the order of
 :data:`~acoustisim.propagation.config.MECHANISMS` (direct, specular, edge, diffuse), each
 starting its path ids at the next free one; the engine then assembles the rows (derived
-columns, order by channel and delay, amplitude floor judged across the pulse band).
+columns, order by channel and delay, amplitude floor judged across the pulse band). Last, the
+engine-independent coherent-roughness step (:func:`~acoustisim.propagation.roughness.apply_coherent_roughness`)
+gives the specular rows on rough surfaces their ``roughness_m2`` and their loss at f0.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.engine import engine_for
 from acoustisim.propagation.paths import PATH_DTYPE, Paths
 from acoustisim.propagation.prepared import PreparedScene, prepare
+from acoustisim.propagation.roughness import apply_coherent_roughness
 from acoustisim.scene import Scene
 from acoustisim.sonar import CHANNEL_NAMES, SonarHead
 
@@ -133,6 +136,8 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         if rows.size:
             next_id = max(next_id, int(rows["path_id"].max()) + 1)
     rows = engine.assemble_rows(parts, context, config)
+    # coherent roughness: every specular reflection on a rough surface, exp(-S k^2) (both engines)
+    apply_coherent_roughness(rows, prepared, context)
     return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s)
 
 

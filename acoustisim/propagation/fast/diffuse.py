@@ -40,6 +40,7 @@ from acoustisim.propagation.fast.diffuse_kernels import (
     PairBuffers,
     RayBatch,
     ReceiverSet,
+    RoughTable,
     SpeckleLattice,
     TriangleSet,
     clear_blocked,
@@ -63,9 +64,11 @@ from acoustisim.propagation.reference.diffuse import (
     CHUNK_RAYS,
     OFFSET_M,
     SPECKLE_CELL_M,
+    RoughScattering,
     check_ray_budget,
     chunk_sizes,
     ray_counts,
+    rough_scattering,
     seed_hash,
     tested_receivers,
     transmitter_frame,
@@ -135,6 +138,8 @@ class Tracer:
     raycaster : RayCaster
     lobe : LobeTable
     triangles : TriangleSet
+    rough : RoughTable
+        Per surface, the coherent-roughness loss the hits scatter (all k0 h = 0: none).
     lattice : SpeckleLattice
     receivers : ReceiverSet
         With row 0 of the tested receivers (first hits); :attr:`later_receivers` has row 1.
@@ -156,6 +161,7 @@ class Tracer:
     raycaster: RayCaster
     lobe: LobeTable
     triangles: TriangleSet
+    rough: RoughTable
     lattice: SpeckleLattice
     receivers: ReceiverSet
     later_receivers: ReceiverSet
@@ -174,8 +180,9 @@ class Tracer:
         """The tracer of ``config``'s rays in ``context`` (None: no surface scatters)."""
         raycaster = context.raycaster
         mu = triangle_mu(context)
+        rough = rough_scattering(context)
         n_rays = int(config.diffuse_rays)
-        if n_rays <= 0 or raycaster.triangle_count == 0 or not np.any(mu > 0.0):
+        if n_rays <= 0 or raycaster.triangle_count == 0 or (rough is None and not np.any(mu > 0.0)):
             return None
         rx = np.ascontiguousarray(context.receivers_m, dtype=float)
         tx = np.asarray(context.transmitter_m, dtype=float)
@@ -191,6 +198,7 @@ class Tracer:
             lobe=lobe_table(context, ray_counts(n_rays)),
             triangles=TriangleSet(mu, np.ascontiguousarray(raycaster.face_normals.T), raycaster.plane_offset,
                                   raycaster.surface_index),
+            rough=rough_table(rough, len(context.scene.surface_names)),
             lattice=SpeckleLattice(1.0 / SPECKLE_CELL_M, seed_hash(int(config.seed))),
             receivers=receivers(0),
             later_receivers=receivers(1),
@@ -212,6 +220,27 @@ class Tracer:
             buffers = self.buffers.buffers = ThreadBuffers.create(min(self.n_rays, CHUNK_RAYS),
                                                                   self.receivers.position.shape[0])
         return buffers
+
+
+def rough_table(rough: RoughScattering | None, n_surfaces: int) -> RoughTable:
+    """The compiled loops' :class:`RoughTable` of the reference's description (None: every
+    surface smooth, k0 h = 0)."""
+    k0h = np.zeros(n_surfaces)
+    constant = np.ones(n_surfaces)
+    impedance = np.ones(n_surfaces)
+    index_sq = np.ones(n_surfaces)
+    if rough is not None:
+        k0h[:] = rough.k0 * rough.rms_height_m
+        z1 = rough.density_kg_m3 * rough.sound_speed_m_s
+        for s, material in enumerate(rough.material):  # a loop over the scene's surfaces
+            if material.model == "fluid":
+                constant[s] = np.nan
+                impedance[s] = material.density_kg_m3 * material.sound_speed_m_s / z1
+                ratio = material.sound_speed_m_s / rough.sound_speed_m_s
+                index_sq[s] = ratio * ratio
+            elif material.model == "fixed":
+                constant[s] = material.fixed_reflection * material.fixed_reflection
+    return RoughTable(k0h, constant, impedance, index_sq)
 
 
 def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | None, n: int) -> NDArray[np.float32]:
@@ -281,8 +310,8 @@ def _trace_chunk(tracer: Tracer, chunk: int) -> tuple[int, int, int]:
         receivers = tracer.receivers if bounce == 1 else tracer.later_receivers
         cursor = BounceCursor(bounce, event_row, -1 if tracer.screen.uses_embree else reception_row, continues)
         rays = RayBatch(triangle, origins, directions, departure, weight, travelled, parent)
-        counts = scatter_and_pair(rays, tracer.triangles, tracer.lattice, receivers, tracer.screen, cursor, out,
-                                  continuation, pairs)
+        counts = scatter_and_pair(rays, tracer.triangles, tracer.rough, tracer.lattice, receivers, tracer.screen,
+                                  cursor, out, continuation, pairs)
         h = counts.hits
         if h == 0:
             break
@@ -363,4 +392,4 @@ def diffuse_rows(context: SolveContext, config: SolverConfig) -> NDArray[Any]:
     return rows
 
 
-__all__ = ("PACK_ROWS", "DiffuseEvents", "ThreadBuffers", "Tracer", "diffuse_rows", "trace_diffuse")
+__all__ = ("PACK_ROWS", "DiffuseEvents", "ThreadBuffers", "Tracer", "diffuse_rows", "rough_table", "trace_diffuse")

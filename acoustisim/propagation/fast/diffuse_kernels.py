@@ -47,6 +47,19 @@ class TriangleSet(NamedTuple):
     surface: NDArray[np.int64]
 
 
+class RoughTable(NamedTuple):
+    """Per surface (n_surfaces,), what the Lambert strength of the coherent-roughness loss
+    (:func:`acoustisim.propagation.reference.diffuse.rough_lambert_mu`) is computed from:
+    ``k0h`` = k0 h (0: smooth surface); for the reflection energy |R|^2, ``constant_energy`` of
+    the angle-independent models (rigid, pressure release, fixed), NaN for the fluid model, whose
+    |R|^2 comes from ``impedance_ratio`` Z2 / Z1 and ``index_sq`` (c2 / c1)^2."""
+
+    k0h: NDArray[np.float64]
+    constant_energy: NDArray[np.float64]
+    impedance_ratio: NDArray[np.float64]
+    index_sq: NDArray[np.float64]
+
+
 class RayBatch(NamedTuple):
     """One bounce's m rays, as columns.
 
@@ -179,13 +192,34 @@ def _slab(px: float, py: float, pz: float, ix: float, iy: float, iz: float, lx: 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def scatter_and_pair(rays: RayBatch, triangles: TriangleSet, lattice: SpeckleLattice, receivers: ReceiverSet,
-                     screen: LegScreen, cursor: BounceCursor, out: EventArrays, continuation: Continuation,
-                     pairs: PairBuffers) -> BounceCounts:
+def rough_lambert_mu(rough: RoughTable, s: int, sin_grazing: float) -> float:
+    """|R|^2 (1 - exp(-4 (k0 h sin g)^2)) / pi of a hit on rough surface ``s`` at incidence grazing
+    sine ``sin_grazing``: the reference's (3), |R|^2 of the fluid model without complex numbers
+    (real below the critical angle, |R| = 1 beyond)."""
+    c1 = min(max(sin_grazing, 0.0), 1.0)  # the cosine of the incidence angle
+    phase = rough.k0h[s] * c1
+    energy = rough.constant_energy[s]
+    if math.isnan(energy):
+        q = 1.0 - rough.index_sq[s] * (1.0 - c1 * c1)  # cos^2 of the transmitted angle
+        if q <= 0.0:
+            energy = 1.0
+        else:
+            c2 = math.sqrt(q)
+            z = rough.impedance_ratio[s] * c1
+            r = (z - c2) / (z + c2)
+            energy = r * r
+    return energy * -math.expm1(-4.0 * phase * phase) / math.pi
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def scatter_and_pair(rays: RayBatch, triangles: TriangleSet, rough: RoughTable, lattice: SpeckleLattice,
+                     receivers: ReceiverSet, screen: LegScreen, cursor: BounceCursor, out: EventArrays,
+                     continuation: Continuation, pairs: PairBuffers) -> BounceCounts:
     """Compact the rays that scatter, solve their hits, and decide every (hit, receiver) pair:
     its geometry and gain, exact occlusion by the convex objects, and the legs Embree must test.
 
-    A ray scatters when it hits a triangle with mu > 0 from its front; its hit point is solved
+    A ray scatters when it hits a triangle with mu > 0 from its front (its surface's mu plus, on
+    a rough surface, :func:`rough_lambert_mu` at the ray's grazing angle); its hit point is solved
     on the triangle's plane (t = (n . v0 - n . o) / (n . d)) and written, with the ray's
     departure, path length, parent, surface, bounce and speckle phase, to the events of ``out``
     from row ``cursor.event_row``, in ray order (h of them); with ``cursor.continues`` its
@@ -228,13 +262,19 @@ def scatter_and_pair(rays: RayBatch, triangles: TriangleSet, lattice: SpeckleLat
         if t < 0:
             continue
         m = triangles.mu[t]
-        if not m > 0.0:
+        s = triangles.surface[t]
+        rough_surface = rough.k0h[s] > 0.0
+        if not (m > 0.0 or rough_surface):
             continue
         nx, ny, nz = triangles.normal[0, t], triangles.normal[1, t], triangles.normal[2, t]
         dx, dy, dz = direction[0, ray], direction[1, ray], direction[2, ray]
         cos_in = dx * nx + dy * ny + dz * nz
         if not cos_in < 0.0:
             continue
+        if rough_surface:  # sin(g_i) = -cos_in
+            m = m + rough_lambert_mu(rough, s, -cos_in)
+            if not m > 0.0:
+                continue
         o = 0 if one_origin else ray
         ox, oy, oz = origin[0, o], origin[1, o], origin[2, o]
         distance = (triangles.offset[t] - (nx * ox + ny * oy + nz * oz)) / cos_in
@@ -250,7 +290,6 @@ def scatter_and_pair(rays: RayBatch, triangles: TriangleSet, lattice: SpeckleLat
         out.travelled[row] = (rays.travelled[0] if rays.travelled.size == 1 else rays.travelled[ray]) + distance
         out.parent[row] = rays.parent[0] if one_parent else rays.parent[ray]
         out.bounce[row] = cursor.bounce
-        s = triangles.surface[t]
         out.surface[row] = s
         if cursor.continues:
             continuation.normal[0, h], continuation.normal[1, h], continuation.normal[2, h] = nx, ny, nz
@@ -471,5 +510,5 @@ def pack_rows(events: EventArrays, receivers: NDArray[np.float64], first_path_id
 
 
 __all__ = ("BounceCounts", "BounceCursor", "Continuation", "EventArrays", "PairBuffers", "RayBatch", "ReceiverSet",
-           "SpeckleLattice", "TriangleSet", "clear_blocked", "copy_chunk", "pack_rows", "scatter_and_pair",
-           "write_receptions")
+           "RoughTable", "SpeckleLattice", "TriangleSet", "clear_blocked", "copy_chunk", "pack_rows",
+           "rough_lambert_mu", "scatter_and_pair", "write_receptions")
