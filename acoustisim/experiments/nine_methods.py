@@ -152,7 +152,7 @@ def time_ratios(summary: dict[str, Any]) -> dict[str, float]:
 def _figure(summary: dict[str, Any], methods: tuple[str, ...], record_ms: float, samples: int,
             range_m: tuple[float, float]) -> Any:
     from acoustisim.experiments.figures import new_figure
-    from acoustisim.experiments.point_target import GATE_HALF_WIDTH_M
+    from acoustisim.experiments.edge_scene import GATE_HALF_WIDTH_M
 
     fig, axes = new_figure(3, 1, row_height=2.2)
     labels = [m.replace("seed-", "") for m in methods]

@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from binsonar.localization.beam_types import EdgePoints, FrequencyLattice, JincTable, PistonRadii
-from binsonar.recording import RecordingError
+from binsonar.errors import InputError
 
 TargetClass = Literal["point", "vertical-edge"]
 TARGET_CLASSES: tuple[str, ...] = ("point", "vertical-edge")
@@ -58,7 +58,7 @@ TARGET_CLASSES: tuple[str, ...] = ("point", "vertical-edge")
 def _unit(vector: ArrayLike, where: str) -> tuple[float, float, float]:
     v = np.asarray(vector, dtype=float).ravel()
     if v.shape != (3,) or not np.all(np.isfinite(v)) or float(np.linalg.norm(v)) == 0.0:
-        raise RecordingError(f"{where} must be a non-zero 3-vector, got {vector!r}")
+        raise InputError(f"{where} must be a non-zero 3-vector, got {vector!r}")
     v = v / np.linalg.norm(v)
     return float(v[0]), float(v[1]), float(v[2])
 
@@ -86,14 +86,14 @@ class PistonTransducers:
     def __post_init__(self) -> None:
         diameters = tuple(float(v) for v in np.asarray(self.diameters_m, dtype=float).ravel())
         if len(diameters) != 3 or not all(math.isfinite(v) and v > 0.0 for v in diameters):
-            raise RecordingError(f"transducers: diameters_m must be 3 finite numbers > 0 (m), got {self.diameters_m!r}")
+            raise InputError(f"transducers: diameters_m must be 3 finite numbers > 0 (m), got {self.diameters_m!r}")
         object.__setattr__(self, "diameters_m", diameters)
         axes = tuple(self.axes_head)
         if len(axes) != 3:
-            raise RecordingError(f"transducers: axes_head must hold 3 axes, got {self.axes_head!r}")
+            raise InputError(f"transducers: axes_head must hold 3 axes, got {self.axes_head!r}")
         object.__setattr__(self, "axes_head", tuple(_unit(a, f"transducers: axes_head[{i}]") for i, a in enumerate(axes)))
         if self.transmitter_channel not in (0, 1, 2):
-            raise RecordingError(f"transducers: transmitter_channel must be 0, 1 or 2, got {self.transmitter_channel!r}")
+            raise InputError(f"transducers: transmitter_channel must be 0, 1 or 2, got {self.transmitter_channel!r}")
 
     @classmethod
     def uniform(cls, diameter_m: float, axis_head: tuple[float, float, float] = (0.0, 1.0, 0.0),
@@ -154,18 +154,18 @@ class BeamModelConfig:
 
     def __post_init__(self) -> None:
         if self.target not in TARGET_CLASSES:
-            raise RecordingError(f"beam model: target must be one of {', '.join(TARGET_CLASSES)}, got {self.target!r}")
+            raise InputError(f"beam model: target must be one of {', '.join(TARGET_CLASSES)}, got {self.target!r}")
         object.__setattr__(self, "edge_direction_head", _unit(self.edge_direction_head, "beam model: edge_direction_head"))
         if not (math.isfinite(self.edge_tail_s) and self.edge_tail_s > 0.0):
-            raise RecordingError(f"beam model: edge_tail_s must be > 0 (s), got {self.edge_tail_s!r}")
+            raise InputError(f"beam model: edge_tail_s must be > 0 (s), got {self.edge_tail_s!r}")
         if not (math.isfinite(self.phase_step_cycles) and 0.0 < self.phase_step_cycles <= 0.25):
-            raise RecordingError(f"beam model: phase_step_cycles must be in (0, 0.25], got {self.phase_step_cycles!r}")
+            raise InputError(f"beam model: phase_step_cycles must be in (0, 0.25], got {self.phase_step_cycles!r}")
         if self.step_frequency_hz is not None and not (math.isfinite(self.step_frequency_hz)
                                                       and self.step_frequency_hz > 0.0):
-            raise RecordingError(f"beam model: step_frequency_hz must be > 0 (Hz), got {self.step_frequency_hz!r}")
+            raise InputError(f"beam model: step_frequency_hz must be > 0 (Hz), got {self.step_frequency_hz!r}")
         if self.wedge_interior_angle_deg is not None and not (math.isfinite(self.wedge_interior_angle_deg)
                                                              and 0.0 < self.wedge_interior_angle_deg < 180.0):
-            raise RecordingError("beam model: wedge_interior_angle_deg must be in (0, 180) deg, got "
+            raise InputError("beam model: wedge_interior_angle_deg must be in (0, 180) deg, got "
                                  f"{self.wedge_interior_angle_deg!r}")
 
 

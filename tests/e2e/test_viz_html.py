@@ -85,7 +85,7 @@ def test_html_export_renders_in_headless_chromium(tmp_path):
     from PIL import Image
 
     scene, paths = _scene_and_paths()
-    page = export_html(tmp_path / "view.html", scene, paths, [EstimateMarker(np.array([4.0, 1.2, 0.5]), None)],
+    page = export_html(scene, tmp_path / "view.html", paths, [EstimateMarker(np.array([4.0, 1.2, 0.5]), None)],
                        options=ViewOptions(echo=0), camera="perspective")
     text = page.read_text()
     # Self-contained: no external script, stylesheet or fetch (it must open offline).

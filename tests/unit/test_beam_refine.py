@@ -19,6 +19,7 @@ from binsonar.localization.beam_model import (
     BeamModelConfig, PistonTransducers, edge_line_integral_numpy, expected_response, jinc_table, piston_directivity,
     wedge_beta)
 from binsonar.localization.beam_refine import BeamRefinementConfig, refine_echoes, refine_tofs
+from binsonar.errors import InputError
 from binsonar.recording import RecordingError, Template
 from support.beam_echoes import FS, C, F0, T_PULSE, RADIUS, N, SEP, POSITIONS, ALPHA, DC_CORRECTION, pulse_spectrum, template, jinc, angle, record_from_spectra, record_start, point_echoes, plain_tofs, refine
 
@@ -211,7 +212,7 @@ def test_refine_echoes_without_transducers_returns_the_echoes() -> None:
     ({"diameters_m": (0.019,) * 3, "transmitter_channel": 3}, "transmitter_channel"),
 ])
 def test_bad_transducers_are_refused(kwargs: dict, match: str) -> None:
-    with pytest.raises(RecordingError, match=match):
+    with pytest.raises(InputError, match=match):
         PistonTransducers(**kwargs)
 
 
@@ -222,11 +223,11 @@ def test_bad_refinement_inputs_are_refused() -> None:
         refine_tofs(np.zeros((3, N)), [np.nan, 1e-3, 1e-3], **kwargs)
     with pytest.raises(RecordingError, match="shape"):
         refine_tofs(np.zeros((2, N)), [1e-3] * 3, **kwargs)
-    with pytest.raises(RecordingError, match="target"):
+    with pytest.raises(InputError, match="target"):
         BeamModelConfig(target="sphere")  # type: ignore[arg-type]
     with pytest.raises(RecordingError, match="iterations"):
         BeamRefinementConfig(iterations=0)
-    with pytest.raises(RecordingError, match="wedge"):
+    with pytest.raises(InputError, match="wedge"):
         BeamModelConfig(wedge_interior_angle_deg=200.0)
 
 
