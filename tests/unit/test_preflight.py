@@ -110,13 +110,15 @@ def test_memory_refusal_states_estimate_limit_and_the_way_to_raise_it():
     with pytest.raises(ResourceLimitError) as info:
         preflight(scene, n_pings=2000, limits=ResourceLimits(), source="tank.toml", pings_key="--pings")
     message = str(info.value)
-    assert message.startswith("tank.toml: needs about 28")  # 2000 x 3 x 250,000 x 20 B = 28 GiB
-    for needle in ("--pings = 2000", "250,000 samples", "limit of 4 GiB", "--max-memory-gb",
+    n = scene.sonar.n_samples  # 400,000 samples: the thesis tank's 20 ms record at 20 MHz
+    assert message.startswith("tank.toml: needs about ")
+    for needle in ("--pings = 2000", f"{n:,} samples", "limit of 4 GiB", "--max-memory-gb",
                    "ACOUSTISIM_MAX_MEMORY_GB"):
         assert needle in message, message
     estimate = preflight(scene, n_pings=2000, limits=ResourceLimits(max_memory_gb=64))
-    assert estimate.recording_bytes == 2000 * 3 * 250_000 * 10
-    assert 28 < estimate.memory_bytes / 2**30 < 64
+    assert estimate.recording_bytes == 2000 * 3 * n * 10  # int16 codes and float64 volts per sample
+    # at least the recording and its synthesis (20 B per sample), below the raised limit
+    assert 2000 * 3 * n * 20 / 2**30 < estimate.memory_bytes / 2**30 < 64
 
 
 def test_every_limit_refuses_before_any_work():
