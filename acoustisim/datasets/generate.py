@@ -509,8 +509,10 @@ def dataset_card_summary(store: DatasetStore, spec: DatasetSpec, bins: int = 10)
     return {"counts": counts, "snr_histogram": histogram}
 
 
-class _Tally:
-    """Counts finished chunks (the workers have already recorded them in the store)."""
+class Tally:
+    """Counts finished chunks (the workers have already recorded them in the store): samples,
+    CPU time, per-worker busy time; ``bar`` (a tqdm progress bar, or anything with
+    ``update(n)``) advances as samples finish."""
 
     def __init__(self, bar: Any) -> None:
         self.bar = bar
@@ -546,7 +548,7 @@ class _Tally:
 
 
 def _run_in_process(spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
-                    vocab: Vocabularies, tally: _Tally, complete: NDArray[np.bool_] | None = None) -> None:
+                    vocab: Vocabularies, tally: Tally, complete: NDArray[np.bool_] | None = None) -> None:
     for start, stop in chunks:
         partial = complete is not None and bool(complete[start:stop].any())
         tally.add(make_chunk_range(spec, start, stop, writer, vocab, partial), "in-process")
@@ -566,8 +568,8 @@ def split_tail(n_chunks: int, n_workers: int) -> int:
     return 0 if n_workers < 2 else min(n_chunks, n_workers)
 
 
-def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
-                   vocab: Vocabularies, tally: _Tally, n_workers: int,
+def run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
+                   vocab: Vocabularies, tally: Tally, n_workers: int,
                    complete: NDArray[np.bool_] | None = None) -> None:
     """Run the tasks of ``chunks`` (``(start, stop)`` sample ranges), at most ``2 x n_workers``
     chunks in flight; each future is released as soon as it has finished and its result is
@@ -683,7 +685,9 @@ LOCAL_CLUSTER_CONFIG: Mapping[str, Any] = MappingProxyType({
 })
 
 
-def _local_cluster(workers: int) -> Any:
+def local_cluster(workers: int) -> Any:
+    """The ``distributed.LocalCluster`` that :func:`generate` starts: ``workers`` single-threaded
+    processes, configured by :data:`LOCAL_CLUSTER_CONFIG`."""
     import dask
     from distributed import LocalCluster
 
@@ -710,7 +714,8 @@ def check_workers_see_store(client: Any, store: DatasetStore) -> None:
             raise DatasetStoreError(f"worker {address}: {problem}")
 
 
-def _worker_addresses(client: Any) -> set[str]:
+def worker_addresses(client: Any) -> set[str]:
+    """The addresses of the workers connected to ``client``'s scheduler now."""
     return set(client.scheduler_info()["workers"])
 
 
@@ -809,7 +814,7 @@ def generate(
 
                 import dask
 
-                own_cluster = _local_cluster(workers or os.cpu_count() or 1)
+                own_cluster = local_cluster(workers or os.cpu_count() or 1)
                 with dask.config.set(LOCAL_CLUSTER_CONFIG):  # the client's own logs too
                     own_client = Client(own_cluster)
                 mode = "local-cluster"
@@ -817,7 +822,7 @@ def generate(
         elif client is not None:
             mode = str(client.scheduler.address)
         if client is not None:
-            at_start = _worker_addresses(client)
+            at_start = worker_addresses(client)
             if chunks and not at_start:
                 raise InputError(f"{mode}: no worker is connected to this scheduler (start `dask worker {mode}` "
                                  "processes that see --out)")
@@ -827,17 +832,17 @@ def generate(
         startup = time.perf_counter() - t_start
         bar = tqdm(total=spec.n_samples, initial=spec.n_samples - n_todo, unit="sample", desc=spec.name,
                    disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
-        tally = _Tally(bar)
+        tally = Tally(bar)
         t_run, cpu_run = time.perf_counter(), time.process_time()
         try:
             if client is None:
                 _run_in_process(spec, chunks, writer, vocab, tally, complete)
             else:
-                _run_on_client(client, spec, chunks, writer, vocab, tally, len(at_start), complete)
+                run_on_client(client, spec, chunks, writer, vocab, tally, len(at_start), complete)
         finally:
             bar.close()
             if client is not None:
-                at_end = _worker_addresses(client)
+                at_end = worker_addresses(client)
         elapsed = time.perf_counter() - t_run
         driver_cpu = time.process_time() - cpu_run
     finally:
@@ -877,6 +882,7 @@ def generate(
     )
 
 
-__all__ = ("ChunkResult", "GenerateReport", "SampleResult", "SpecError", "TaskCost", "check_workers_see_store",
-           "code_version", "generate", "make_chunk", "make_chunk_range", "make_sample", "repair_store",
-           "simulate_rows", "simulate_sample", "split_tail", "write_chunk")
+__all__ = ("ChunkResult", "GenerateReport", "LOCAL_CLUSTER_CONFIG", "SampleResult", "SpecError", "Tally", "TaskCost",
+           "check_workers_see_store", "code_version", "generate", "local_cluster", "make_chunk", "make_chunk_range",
+           "make_sample", "repair_store", "run_on_client", "simulate_rows", "simulate_sample", "split_tail",
+           "worker_addresses", "write_chunk")
