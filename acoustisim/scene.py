@@ -241,15 +241,4 @@ class Scene:
         return sum(len(o.mesh.faces) for o in self.objects) + 2 * len(self.boundaries)
 
 
-__all__ = [
-    "Boundary",
-    "CylinderPrimitive",
-    "Material",
-    "PlanePrimitive",
-    "Primitive",
-    "Scene",
-    "SceneObject",
-    "SpherePrimitive",
-    "Tank",
-    "freeze_parameters",
-]
+__all__ = ["Boundary", "BoundaryKind", "Scene", "SceneObject", "Tank", "freeze_parameters"]

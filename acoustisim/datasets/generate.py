@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 
 from acoustisim.datasets.labels import Vocabularies, sample_arrays, vocabularies
 from acoustisim.datasets.sampling import SampleDescription, build_scene, draw_sample, plan_samples
-from acoustisim.datasets.spec import DatasetSpec, SpecError
+from acoustisim.datasets.spec import DatasetSpec
 from acoustisim.datasets.store import (
     LAYOUT_VERSION,
     SAMPLE_FIELDS,
@@ -882,7 +882,7 @@ def generate(
     )
 
 
-__all__ = ("ChunkResult", "GenerateReport", "LOCAL_CLUSTER_CONFIG", "SampleResult", "SpecError", "Tally", "TaskCost",
+__all__ = ("ChunkResult", "GenerateReport", "LOCAL_CLUSTER_CONFIG", "SampleResult", "Tally", "TaskCost",
            "check_workers_see_store", "code_version", "generate", "local_cluster", "make_chunk", "make_chunk_range",
            "make_sample", "repair_store", "run_on_client", "simulate_rows", "simulate_sample", "split_tail",
            "worker_addresses", "write_chunk")

@@ -23,14 +23,12 @@ from binsonar.detection.conditioning import average_and_bandpass, average_keepin
 from binsonar.detection.echo import DetectionResult, Echo
 from binsonar.detection.inputs import Signals, as_signals, resolve_template
 from binsonar.detection.methods import DetectionMethod, RawEchoes, RecordContext, RowBatch
-from binsonar.detection.registry import BASE_METHODS, METHODS, RegisteredMethod, lookup
+from binsonar.detection.registry import RegisteredMethod, lookup
 from binsonar.detection.settings import DetectionSettings
 from binsonar.recording import Recording, RecordingError, Template
 
 __all__ = (
-    "BASE_METHODS",
     "CLIPPED_POLICIES",
-    "METHODS",
     "PlanStore",
     "PreparedDetector",
     "detect",

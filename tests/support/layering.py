@@ -175,6 +175,31 @@ def private_imports_into(folder: str, packages: Iterable[str] = PACKAGES, root: 
     return sorted(set(found))
 
 
+def _exported(tree: ast.Module) -> set[str]:
+    for node in tree.body:
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets) and node.value is not None:
+            return {c.value for c in ast.walk(node.value) if isinstance(c, ast.Constant) and isinstance(c.value, str)}
+    return set()
+
+
+def reexports(packages: Iterable[str] = PACKAGES, root: Path = REPOSITORY) -> list[str]:
+    """Names a module (not a package's ``__init__``) imports and lists in ``__all__``: a second
+    address for a name whose home is elsewhere (a "compatibility" re-export), as
+    ``module: name (from home)``."""
+    found = []
+    for name, path in module_files(packages, root).items():
+        if path.name == "__init__.py":
+            continue
+        tree = ast.parse(path.read_text(), filename=str(path))
+        exported = _exported(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                found += [f"{name}: {alias.asname or alias.name} (from {node.module})" for alias in node.names
+                          if (alias.asname or alias.name) in exported]
+    return sorted(found)
+
+
 def layering(packages: Iterable[str] = PACKAGES, root: Path = REPOSITORY) -> Layering:
     """The import graph of ``packages`` (folders of ``root``; modules from :func:`module_files`)."""
     modules = module_files(packages, root)

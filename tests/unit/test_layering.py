@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from support.layering import PACKAGES, Layering, imports_of, layering, private_imports_into
+from support.layering import PACKAGES, Layering, imports_of, layering, private_imports_into, reexports
 
 TOLERATED_CYCLES: tuple[tuple[str, ...], ...] = ()
 """Cycles in files other engineers are editing, each named with its owner; the lead removes an
@@ -79,6 +79,18 @@ def test_no_private_names_imported_across_modules(graph: Layering) -> None:
 @pytest.mark.parametrize("folder", ["tests", "benchmarks"])
 def test_tests_and_benchmarks_use_public_names_only(folder: str) -> None:
     found = private_imports_into(folder)
+    assert not found, found
+
+
+DOCUMENTED_REEXPORTS = ("acoustisim.errors: InputError (from binsonar.errors)",
+                        "acoustisim.errors: InputTypeError (from binsonar.errors)")
+"""The one error hierarchy lives in ``binsonar.errors``; ``acoustisim.errors`` re-exports it so
+that simulator users catch ``acoustisim.errors.InputError`` (a documented contract)."""
+
+
+def test_no_compatibility_reexports() -> None:
+    # A module's __all__ lists what it defines; a name has one home (packages' __init__ aside).
+    found = [entry for entry in reexports() if entry not in DOCUMENTED_REEXPORTS]
     assert not found, found
 
 
