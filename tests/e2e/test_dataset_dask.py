@@ -159,11 +159,10 @@ def test_only_the_last_chunks_are_split_and_only_with_several_workers(n_chunks: 
 
 
 def test_the_scheduler_logs_no_samples_per_task(client, tmp_path: Path) -> None:
-    """Regression test of the driver's growth over long runs (~10 MiB per 1000 default-spec
-    samples): the scheduler (in the driver's process with a LocalCluster) keeps the last
-    batches it sent to each worker, and a batch held the drawn samples of its chunk tasks. A
-    task now carries its sample range (the worker draws the samples again), and those logs
-    keep 100 batches instead of 1000."""
+    """The driver does not grow over long runs: the scheduler (in the driver's process with a
+    LocalCluster) keeps the last batches it sent to each worker, so a task carries only its
+    sample range (the worker draws the samples again), never the drawn samples, and those logs
+    keep 100 batches, not the default 1000."""
     import pickle
 
     generate(loads_spec(SPEC), tmp_path / "logs.zarr", client=client, progress=False)
