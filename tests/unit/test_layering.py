@@ -100,6 +100,21 @@ def test_binsonar_never_imports_the_simulator(graph: Layering, other: str) -> No
     assert not found, found
 
 
+def test_the_reference_engine_never_imports_the_fast_one(graph: Layering) -> None:
+    # The reference engine is the plain path: it must run (and be read) without the kernels.
+    found = graph.imports_between("acoustisim.propagation.reference", "acoustisim.propagation.fast")
+    assert not found, found
+
+
+def test_only_the_switch_imports_an_engine(graph: Layering) -> None:
+    # The modules both engines share (paths, context, prepared scene, config, ...) stay below
+    # them; engine.engine_for is the one place that picks an engine.
+    engines = ("acoustisim.propagation.reference", "acoustisim.propagation.fast")
+    found = [entry for engine in engines for entry in graph.imports_between("acoustisim.propagation", engine)
+             if not entry.startswith(engines + ("acoustisim.propagation.engine:",))]
+    assert not found, found
+
+
 def test_every_tolerated_case_still_exists(graph: Layering) -> None:
     # A tolerated case that is gone should leave the lists, so that it cannot come back unseen.
     assert set(TOLERATED_CYCLES) <= {tuple(c) for c in graph.cycles()}
