@@ -321,7 +321,7 @@ def detect(
         Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), or
         integer ADC codes with ``volts_per_code`` (a recording read with
         ``read_recording(..., keep_codes=True)`` carries its codes). Each ping-channel's
-        median (its DC offset) is removed first (``inputs.remove_median``); the methods that
+        median (its DC offset) is removed first (``inputs.row_offsets``, ``Signals.without_dc``); the methods that
         fold it (``DetectionMethod.folds_dc``: threshold, matched, local-matched) fold it into
         their arithmetic instead, with the same result (to rounding) and no copy of the record.
     method : str
