@@ -218,10 +218,6 @@ class BeamTable:
         high = g[fi + 1, ai] * (1.0 - aw) + g[fi + 1, ai + 1] * aw
         return low * (1.0 - fw) + high * fw
 
-    def gain_db_grid(self) -> NDArray[np.float64]:
-        """``20 log10 |gain|`` on the grid (k, m), -400 dB at exact nulls."""
-        return 20.0 * np.log10(np.maximum(np.abs(self.gain), 1e-20))
-
 
 def _bracket(grid: NDArray[np.float64], values: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Index of the grid cell holding each value and the fractional position in it; values
