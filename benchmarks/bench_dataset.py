@@ -253,7 +253,6 @@ def run_mode(spec, workdir: Path, workers: int) -> ModeRun:
     if workers == 0:
         generate(dataclasses.replace(spec, n_samples=spec.samples_per_chunk), workdir / "warm0.zarr", workers=0,
                  progress=False)
-        t0 = time.perf_counter()
         report = generate(spec, workdir / "w0.zarr", workers=0, progress=False)
         worker_cpu: tuple[float, ...] = ()
         idle_cores = 0.0
