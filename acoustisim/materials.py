@@ -53,8 +53,8 @@ at least 68 um and PVC's 0.003 at least 37 um): a roughness on the scale of the 
 scattered energy ``diffuse_mu`` already carries. Giving that roughness to ``roughness_rms_m``
 too would count its energy twice in the diffuse part, for a coherent loss that would be small
 anyway (68 um at 500 kHz: 0.36 dB per reflection at normal incidence, 0.09 dB at 30 deg). A
-long-correlation roughness such as issue 17's example floor (0.5 mm rms: 4.9 dB per reflection
-at 30 deg grazing, 19.5 dB at normal incidence) changes the tank's echoes a lot and is a
+long-correlation roughness such as a 0.5 mm rms floor (4.9 dB per reflection at 30 deg
+grazing, 19.5 dB at normal incidence) changes the tank's echoes a lot and is a
 property of one tank that no cited source measures: a scene file sets it
 (``[[materials]]`` with ``roughness_rms_m``, and ``diffuse_mu`` for the scattering on top).
 
@@ -65,8 +65,7 @@ Sources of the built-in elastic values (rho kg/m^3, c_L / c_S m/s) are the handb
 Sonics Ultrason. SU-32, 381, 1985: mild steel 7850, 5960/3235; aluminium 2700, 6420/3040;
 crown glass 2500, 5660/3420); aluminium keeps the library's 2700, 6320/3130 (rolled
 aluminium alloy, the same tables). Loss factors are representative values, not measurements of
-the tank's own objects: rigid PVC (unplasticised) eta_L = 0.03, eta_S = 0.05, the values of
-issue 17's example, within the range Ono (Appl. Sci. 10, 5265, 2020) measured for engineering
+the tank's own objects: rigid PVC (unplasticised) eta_L = 0.03, eta_S = 0.05, within the range Ono (Appl. Sci. 10, 5265, 2020) measured for engineering
 polymers at 0.5-5 MHz (damping factors alpha lambda / pi = eta of 0.01-0.065, shear above
 compressional); metals and glass eta of 1e-3 to 4e-3 (the bottom of that range, Ono 2020, and
 Ono, Appl. Sci. 12, 13026, 2022 for glasses); concrete (and mortar) eta_L = 0.05, eta_S = 0.08,

@@ -15,25 +15,12 @@ import trimesh
 
 from acoustisim import checks, ranges
 from acoustisim.errors import InputError
-from acoustisim.geometry import CylinderPrimitive, PlanePrimitive, Primitive, SpherePrimitive
+from acoustisim.geometry import CylinderPrimitive, PlanePrimitive, SpherePrimitive
 from acoustisim.materials import Material, get_material
 from acoustisim.medium import Medium
 from acoustisim.sonar import SonarHead
 
 BoundaryKind = Literal["wall", "floor", "surface"]
-
-
-def freeze_parameters(parameters: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
-    """Turn a scene-file table into a hashable, ordered tuple of (key, value); lists become tuples."""
-
-    def freeze(value: Any) -> Any:
-        if isinstance(value, (list, tuple, np.ndarray)):
-            return tuple(freeze(v) for v in value)
-        if isinstance(value, np.generic):
-            return value.item()
-        return value
-
-    return tuple((key, freeze(value)) for key, value in parameters.items())
 
 
 @dataclass(frozen=True)
@@ -241,15 +228,4 @@ class Scene:
         return sum(len(o.mesh.faces) for o in self.objects) + 2 * len(self.boundaries)
 
 
-__all__ = [
-    "Boundary",
-    "CylinderPrimitive",
-    "Material",
-    "PlanePrimitive",
-    "Primitive",
-    "Scene",
-    "SceneObject",
-    "SpherePrimitive",
-    "Tank",
-    "freeze_parameters",
-]
+__all__ = ["Boundary", "BoundaryKind", "Scene", "SceneObject", "Tank"]

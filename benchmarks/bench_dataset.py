@@ -73,7 +73,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from acoustisim.datasets.generate import _local_cluster, generate, simulate_sample, split_tail  # noqa: E402
+from acoustisim.datasets.generate import local_cluster, generate, simulate_sample, split_tail  # noqa: E402
 from acoustisim.datasets.sampling import plan_samples  # noqa: E402
 from acoustisim.datasets.spec import load_spec  # noqa: E402
 
@@ -253,12 +253,11 @@ def run_mode(spec, workdir: Path, workers: int) -> ModeRun:
     if workers == 0:
         generate(dataclasses.replace(spec, n_samples=spec.samples_per_chunk), workdir / "warm0.zarr", workers=0,
                  progress=False)
-        t0 = time.perf_counter()
         report = generate(spec, workdir / "w0.zarr", workers=0, progress=False)
         worker_cpu: tuple[float, ...] = ()
         idle_cores = 0.0
     else:
-        cluster = _local_cluster(workers)  # the one generate() starts by default
+        cluster = local_cluster(workers)  # the one generate() starts by default
         with Client(cluster) as client:
             warm = dataclasses.replace(spec, n_samples=spec.samples_per_chunk * workers)
             generate(warm, workdir / f"warm{workers}.zarr", client=client, progress=False)  # imports, caches

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from binsonar.errors import InputError, InputTypeError
+from binsonar.errors import InputError, InputTypeError, checked_number, short_repr
 
 if TYPE_CHECKING:
     from binsonar.localization.array_geometry import ArrayGeometry
@@ -78,36 +78,16 @@ class ArrayDescriptionError(InputError):
     """An array description that cannot be used; the message names the source, field and value."""
 
 
-def _short(value: Any, limit: int = 60) -> str:
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _number(value: Any, where: str, *, low: float | None = None, high: float | None = None,
-            low_open: bool = False) -> float:
-    """A finite real number in [low, high] (``low_open``: > low)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ArrayDescriptionError(f"{where} must be a number, got {_short(value)}")
-    number = float(value)
-    if not math.isfinite(number):
-        raise ArrayDescriptionError(f"{where} must be finite, got {_short(value)}")
-    if low is not None and (number <= low if low_open else number < low):
-        raise ArrayDescriptionError(f"{where} must be {'>' if low_open else '>='} {low:g}, got {_short(value)}")
-    if high is not None and number > high:
-        raise ArrayDescriptionError(f"{where} must be <= {high:g}, got {_short(value)}")
-    return number
-
-
 def _vector(value: Any, where: str, limit: float) -> tuple[float, float, float]:
     """Three finite numbers, each |v| <= limit."""
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ArrayDescriptionError(f"{where} must be 3 numbers, got {_short(value)}") from None
+        raise ArrayDescriptionError(f"{where} must be 3 numbers, got {short_repr(value)}") from None
     if array.shape != (3,) or not np.all(np.isfinite(array)):
-        raise ArrayDescriptionError(f"{where} must be 3 finite numbers, got {_short(value)}")
+        raise ArrayDescriptionError(f"{where} must be 3 finite numbers, got {short_repr(value)}")
     if np.any(np.abs(array) > limit):
-        raise ArrayDescriptionError(f"{where} must be within +/-{limit:g}, got {_short(value)}")
+        raise ArrayDescriptionError(f"{where} must be within +/-{limit:g}, got {short_repr(value)}")
     return float(array[0]), float(array[1]), float(array[2])
 
 
@@ -137,8 +117,9 @@ class PistonDirectivity:
     diameter_m: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "diameter_m", _number(self.diameter_m, "directivity.diameter_m",
-                                                       low=DIAMETER_RANGE_M[0], high=DIAMETER_RANGE_M[1]))
+        object.__setattr__(self, "diameter_m", checked_number(
+            self.diameter_m, "directivity.diameter_m", error=ArrayDescriptionError, low=DIAMETER_RANGE_M[0],
+            high=DIAMETER_RANGE_M[1]))
 
     kind = "piston"
 
@@ -237,10 +218,6 @@ class BeamTable:
         high = g[fi + 1, ai] * (1.0 - aw) + g[fi + 1, ai + 1] * aw
         return low * (1.0 - fw) + high * fw
 
-    def gain_db_grid(self) -> NDArray[np.float64]:
-        """``20 log10 |gain|`` on the grid (k, m), -400 dB at exact nulls."""
-        return 20.0 * np.log10(np.maximum(np.abs(self.gain), 1e-20))
-
 
 def _bracket(grid: NDArray[np.float64], values: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Index of the grid cell holding each value and the fractional position in it; values
@@ -288,18 +265,18 @@ class ElectricalChain:
         for name in ("gain_db", "receive_sensitivity_db"):
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _number(value, f"electrical.{name}", low=-GAIN_DB_LIMIT,
-                                                       high=GAIN_DB_LIMIT))
+                object.__setattr__(self, name, checked_number(
+                    value, f"electrical.{name}", error=ArrayDescriptionError, low=-GAIN_DB_LIMIT, high=GAIN_DB_LIMIT))
         if self.volts_per_code is not None:
-            object.__setattr__(self, "volts_per_code", _number(self.volts_per_code, "electrical.volts_per_code",
-                                                               low=VOLTS_PER_CODE_RANGE[0],
-                                                               high=VOLTS_PER_CODE_RANGE[1]))
+            object.__setattr__(self, "volts_per_code", checked_number(
+                self.volts_per_code, "electrical.volts_per_code", error=ArrayDescriptionError,
+                low=VOLTS_PER_CODE_RANGE[0], high=VOLTS_PER_CODE_RANGE[1]))
         if self.adc_bits is not None:
             bits = self.adc_bits
             if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not (
                     ADC_BITS_RANGE[0] <= bits <= ADC_BITS_RANGE[1]):
                 raise ArrayDescriptionError(f"electrical.adc_bits must be an integer in [{ADC_BITS_RANGE[0]}, "
-                                            f"{ADC_BITS_RANGE[1]}], got {_short(bits)}")
+                                            f"{ADC_BITS_RANGE[1]}], got {short_repr(bits)}")
             object.__setattr__(self, "adc_bits", int(bits))
 
 
@@ -331,15 +308,15 @@ class ChannelDescription:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or len(self.name) > 64:
             raise ArrayDescriptionError(f"channel name must be a non-empty string of <= 64 characters, got "
-                                        f"{_short(self.name)}")
+                                        f"{short_repr(self.name)}")
         where = f"channel {self.name!r}"
         if self.role not in ROLES:
-            raise ArrayDescriptionError(f"{where}: role must be one of {', '.join(ROLES)}, got {_short(self.role)}")
+            raise ArrayDescriptionError(f"{where}: role must be one of {', '.join(ROLES)}, got {short_repr(self.role)}")
         object.__setattr__(self, "position_m", _vector(self.position_m, f"{where}: position_m", POSITION_LIMIT_M))
         axis = np.array(_vector(self.axis, f"{where}: axis", 1e6))
         norm = float(np.linalg.norm(axis))
         if not norm > 1e-9:
-            raise ArrayDescriptionError(f"{where}: axis must be a non-zero vector, got {_short(self.axis)}")
+            raise ArrayDescriptionError(f"{where}: axis must be a non-zero vector, got {short_repr(self.axis)}")
         object.__setattr__(self, "axis", tuple(float(v) for v in axis / norm))
         if self.directivity is not None and not isinstance(self.directivity, (PistonDirectivity, BeamTable)):
             raise InputTypeError(f"{where}: directivity must be a PistonDirectivity, a BeamTable or None, got "
@@ -411,7 +388,7 @@ class ArrayDescription:
         if not isinstance(channels, tuple) or len(channels) != 3 or not all(
                 isinstance(c, ChannelDescription) for c in channels):
             raise ArrayDescriptionError(f"array: channels must be 3 ChannelDescription (left, centre, right), got "
-                                        f"{_short(self.channels)}")
+                                        f"{short_repr(self.channels)}")
         object.__setattr__(self, "channels", channels)
         names = [c.name for c in channels]
         if len(set(names)) != 3:
@@ -421,8 +398,8 @@ class ArrayDescription:
             raise ArrayDescriptionError(f"array: exactly one channel must transmit (role 'transmit' or 'both'), got "
                                         f"{len(transmitters)}")
         low, high = SAMPLE_RATE_RANGE_HZ
-        object.__setattr__(self, "sample_rate_hz", _number(self.sample_rate_hz, "array: sample_rate_hz", low=low,
-                                                           high=high))
+        object.__setattr__(self, "sample_rate_hz", checked_number(
+            self.sample_rate_hz, "array: sample_rate_hz", error=ArrayDescriptionError, low=low, high=high))
         positions = np.array([c.position_m for c in channels])
         for i in range(3):
             for j in range(i + 1, 3):
@@ -608,7 +585,7 @@ class ArrayDescription:
 
 def _check_keys(data: Any, allowed: tuple[str, ...], where: str) -> Mapping[str, Any]:
     if not isinstance(data, Mapping):
-        raise ArrayDescriptionError(f"{where} must be a table, got {_short(data)}")
+        raise ArrayDescriptionError(f"{where} must be a table, got {short_repr(data)}")
     unknown = sorted(set(data) - set(allowed))
     if unknown:
         raise ArrayDescriptionError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))} (known: "
@@ -620,7 +597,7 @@ def _directivity_from(data: Any, where: str) -> Directivity | None:
     if data is None:
         return None
     if not isinstance(data, Mapping):
-        raise ArrayDescriptionError(f"{where} must be a table, got {_short(data)}")
+        raise ArrayDescriptionError(f"{where} must be a table, got {short_repr(data)}")
     kind = data.get("kind")
     if kind == "piston":
         _check_keys(data, TOML_KEYS["piston"], where)
@@ -637,20 +614,20 @@ def _directivity_from(data: Any, where: str) -> Directivity | None:
         if "gain_db" in data:
             return BeamTable.from_db(data["frequencies_hz"], data["angles_deg"], data["gain_db"])
         return BeamTable(data["frequencies_hz"], data["angles_deg"], data["gain"])
-    raise ArrayDescriptionError(f"{where}.kind must be 'piston' or 'table', got {_short(kind)}")
+    raise ArrayDescriptionError(f"{where}.kind must be 'piston' or 'table', got {short_repr(kind)}")
 
 
 def _from_mapping(data: Mapping[str, Any], where: str) -> ArrayDescription:
     top = _check_keys(data, TOML_KEYS["top"], where)
     version = top.get("version", DESCRIPTION_VERSION)
     if not isinstance(version, str) or version.split(".")[0] != DESCRIPTION_VERSION.split(".")[0]:
-        raise ArrayDescriptionError(f"{where}: version {_short(version)} is not supported (expected 1.x)")
+        raise ArrayDescriptionError(f"{where}: version {short_repr(version)} is not supported (expected 1.x)")
     if "sample_rate_hz" not in top:
         raise ArrayDescriptionError(f"{where}: missing sample_rate_hz")
     entries = top.get("channels")
     if not isinstance(entries, list) or len(entries) != 3:
         raise ArrayDescriptionError(f"{where}: needs exactly 3 [[channels]] (left, centre, right), got "
-                                    f"{len(entries) if isinstance(entries, list) else _short(entries)}")
+                                    f"{len(entries) if isinstance(entries, list) else short_repr(entries)}")
     channels = []
     for index, entry in enumerate(entries):
         label = f"channels[{index}]"

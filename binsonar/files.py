@@ -32,7 +32,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, Iterator
 
-from binsonar.errors import InputError, InputTypeError
+from binsonar.errors import InputError, InputTypeError, short_repr
 
 TOML_MAX_BYTES = 16 * 2**20
 """Largest TOML file read (bytes): far above any scene or array description (a beam table of
@@ -60,21 +60,15 @@ def as_path(path: Any, argument: str) -> Path:
     """
     if not isinstance(path, (str, os.PathLike)):
         raise InputTypeError(f"{argument} must be a file path (str or os.PathLike), got {type(path).__name__} "
-                             f"{_short(path)}")
+                             f"{short_repr(path, 80)}")
     text = os.fspath(path)
     if not isinstance(text, str):
-        raise InputTypeError(f"{argument} must be a text path, got {type(text).__name__} {_short(text)}")
+        raise InputTypeError(f"{argument} must be a text path, got {type(text).__name__} {short_repr(text, 80)}")
     if text == "":
         raise InputError(f"{argument}: the path is empty")
     if "\0" in text:
-        raise InputError(f"{argument}: the path contains a NUL character: {_short(text)}")
+        raise InputError(f"{argument}: the path contains a NUL character: {short_repr(text, 80)}")
     return Path(text)
-
-
-def _short(value: Any, limit: int = 80) -> str:
-    """``repr(value)`` cut to ``limit`` characters (values in messages stay on one short line)."""
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _label(option: str, path: Path) -> str:

@@ -55,7 +55,7 @@ from scenes.file_access import lookup, path_text, read_regular_file, shown_path
 from scenes.tessellation import circle_segments, icosphere_subdivisions
 from scenes.validation import validate_scene
 
-__all__ = ["SceneFileError", "load_scene", "read_scene_file", "save_scene", "scene_to_toml", "scene_from_toml"]
+__all__ = ["load_scene", "read_scene_file", "save_scene", "scene_to_toml", "scene_from_toml"]
 
 
 # --------------------------------------------------------------------------- value checks

@@ -7,21 +7,19 @@ import argparse
 import sys
 from typing import Sequence
 
-import acoustisim.cli as cli_package
-from binsonar.cli.verbs import build_parser as _build_parser
-from binsonar.cli.verbs import run_command
+from binsonar.cli import verbs
 
 DESCRIPTION = "Physics-based ray-tracing simulator for the biomimetic binaural sonar."
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every discovered verb."""
-    return _build_parser(cli_package, "acoustisim", DESCRIPTION)
+    return verbs.build_parser(__package__, "acoustisim", DESCRIPTION)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 success, 2 bad input)."""
-    return run_command(build_parser(), argv, "acoustisim")
+    return verbs.run_command(build_parser(), argv, "acoustisim")
 
 
 if __name__ == "__main__":

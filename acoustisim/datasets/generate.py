@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 
 from acoustisim.datasets.labels import Vocabularies, sample_arrays, vocabularies
 from acoustisim.datasets.sampling import SampleDescription, build_scene, draw_sample, plan_samples
-from acoustisim.datasets.spec import DatasetSpec, SpecError
+from acoustisim.datasets.spec import DatasetSpec
 from acoustisim.datasets.store import (
     LAYOUT_VERSION,
     SAMPLE_FIELDS,
@@ -93,8 +93,8 @@ class SampleResult:
         CPU time (s) of the process while it built and simulated the sample (the plain
         simulator's cost, helper threads such as Embree's included: the reference of the
         overhead figures of ``benchmarks/bench_dataset.py``). A worker runs one task at a
-        time, so the only other CPU in that interval is the Dask worker's idle background
-        (about 0.3 % of a core, measured).
+        time, so the only other CPU in that interval is the Dask worker's idle background,
+        small next to a sample's (:data:`LOCAL_CLUSTER_CONFIG` keeps it so).
     cost : TaskCost
         The whole task: simulate and labels.
     """
@@ -421,7 +421,7 @@ def make_chunk_range(spec: DatasetSpec, start: int, stop: int, writer: ChunkWrit
     vocabularies: nothing per sample goes through the scheduler. (Shipping the drawn samples
     instead, ~10 kB per chunk, grows the driver: the scheduler keeps the last 1000 batches
     sent to each worker, ``distributed.admin.low-level-log-length``, and every such batch then
-    holds a chunk's samples.) Drawing costs well under 1 ms a sample.
+    holds a chunk's samples.) Drawing a sample again is cheap next to simulating it.
     """
     if not partial:
         return make_chunk(spec, plan_samples(spec, range(start, stop)), writer, vocab)
@@ -509,8 +509,10 @@ def dataset_card_summary(store: DatasetStore, spec: DatasetSpec, bins: int = 10)
     return {"counts": counts, "snr_histogram": histogram}
 
 
-class _Tally:
-    """Counts finished chunks (the workers have already recorded them in the store)."""
+class Tally:
+    """Counts finished chunks (the workers have already recorded them in the store): samples,
+    CPU time, per-worker busy time; ``bar`` (a tqdm progress bar, or anything with
+    ``update(n)``) advances as samples finish."""
 
     def __init__(self, bar: Any) -> None:
         self.bar = bar
@@ -546,7 +548,7 @@ class _Tally:
 
 
 def _run_in_process(spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
-                    vocab: Vocabularies, tally: _Tally, complete: NDArray[np.bool_] | None = None) -> None:
+                    vocab: Vocabularies, tally: Tally, complete: NDArray[np.bool_] | None = None) -> None:
     for start, stop in chunks:
         partial = complete is not None and bool(complete[start:stop].any())
         tally.add(make_chunk_range(spec, start, stop, writer, vocab, partial), "in-process")
@@ -556,18 +558,17 @@ def split_tail(n_chunks: int, n_workers: int) -> int:
     """How many of the last chunks run as one task per sample (plus one writing the chunk).
 
     A chunk task is the unit of work, so the run ends when the worker with the most chunk
-    work left finishes: with few chunks per worker the others wait for up to a chunk's time
-    (24 default-spec samples, 6 chunks of 4 on 2 workers: at best 1.89x one worker, from the
-    measured CPU time of each sample). Splitting the last ``n_workers`` chunks into sample
-    tasks brings the imbalance down to about one sample (1.93x for those 24 samples, 2.00x
-    for 48) at the cost of the extra tasks (~15 ms of driver CPU a split chunk, measured), so
-    only the tail is split. One worker has no imbalance: nothing is split.
+    work left finishes: with few chunks per worker the others wait for up to a chunk's time.
+    Splitting the last ``n_workers`` chunks into sample tasks brings the imbalance down to
+    about one sample, at the cost of the extra tasks (each is a submit, a result and a
+    transition for the driver), so only the tail is split. One worker has no imbalance:
+    nothing is split. ``benchmarks/bench_dataset.py`` prints the speed-up of 2 workers over 1.
     """
     return 0 if n_workers < 2 else min(n_chunks, n_workers)
 
 
-def _run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
-                   vocab: Vocabularies, tally: _Tally, n_workers: int,
+def run_on_client(client: Any, spec: DatasetSpec, chunks: list[tuple[int, int]], writer: ChunkWriter,
+                   vocab: Vocabularies, tally: Tally, n_workers: int,
                    complete: NDArray[np.bool_] | None = None) -> None:
     """Run the tasks of ``chunks`` (``(start, stop)`` sample ranges), at most ``2 x n_workers``
     chunks in flight; each future is released as soon as it has finished and its result is
@@ -657,33 +658,34 @@ def warm_up_worker() -> None:
 
 
 LOCAL_CLUSTER_CONFIG: Mapping[str, Any] = MappingProxyType({
-    # Equal-sized tasks need no work stealing; a 2 s system monitor instead of 0.5 s. Together
-    # they cut the idle scheduler's CPU from ~3.5 % to ~1 % of a core (measured).
+    # Equal-sized tasks need no work stealing, and a system monitor every 2 s (not 0.5 s) is
+    # enough for them: both only cost the scheduler CPU here.
     "distributed.scheduler.work-stealing": False,
     "distributed.admin.system-monitor.interval": "2s",
     # distributed starts workers with MALLOC_TRIM_THRESHOLD_=65536, which also turns off
     # glibc's dynamic mmap threshold: every large FFT buffer of the synthesis is then mmapped
-    # and faulted in afresh. Measured on 10 default-spec samples in one worker: 1.08 s of
-    # system time with it, 0.02 s without (user time 2.0 s either way). Keep glibc's default.
+    # and faulted in afresh, in system time. Keep glibc's default.
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
     # Every server (scheduler, nannies: all in the driver process; workers) checks every 20 ms
     # that its event loop is not blocked, and each nanny polls its worker's memory every
-    # 100 ms. Once a second is plenty for tasks of ~0.1-1 s: the idle driver's CPU falls from
-    # 2.7 % to 0.6 % of a core with one worker (measured, same run).
+    # 100 ms. Once a second is plenty for tasks of ~0.1-1 s, and leaves the idle driver's CPU
+    # to the workers.
     "distributed.admin.tick.interval": "1s",
     "distributed.worker.memory.monitor-interval": "1s",
     # The workers' statistical profiler (dashboard only) samples every thread's stack every
-    # 10 ms: idle worker CPU 3.3 % -> 0.3 % of a core without it (measured, consecutive runs).
+    # 10 ms, most of an idle worker's CPU; nothing here reads it.
     "distributed.worker.profile.enabled": False,
     # Developer logs (the scheduler's transitions and events, the last batches each stream
-    # sent) keep 1000 entries each by default; a batch to a worker holds its tasks. 100 is
-    # plenty to debug with and keeps them small (driver growth measured with the default:
-    # ~3 MiB per 1000 samples until they fill, at ~8000 samples of 4-sample chunks).
+    # sent) keep 1000 entries each by default; a batch to a worker holds its tasks, so the
+    # driver grows until they fill. 100 is plenty to debug with and keeps them small
+    # (``benchmarks/bench_dataset.py --memory N --tiny`` follows the driver's memory).
     "distributed.admin.low-level-log-length": 100,
 })
 
 
-def _local_cluster(workers: int) -> Any:
+def local_cluster(workers: int) -> Any:
+    """The ``distributed.LocalCluster`` that :func:`generate` starts: ``workers`` single-threaded
+    processes, configured by :data:`LOCAL_CLUSTER_CONFIG`."""
     import dask
     from distributed import LocalCluster
 
@@ -710,7 +712,8 @@ def check_workers_see_store(client: Any, store: DatasetStore) -> None:
             raise DatasetStoreError(f"worker {address}: {problem}")
 
 
-def _worker_addresses(client: Any) -> set[str]:
+def worker_addresses(client: Any) -> set[str]:
+    """The addresses of the workers connected to ``client``'s scheduler now."""
     return set(client.scheduler_info()["workers"])
 
 
@@ -809,7 +812,7 @@ def generate(
 
                 import dask
 
-                own_cluster = _local_cluster(workers or os.cpu_count() or 1)
+                own_cluster = local_cluster(workers or os.cpu_count() or 1)
                 with dask.config.set(LOCAL_CLUSTER_CONFIG):  # the client's own logs too
                     own_client = Client(own_cluster)
                 mode = "local-cluster"
@@ -817,7 +820,7 @@ def generate(
         elif client is not None:
             mode = str(client.scheduler.address)
         if client is not None:
-            at_start = _worker_addresses(client)
+            at_start = worker_addresses(client)
             if chunks and not at_start:
                 raise InputError(f"{mode}: no worker is connected to this scheduler (start `dask worker {mode}` "
                                  "processes that see --out)")
@@ -827,17 +830,17 @@ def generate(
         startup = time.perf_counter() - t_start
         bar = tqdm(total=spec.n_samples, initial=spec.n_samples - n_todo, unit="sample", desc=spec.name,
                    disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
-        tally = _Tally(bar)
+        tally = Tally(bar)
         t_run, cpu_run = time.perf_counter(), time.process_time()
         try:
             if client is None:
                 _run_in_process(spec, chunks, writer, vocab, tally, complete)
             else:
-                _run_on_client(client, spec, chunks, writer, vocab, tally, len(at_start), complete)
+                run_on_client(client, spec, chunks, writer, vocab, tally, len(at_start), complete)
         finally:
             bar.close()
             if client is not None:
-                at_end = _worker_addresses(client)
+                at_end = worker_addresses(client)
         elapsed = time.perf_counter() - t_run
         driver_cpu = time.process_time() - cpu_run
     finally:
@@ -877,6 +880,7 @@ def generate(
     )
 
 
-__all__ = ("ChunkResult", "GenerateReport", "SampleResult", "SpecError", "TaskCost", "check_workers_see_store",
-           "code_version", "generate", "make_chunk", "make_chunk_range", "make_sample", "repair_store",
-           "simulate_rows", "simulate_sample", "split_tail", "write_chunk")
+__all__ = ("ChunkResult", "GenerateReport", "LOCAL_CLUSTER_CONFIG", "SampleResult", "Tally", "TaskCost",
+           "check_workers_see_store", "code_version", "generate", "local_cluster", "make_chunk", "make_chunk_range",
+           "make_sample", "repair_store", "run_on_client", "simulate_rows", "simulate_sample", "split_tail",
+           "worker_addresses", "write_chunk")

@@ -146,7 +146,7 @@ def sample_arrays(spec: DatasetSpec, sample: SampleDescription, scene: Any, simu
                            f"expected int16 ({spec.n_pings}, 3, n_time)")
     recording = simulation.recording
     paths = simulation.paths
-    # simulate() already built the arrivals table for its truth: reuse it (~4 ms per default-spec sample).
+    # simulate() already built the arrivals table for its truth: reuse it rather than build it again.
     truth = getattr(simulation, "truth", None)
     arrivals = truth.get("arrivals") if truth is not None else None
     if arrivals is None:

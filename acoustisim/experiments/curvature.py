@@ -481,7 +481,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     """Run the selected cases (``config.trials`` pings per value, default 10) and the fusion track."""
     from acoustisim.errors import InputError
     from acoustisim.experiments.runner import make_trials, run_trials
-    from binsonar.detection.api import METHODS as DETECTORS
+    from binsonar.detection.registry import METHODS as DETECTORS
 
     pings = config.trials_or(DEFAULT_TRIALS)
     detector = str(config.option("detector", "matched"))

@@ -53,7 +53,7 @@ BIAS_NOTE = (
     "propagated to range and bearing through the localiser's linearised covariance (`binsonar.estimation.noise_bound`). "
     "It bounds the scatter, not the bias. The JSON also holds the detector's own bound "
     "(`detector_bound_range_m`: its noise floor, the median over the gate, includes the frozen reverberation, "
-    "so it was 1.2-1.6x larger in the default sweeps), the optimal bound (`optimal_bound_range_m`: the received echo's own spectrum in "
+    "so it is larger than this bound wherever reverberation reaches the gate), the optimal bound (`optimal_bound_range_m`: the received echo's own spectrum in "
     "the noise's own spectrum, which a whitened filter matched to the echo would reach) and the bound with the "
     "diffuse reverberation counted as Gaussian interference (`reverb_bound_range_m`, `binsonar.estimation.reverberation_bound`): "
     "the same CRLB with the reverberation's level at the echo's delay (the matched filter's output power of the "

@@ -79,6 +79,15 @@ def empty_paths_array(n: int = 0) -> NDArray[Any]:
     return rows
 
 
+def roughness_loss_db(roughness_m2: NDArray[np.float64], frequency_hz: float,
+                      sound_speed_m_s: float) -> NDArray[np.float64]:
+    """The coherent-roughness loss (dB, positive) -20 log10(exp(-S k^2)) = 20 S k^2 / ln 10 of
+    rows with ``roughness_m2`` S (m^2), at ``frequency_hz`` (k = 2 pi f / c): what the factor
+    already in ``amplitude`` (at f0) costs, as the arrivals table reports it."""
+    k = 2.0 * np.pi * frequency_hz / sound_speed_m_s
+    return np.asarray(roughness_m2, dtype=float) * (k * k * 20.0 / np.log(10.0))
+
+
 @dataclass(frozen=True, eq=False)
 class Paths:
     """Immutable, vectorised set of paths.
@@ -190,9 +199,8 @@ class Paths:
         arrivals = Paths(self.arrivals(), self.surface_names, self.centre_frequency_hz, self.sound_speed_m_s)
         labels = arrivals.object_labels()
         channel_names = ("left", "centre", "right")
-        k0 = 2.0 * np.pi * self.centre_frequency_hz / self.sound_speed_m_s
-        # the coherent-roughness loss at f0 (dB, positive), already in "amplitude": -20 log10 exp(-S k0^2)
-        roughness_loss = arrivals.rows["roughness_m2"] * (k0 * k0 * 20.0 / np.log(10.0))
+        roughness_loss = roughness_loss_db(arrivals.rows["roughness_m2"], self.centre_frequency_hz,
+                                           self.sound_speed_m_s)
         table = []
         for i, (row, label) in enumerate(zip(arrivals.rows, labels)):
             n = int(row["order"])

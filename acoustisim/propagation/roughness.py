@@ -73,10 +73,6 @@ ON_SURFACE_M = 1e-8
 """A point this close (m) to a mirror's plane or a primitive's side lies on it (specular
 points are solved to float64 rounding; cylinder ends are resolved to 1e-9 m)."""
 
-NEPER_TO_DB = 20.0 / math.log(10.0)
-"""A pressure factor exp(-x) is 20 x / ln(10) dB of loss."""
-
-
 def surface_rms_heights(scene: Scene) -> NDArray[np.float64]:
     """The rms height h (m) of each surface (boundaries, then objects: the index of
     ``scene.surface_names`` and the rows' ``object_ids``), shape (n_surfaces,)."""
@@ -228,14 +224,6 @@ def roughness_m2(rows: NDArray[Any], prepared: PreparedScene, transmitter_m: NDA
     return 2.0 * np.sum(term * term, axis=1)
 
 
-def roughness_loss_db(roughness: NDArray[np.float64], frequency_hz: float,
-                      sound_speed_m_s: float) -> NDArray[np.float64]:
-    """The coherent-roughness loss (dB, positive) -20 log10(exp(-S k^2)) = S k^2 20 / ln 10 of rows
-    with ``roughness_m2`` S (m^2), at ``frequency_hz`` (k = 2 pi f / c)."""
-    k = 2.0 * math.pi * float(frequency_hz) / float(sound_speed_m_s)
-    return np.asarray(roughness, dtype=float) * (k * k * NEPER_TO_DB)
-
-
 def apply_coherent_roughness(rows: NDArray[Any], prepared: PreparedScene, context: SolveContext) -> None:
     """Fill ``roughness_m2`` of the specular rows that touch a rough surface and multiply their
     ``amplitude`` by exp(-S k0^2) (k0 at the centre frequency), in place.
@@ -262,5 +250,5 @@ def apply_coherent_roughness(rows: NDArray[Any], prepared: PreparedScene, contex
     rows["amplitude"][at] *= np.exp(-s * (k0 * k0))
 
 
-__all__ = ("NEPER_TO_DB", "ON_SURFACE_M", "ZERO_LEG_M", "apply_coherent_roughness", "grazing_sines",
-           "roughness_loss_db", "roughness_m2", "surface_rms_heights", "vertex_normals")
+__all__ = ("ON_SURFACE_M", "ZERO_LEG_M", "apply_coherent_roughness", "grazing_sines",
+           "roughness_m2", "surface_rms_heights", "vertex_normals")

@@ -19,9 +19,8 @@ numpy can only express through several temporary (rows x bins) arrays are compil
 The loops run sequentially in row order, so the output is deterministic (byte-identical for
 the same rows). ``cache=True`` stores the compiled code in ``__pycache__`` beside this file (or,
 when that is read-only, in numba's per-user cache directory; ``NUMBA_CACHE_DIR`` overrides):
-the first render in a fresh checkout compiles these and :mod:`ping_loops` (5-10 s of CPU on
-the team's loaded 2-core machine), later processes load the cache in about 0.4 s
-(``benchmarks/bench_synthesis.py`` prints both).
+the first render in a fresh checkout compiles these and :mod:`ping_loops` (seconds), later
+processes load the cache (``benchmarks/bench_synthesis.py`` prints both times).
 """
 
 from __future__ import annotations

@@ -48,8 +48,9 @@ from acoustisim.medium import Medium
 from acoustisim.sonar import SonarHead
 from acoustisim.propagation.directivity import piston_directivity
 from acoustisim.propagation.responses import EchoResponse
+from acoustisim.pulse import Pulse
 from acoustisim.synthesis.spectral_rows import add_spectral_rows, needs_spectral_path
-from acoustisim.synthesis.transducer import Pulse, pulse_band_top_hz, pulse_spectrum, pulse_support_s
+from acoustisim.synthesis.transducer import pulse_band_top_hz, pulse_spectrum, pulse_support_s
 
 SYNTHESIS_BAND_DB = -100.0
 """Pulse spectrum level (dB re its peak) above which bins are synthesised; the rest (< 1e-5

@@ -12,9 +12,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from acoustisim.pulse import GaussianPulse, SampledPulse
-
-Pulse = GaussianPulse | SampledPulse
+from acoustisim.pulse import Pulse, SampledPulse
 
 
 def pulse_spectrum(pulse: Pulse, frequency_hz: ArrayLike) -> NDArray[np.complex128]:

@@ -14,9 +14,7 @@ from __future__ import annotations
 import base64
 import html
 import json
-import os
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -297,18 +295,3 @@ def render_page(layers: Sequence[Layer], camera: CameraPreset, title: str = "") 
     # Keep the JSON from closing its <script> element.
     data = data.replace("</", "<\\/")
     return _PAGE.replace("__TITLE__", html.escape(title)).replace("__DATA__", data)
-
-
-def write_webgl_html(path: str | os.PathLike[str], layers: Sequence[Layer], camera: CameraPreset,
-                     title: str = "") -> Path:
-    """Write the page to ``path`` (parent folders created).
-
-    Returns
-    -------
-    Path
-        The written file.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(render_page(layers, camera, title), encoding="utf-8")
-    return path

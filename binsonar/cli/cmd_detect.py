@@ -185,7 +185,8 @@ def run(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add the ``detect`` verb."""
-    from binsonar.detection.api import CLIPPED_POLICIES, METHODS
+    from binsonar.detection.api import CLIPPED_POLICIES
+    from binsonar.detection.registry import METHODS
 
     parser = subparsers.add_parser(
         "detect",

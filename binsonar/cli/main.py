@@ -7,21 +7,19 @@ import argparse
 import sys
 from typing import Sequence
 
-import binsonar.cli as cli_package
-from binsonar.cli.verbs import build_parser as _build_parser
-from binsonar.cli.verbs import run_command
+from binsonar.cli import verbs
 
 DESCRIPTION = "Detection and localisation for the binaural sonar, on real-format recordings."
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every discovered verb."""
-    return _build_parser(cli_package, "binsonar", DESCRIPTION)
+    return verbs.build_parser(__package__, "binsonar", DESCRIPTION)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 success, 2 bad input)."""
-    return run_command(build_parser(), argv, "binsonar")
+    return verbs.run_command(build_parser(), argv, "binsonar")
 
 
 if __name__ == "__main__":

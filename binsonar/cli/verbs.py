@@ -22,7 +22,6 @@ import importlib
 import os
 import pkgutil
 import sys
-from types import ModuleType
 from typing import NoReturn, Sequence
 
 USER_ERROR_NAMES: tuple[str, ...] = ("InputError", "RecordingError", "SceneFileError", "SpecError")
@@ -52,14 +51,16 @@ class OneLineArgumentParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
-def build_parser(package: ModuleType, prog: str, description: str) -> argparse.ArgumentParser:
-    """An argument parser with every verb of ``package`` (its ``cmd_*`` modules)."""
+def build_parser(package: str, prog: str, description: str) -> argparse.ArgumentParser:
+    """An argument parser with every verb of the package named ``package`` (its ``cmd_*``
+    modules; a command's ``main`` module passes its own ``__package__``, so that the package
+    and its entry point do not import each other)."""
     parser = OneLineArgumentParser(prog=prog, description=description)
     subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
     subparsers.required = True
-    for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda m: m.name):
+    for info in sorted(pkgutil.iter_modules(importlib.import_module(package).__path__), key=lambda m: m.name):
         if info.name.startswith("cmd_"):
-            importlib.import_module(f"{package.__name__}.{info.name}").register(subparsers)
+            importlib.import_module(f"{package}.{info.name}").register(subparsers)
     return parser
 
 

@@ -23,14 +23,12 @@ from binsonar.detection.conditioning import average_and_bandpass, average_keepin
 from binsonar.detection.echo import DetectionResult, Echo
 from binsonar.detection.inputs import Signals, as_signals, resolve_template
 from binsonar.detection.methods import DetectionMethod, RawEchoes, RecordContext, RowBatch
-from binsonar.detection.registry import BASE_METHODS, METHODS, RegisteredMethod, lookup
+from binsonar.detection.registry import RegisteredMethod, lookup
 from binsonar.detection.settings import DetectionSettings
 from binsonar.recording import Recording, RecordingError, Template
 
 __all__ = (
-    "BASE_METHODS",
     "CLIPPED_POLICIES",
-    "METHODS",
     "PlanStore",
     "PreparedDetector",
     "detect",
@@ -323,7 +321,7 @@ def detect(
         Volts; arrays of shape (n_samples,), (3, n_samples) or (n_pings, 3, n_samples), or
         integer ADC codes with ``volts_per_code`` (a recording read with
         ``read_recording(..., keep_codes=True)`` carries its codes). Each ping-channel's
-        median (its DC offset) is removed first (``inputs.remove_median``); the methods that
+        median (its DC offset) is removed first (``inputs.row_offsets``, ``Signals.without_dc``); the methods that
         fold it (``DetectionMethod.folds_dc``: threshold, matched, local-matched) fold it into
         their arithmetic instead, with the same result (to rounding) and no copy of the record.
     method : str

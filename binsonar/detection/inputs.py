@@ -187,7 +187,15 @@ def quantisation_noise_std_v(step_v: float) -> float:
 
 def row_offsets(waveforms: NDArray[np.float64]) -> NDArray[np.float64] | None:
     """Each ping-channel's median (its DC offset), shape (n_pings, n_channels); None when
-    every one is exactly 0 (see ``remove_median``)."""
+    every one is exactly 0.
+
+    Real ADC data carry an offset, which the band detectors (energy, DWT) would otherwise see
+    as energy switched on and off at the record's edges. The median, over the evenly spread
+    stretches of ``noise.robust_subsample``, is robust to echoes (a few per cent of the
+    samples move it by a few per cent of the noise) and, for data on an ADC's code grid, is
+    itself a code, so the samples stay on a (shifted) code grid once it is subtracted
+    (:meth:`Signals.without_dc`).
+    """
     n_pings, n_channels, n = waveforms.shape
     median = row_median(robust_subsample(waveforms.reshape(n_pings * n_channels, n)))
     if not np.any(median != 0.0):
@@ -297,22 +305,6 @@ def _code_signals(
     return signals.without_dc() if remove_dc else signals
 
 
-def remove_median(waveforms: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The waveforms minus each ping-channel's median (its DC offset), shape kept.
-
-    Real ADC data carry an offset, which the band detectors (energy, DWT) would otherwise see
-    as energy switched on and off at the record's edges. The median, over the evenly spread
-    stretches of ``noise.robust_subsample``, is robust to echoes (a few per cent of the
-    samples move it by a few per cent of the noise) and, for data on an ADC's code grid,
-    is itself a code, so the samples stay on a (shifted) code grid. Returned as is (no copy)
-    when every median is already 0.
-    """
-    median = row_offsets(waveforms)
-    if median is None:
-        return waveforms
-    return waveforms - median[:, :, np.newaxis]
-
-
 def as_signals(
     data: Recording | NDArray[np.floating],
     sample_rate_hz: float | None = None,
@@ -327,7 +319,7 @@ def as_signals(
     """Validate a recording or an array and return it as ``Signals``, each ping-channel's DC
     offset removed (or, with ``remove_dc=False``, measured and carried in ``Signals.dc_v``).
 
-    The offset is the row's median (``remove_median``), subtracted before any detector runs;
+    The offset is the row's median (:func:`row_offsets`), subtracted before any detector runs;
     clipping is judged on the samples as recorded. An absolute threshold level (the threshold
     detector's ``level_v``) is therefore measured from that median.
 

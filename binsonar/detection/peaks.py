@@ -90,7 +90,7 @@ def peaks_above(
     n = values.size
     above = values > threshold
     bounds = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
-    start, stop = bounds[::2], bounds[1::2]
+    start = bounds[::2]
     if start.size == 0:
         empty = np.zeros(0)
         return start.astype(np.intp), start.astype(np.intp), empty, empty

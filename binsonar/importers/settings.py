@@ -31,8 +31,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from binsonar.array_description import ArrayDescription
-from binsonar.errors import InputError
-from binsonar.recording.model import Template, short_repr
+from binsonar.errors import InputError, short_repr
+from binsonar.recording.model import Template
 
 IMPORT_KEYS: tuple[str, ...] = (
     "t0_s", "samples_per_ping", "volts_per_unit", "samples", "variable", "template", "template_sample_rate_hz",

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from binsonar.errors import short_repr
 from binsonar.files import as_path
 from binsonar.recording.array_group import read_array_group
 from binsonar.recording.hdf5_safety import (
@@ -28,7 +29,7 @@ from binsonar.recording.hdf5_safety import (
     small_array,
     text_attribute,
 )
-from binsonar.recording.model import FORMAT_VERSION, Recording, RecordingError, RecordingHeader, Template, short_repr
+from binsonar.recording.model import FORMAT_VERSION, Recording, RecordingError, RecordingHeader, Template
 from binsonar.recording.source import PingSource
 
 if TYPE_CHECKING:

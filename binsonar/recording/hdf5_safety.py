@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from binsonar.errors import short_repr
 from binsonar.files import check_input_file
-from binsonar.recording.model import RecordingError, short_repr
+from binsonar.recording.model import RecordingError
 
 if TYPE_CHECKING:
     import h5py

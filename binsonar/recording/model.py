@@ -25,7 +25,7 @@ from binsonar.array_description import (
     ArrayDescription,
     ArrayDescriptionError,
 )
-from binsonar.errors import InputError, InputTypeError
+from binsonar.errors import InputError, InputTypeError, checked_number, short_repr
 
 FORMAT_VERSION = "1.1"
 """Version of the recording file's layout: 1.1 added the optional ``/array`` group (1.0 files
@@ -55,12 +55,6 @@ class RecordingError(InputError):
     """A recording file or array that cannot be used; the message names file, field and value."""
 
 
-def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` on one line, cut to ``limit`` characters."""
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
 def finite_number(value: Any, where: str, name: str, *, low: float | None = None, high: float | None = None,
                   low_open: bool = False) -> float:
     """``value`` as a finite float within [low, high] (``low_open``: > low).
@@ -70,16 +64,7 @@ def finite_number(value: Any, where: str, name: str, *, low: float | None = None
     RecordingError
         Not a real number, not finite, or out of the range (naming ``where``, ``name``, value).
     """
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise RecordingError(f"{where}: {name} must be a number, got {short_repr(value)}")
-    number = float(value)
-    if not math.isfinite(number):
-        raise RecordingError(f"{where}: {name} must be finite, got {short_repr(value)}")
-    if low is not None and (number <= low if low_open else number < low):
-        raise RecordingError(f"{where}: {name} must be {'>' if low_open else '>='} {low:g}, got {short_repr(value)}")
-    if high is not None and number > high:
-        raise RecordingError(f"{where}: {name} must be <= {high:g}, got {short_repr(value)}")
-    return number
+    return checked_number(value, f"{where}: {name}", error=RecordingError, low=low, high=high, low_open=low_open)
 
 
 def sample_rate(value: Any, where: str, name: str = "sample_rate_hz") -> float:

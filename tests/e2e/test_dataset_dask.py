@@ -28,9 +28,9 @@ SPEC = small_spec(name="tiny-dask", n_samples=16, seed=5)
 def client():
     from distributed import Client
 
-    from acoustisim.datasets.generate import _local_cluster
+    from acoustisim.datasets.generate import local_cluster
 
-    cluster = _local_cluster(2)  # as `generate --workers 2` starts it
+    cluster = local_cluster(2)  # as `generate --workers 2` starts it
     with Client(cluster) as c:
         yield c
     cluster.close()
@@ -128,7 +128,7 @@ def test_a_failing_task_on_a_worker_stops_the_run_naming_its_samples(client, tmp
     its samples, and nothing of its chunk is recorded complete."""
     import dataclasses
 
-    from acoustisim.datasets.generate import _run_on_client, _Tally, open_or_create, split_tail
+    from acoustisim.datasets.generate import run_on_client, Tally, open_or_create, split_tail
     from acoustisim.datasets.labels import vocabularies
 
     spec = loads_spec(SPEC)
@@ -145,7 +145,7 @@ def test_a_failing_task_on_a_worker_stops_the_run_naming_its_samples(client, tmp
     # Every sample fails; a split chunk reports the first of its sample tasks to fail.
     match = r"^task of samples 0-3 failed: RuntimeError: sample [0-3]: ValueError"
     with pytest.raises(RuntimeError, match=match):
-        _run_on_client(client, spec, chunks, store.writer(), bad, _Tally(Bar()), n_workers)
+        run_on_client(client, spec, chunks, store.writer(), bad, Tally(Bar()), n_workers)
     assert not store.complete_mask().any()
     assert not (tmp_path / "fail.zarr" / "waveforms" / "c").exists()
 
@@ -159,11 +159,10 @@ def test_only_the_last_chunks_are_split_and_only_with_several_workers(n_chunks: 
 
 
 def test_the_scheduler_logs_no_samples_per_task(client, tmp_path: Path) -> None:
-    """Regression test of the driver's growth over long runs (~10 MiB per 1000 default-spec
-    samples): the scheduler (in the driver's process with a LocalCluster) keeps the last
-    batches it sent to each worker, and a batch held the drawn samples of its chunk tasks. A
-    task now carries its sample range (the worker draws the samples again), and those logs
-    keep 100 batches instead of 1000."""
+    """The driver does not grow over long runs: the scheduler (in the driver's process with a
+    LocalCluster) keeps the last batches it sent to each worker, so a task carries only its
+    sample range (the worker draws the samples again), never the drawn samples, and those logs
+    keep 100 batches, not the default 1000."""
     import pickle
 
     generate(loads_spec(SPEC), tmp_path / "logs.zarr", client=client, progress=False)
@@ -278,7 +277,7 @@ def test_a_scheduler_without_workers_is_refused_in_one_line(client, tmp_path: Pa
     import acoustisim.datasets.generate as generation
     from acoustisim.errors import InputError
 
-    monkeypatch.setattr(generation, "_worker_addresses", lambda c: set())
+    monkeypatch.setattr(generation, "worker_addresses", lambda c: set())
     with pytest.raises(InputError, match="no worker is connected to this scheduler"):
         generate(loads_spec(small_spec(name="none", n_samples=1, seed=1)), tmp_path / "n.zarr", client=client,
                  progress=False)

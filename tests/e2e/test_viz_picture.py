@@ -124,8 +124,8 @@ def test_top_view_legend_beside_the_tank_names_axes_and_no_blank_band(thesis_tan
     height, width, _ = picture.image.shape
     scene, legend = picture.scene_box_px, picture.legend_box_px
     assert legend[0] > scene[2], "the legend is right of the scene"
-    # The plan keeps the tank's 3:1 shape and the picture has no blank band (the old layout
-    # left 45 % of the rows under the tank blank for the legend).
+    # The plan keeps the tank's 3:1 shape and the picture has no blank band (the legend sits
+    # beside the scene, not under it).
     assert (scene[2] - scene[0]) / (scene[3] - scene[1]) == pytest.approx(9.0 / 3.0, rel=0.1)
     assert _background_rows(picture.image) < 0.15
     # Every object is named, inside the scene area, and no two labels overlap.
@@ -217,7 +217,7 @@ def test_the_api_takes_the_scene_first_as_a_scene_a_name_or_a_file(thesis_tank, 
     finally:
         plotter.close()
     with pytest.raises(InputTypeError, match="the scene comes first"):
-        render_png(tmp_path / "x.png", thesis_tank)  # the old order
+        render_png(tmp_path / "x.png", thesis_tank)  # path first: refused
     with pytest.raises(InputError, match="no such scene file or built-in scene"):
         render_png("no-such-scene", tmp_path / "x.png")
     with pytest.raises(InputTypeError, match="expected a Scene"):

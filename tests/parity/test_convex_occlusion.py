@@ -144,7 +144,6 @@ def test_plane_test_equals_embree_occlusion_on_random_legs(tank):
     scene, raycaster = tank
     rng = np.random.default_rng(12)
     n_boundaries = len(scene.boundaries)
-    planes = raycaster.convex_planes
     total = 0
     for k, obj in enumerate(scene.objects):
         surface = n_boundaries + k

@@ -11,8 +11,7 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.reference.edges import edge_rows as reference_edge_rows
 from acoustisim.propagation.fast import FastEngine, assemble
 from acoustisim.propagation.fast.assemble import (SortKeys, assemble_rows, compact_records, is_sorted,
-                                                  merge_destinations, permute_records, scatter_records,
-                                                  spread_records)
+                                                  merge_destinations, permute_records, scatter_records)
 from acoustisim.propagation.fast.columns import column_inputs, complete_columns, fill_columns
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind
 from acoustisim.propagation.reference import columns as reference_columns
@@ -22,6 +21,12 @@ EXACT = ("path_id", "channel", "kind", "order", "delay_s", "path_length_m", "geo
          "angle_tx_rad", "angle_rx_rad", "absorption_db", "departure_dir", "arrival_dir", "object_ids", "points_m")
 """Fields the fast assembly moves or computes exactly as the reference does (the angles: the
 same products and sums, numpy's arctan2)."""
+
+
+def spread_records(records: np.ndarray, destination: np.ndarray) -> None:
+    """Move records 0 .. h-1 (rows of raw bytes) to ``destination`` (h increasing places,
+    ``destination[i] >= i``), in place; the places no record moves onto keep their bytes."""
+    records[destination] = records[:destination.size].copy()
 
 
 def _engine_parts(prepared, context: SolveContext, config: SolverConfig) -> list[np.ndarray]:

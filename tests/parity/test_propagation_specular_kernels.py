@@ -141,7 +141,6 @@ def test_go_factors_match_the_reference():
     # rows whose det is not within 1e-6 of cancelling
     d1, d2 = x - a, x - b
     s1 = d1 / np.linalg.norm(d1, axis=1, keepdims=True)
-    s2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
     # |det H| (from the reference amplitude) against the size of H's terms (c <= 2)
     scale = 2.0 * (2.0 * (np.abs(k11) + np.abs(k22) + np.abs(k12)) + 1.0 / np.linalg.norm(d1, axis=1)
                    + 1.0 / np.linalg.norm(d2, axis=1)) ** 2

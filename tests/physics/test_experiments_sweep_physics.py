@@ -250,7 +250,7 @@ def test_default_angle_sweep_range_has_no_specular_path_in_the_gate() -> None:
         specular = rows[(rows["kind"] == PathKind.SPECULAR) & (rows["delay_s"] >= gate[0])
                         & (rows["delay_s"] <= gate[1])]
         assert specular.size == 0, (bearing, specular["delay_s"])
-    # ...while at 2.0 m (the old default) the order-4 floor-surface multiple is in it at 0 deg.
+    # ...while at 2.0 m the order-4 floor-surface multiple is in it at 0 deg.
     scene, sonar, _, _, gate = position_setup(2.0, 0.0)
     rows = solve(scene, sonar, solver_config({"reverberation": False})).rows
     inside = rows[(rows["kind"] == PathKind.SPECULAR) & (rows["delay_s"] >= gate[0]) & (rows["delay_s"] <= gate[1])]

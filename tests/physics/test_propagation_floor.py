@@ -71,8 +71,8 @@ def test_echo_at_the_first_null_is_kept_across_the_band(null_scene, backend):
     axis, null = _centre_echo(paths, "axis"), _centre_echo(paths, "null")
     assert axis.size == 1 and null.size == 1
     assert null["angle_tx_rad"][0] == pytest.approx(theta, abs=1e-6)
-    # the old rule (centre-frequency amplitude against -80 dB of the strongest) culls it: the
-    # f0 directivity at the null is ~0 (the echo is > 100 dB down at f0)
+    # a floor judged at the centre frequency alone (amplitude against -80 dB of the strongest)
+    # would cull it: the f0 directivity at the null is ~0 (the echo is > 100 dB down at f0)
     assert null["amplitude"][0] < 1e-4 * axis["amplitude"][0]
     # at the band's lower frequencies it is only ~18 dB below the on-axis echo (same range):
     # max over the band frequencies of w(f) D(f)^2 A(f) / (D(f0)^2 A(f0)) of the axis echo

@@ -13,8 +13,7 @@ import pytest
 from acoustisim.materials import get_material, material_library
 from acoustisim.propagation import SolverConfig, solve
 from acoustisim.propagation import solver as solver_module
-from acoustisim.propagation.paths import PathKind
-from acoustisim.propagation.roughness import roughness_loss_db
+from acoustisim.propagation.paths import PathKind, roughness_loss_db
 from acoustisim.simulation import simulate
 from acoustisim.synthesis.synthesiser import PathSynthesiser
 

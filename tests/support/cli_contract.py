@@ -6,7 +6,7 @@ Contract: exit 0, or exit 2 with exactly one line on stderr (no traceback, no us
 - :func:`run_in_process` runs ``acoustisim`` or ``binsonar`` in this process (fast: for the
   fuzz suite), under a ``SIGALRM`` watchdog that turns a run past its time into a failure.
 - :func:`run_guarded` runs a batch of commands in one child process with an address-space
-  limit (``RLIMIT_AS``) and a wall-clock timeout, for the inputs that used to hang or
+  limit (``RLIMIT_AS``) and a wall-clock timeout, for the inputs that could hang or
   allocate without bound (a FIFO, ``/dev/zero``, 10^9 pings).
 """
 

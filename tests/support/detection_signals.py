@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from binsonar.bounds import rms_bandwidth_hz, tof_crlb_s
 from binsonar.recording import Template
 
 FS = 20e6

@@ -43,7 +43,6 @@ angles near the shadow boundary (physics.md section 8).
 from __future__ import annotations
 
 import numpy as np
-from scipy import special
 
 
 def _cylinder_functions(kind, orders, x):

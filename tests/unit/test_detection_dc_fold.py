@@ -78,6 +78,23 @@ def test_noise_sigma_with_offset_is_that_of_the_shifted_rows():
                           noise_sigma(shifted, sample_rate_hz=FS, t0_s=0.0))
 
 
+def assert_folded_like_copied(folded, copied) -> None:
+    """One echo per channel, at the true delay, from the folded run and from the run on the
+    offset-free copy, equal within rounding.
+
+    Rounding of terms of up to |dc| sum|taps| ~ 2 V x 100 against a 0.5 V echo's z: relative
+    errors ~1e-13, i.e. 1e-13 of a 50 ns sample in the TOF. Tolerances 1e-15 s and 1e-9
+    relative: many orders above the rounding, many below a forgotten term (the 2 V offset's
+    correlation with the taps, or its energy, would move the peak or the noise estimate grossly).
+    """
+    assert [len(e) for e in folded] == [len(e) for e in copied] == [1, 1, 1]
+    for a, b in zip(folded, copied):
+        assert abs(a[0][0] - b[0][0]) < 1e-15
+        assert np.allclose(a[0][1:], b[0][1:], rtol=1e-9, atol=0.0)
+    for c, echoes in enumerate(folded):
+        assert abs(echoes[0][0] - DELAYS[c]) < 0.1e-6
+
+
 def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
     from binsonar.detection.local import detect_local_matched, plan_local
 
@@ -86,18 +103,9 @@ def test_local_matched_folded_equals_local_matched_on_the_offset_free_copy():
     plan = plan_local(pulse_template(), N, FS)
     folded = detect_local_matched(kept.waveforms[0], plan, t0_s=0.0, dc_v=kept.dc_v[0])
     copied = detect_local_matched(kept.without_dc().waveforms[0], plan, t0_s=0.0)
-    assert [len(e) for e in folded] == [len(e) for e in copied] == [1, 1, 1]
     # Not bit-identical: the folded correlation is z(x) - dc * sum(taps) instead of z(x - dc),
-    # and the block correlations are those of x minus dc times the tone's sum. Rounding of terms of up to
-    # |dc| sum|taps| ~ 2 V x 100 against a 0.5 V echo's z: relative errors ~1e-13, i.e.
-    # 1e-13 of a 50 ns sample in the TOF. Tolerances 1e-15 s and 1e-9 relative: many orders
-    # above the rounding, many below a forgotten term (the 2 V offset's correlation with the
-    # taps, or its energy, would move the peak or the noise estimate grossly).
-    for a, b in zip(folded, copied):
-        assert abs(a[0][0] - b[0][0]) < 1e-15
-        assert np.allclose(a[0][1:], b[0][1:], rtol=1e-9, atol=0.0)
-    for c, echoes in enumerate(folded):
-        assert abs(echoes[0][0] - DELAYS[c]) < 0.1e-6
+    # and the block correlations are those of x minus dc times the tone's sum.
+    assert_folded_like_copied(folded, copied)
 
 
 def test_dc_correlation_is_the_correlation_of_a_constant_record():
@@ -190,12 +198,6 @@ def test_matched_folded_equals_matched_on_the_offset_free_copy(single):
     plan = plan_matched(pulse_template(), N, FS)
     folded = detect_matched(kept.waveforms[0], plan, t0_s=0.0, dc_v=kept.dc_v[0], single=single)
     copied = detect_matched(kept.without_dc().waveforms[0], plan, t0_s=0.0, single=single)
-    assert [len(e) for e in folded] == [len(e) for e in copied] == [1, 1, 1]
     # The FFT input is x - dc either way (subtracted in the cast copy or in a float64 copy);
-    # the direct correlations differ by rounding of z(x) - dc * sum(taps) against z(x - dc), as
-    # for the local filter above: same tolerances.
-    for a, b in zip(folded, copied):
-        assert abs(a[0][0] - b[0][0]) < 1e-15
-        assert np.allclose(a[0][1:], b[0][1:], rtol=1e-9, atol=0.0)
-    for c, echoes in enumerate(folded):
-        assert abs(echoes[0][0] - DELAYS[c]) < 0.1e-6
+    # the direct correlations differ by rounding of z(x) - dc * sum(taps) against z(x - dc).
+    assert_folded_like_copied(folded, copied)

@@ -15,7 +15,6 @@ from binsonar.detection.matched import (
     detect_matched,
     filtered_spectrum,
     lags_from_spectrum,
-    lags_time_domain,
     plan_matched,
     white_noise_power,
 )

@@ -9,7 +9,7 @@ from binsonar.detection.peaks import parabolic_offset, peaks_above
 
 
 def _reference(values: np.ndarray, threshold: float):
-    """The straightforward per-region loop the detectors used to carry."""
+    """The straightforward per-region loop, as an independent reference for the vectorised search."""
     out = []
     above = values > threshold
     bounds = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))

@@ -1,10 +1,10 @@
-"""Property-based fuzzing of command-line arguments, and the inputs that used to hang.
+"""Property-based fuzzing of command-line arguments, and the inputs that could hang.
 
 Argument lists for ``acoustisim scene validate/show``, ``simulate`` (a small free-field scene
 with a 0.2 ms record, so a run that is accepted stays short), ``demo`` (one ping, 2 ms) and
 ``binsonar`` are drawn from hostile values (empty, negative, nan, inf, 1e300, huge integers,
 text, option names where values belong) and run in this process: each must exit 0, or exit 2
-with one line. The inputs that used to hang or allocate without bound (a FIFO, ``/dev/zero``,
+with one line. The inputs that could hang or allocate without bound (a FIFO, ``/dev/zero``,
 10^9 pings, a 1 TS/s digitiser) run in a child process under an address-space limit and a
 timeout.
 """
@@ -132,8 +132,9 @@ def _hostile_files(folder: Path) -> None:
     (folder / "spec.toml").write_text("[dataset]\nn_samples = 2\nseed = 1\nn_pings = 1000000000\n")
 
 
-def test_inputs_that_used_to_hang_finish_with_one_line(workdir: Path) -> None:
-    """Each of these used to hang (reading a FIFO or /dev/zero) or allocate without bound."""
+def test_inputs_that_could_hang_finish_with_one_line(workdir: Path) -> None:
+    """Each of these could hang (reading a FIFO or /dev/zero) or allocate without bound if a
+    reader or the pre-flight did not stop it."""
     folder = workdir / "hostile"
     folder.mkdir()
     shutil.copy(workdir / "tiny.toml", folder / "tiny.toml")

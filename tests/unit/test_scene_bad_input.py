@@ -11,7 +11,8 @@ import trimesh
 
 from acoustisim.cli.main import main
 from acoustisim.errors import InputError
-from scenes.scene_file import SceneFileError, load_scene
+from scenes.errors import SceneFileError
+from scenes.scene_file import load_scene
 
 DATA = Path(__file__).resolve().parents[2] / "scenes" / "data"
 

@@ -189,24 +189,6 @@ def merge_destinations(host_fields: tuple, host_first: int, others_fields: tuple
 
 
 @njit(cache=True, nogil=True)
-def spread_records(records: NDArray[np.uint8], destination: NDArray[np.int64]) -> None:
-    """Move records 0 .. h-1 to ``destination`` (increasing, ``destination[i] >= i``), in place:
-    from the last one back, so that no record is overwritten before it is moved.
-
-    Parameters
-    ----------
-    records : ndarray of uint8, shape (n, itemsize), n >= destination[-1] + 1
-    destination : ndarray of int64, shape (h,)
-    """
-    width = records.shape[1]
-    for i in range(destination.size - 1, -1, -1):
-        d = destination[i]
-        if d != i:
-            for b in range(width):
-                records[d, b] = records[i, b]
-
-
-@njit(cache=True, nogil=True)
 def is_sorted(channel: NDArray[np.int8], delay: NDArray[np.float64]) -> bool:
     """Whether rows with these keys are sorted by channel, then delay (non-decreasing; a NaN
     delay after an equal channel is out of order, as a comparison with it is false).
@@ -373,4 +355,4 @@ def assemble_rows(parts: Sequence[NDArray[Any]], context: SolveContext, floor_db
 
 
 __all__ = ("IN_PLACE_MAX_BYTES", "SortKeys", "assemble_rows", "compact_records", "is_sorted", "merge_destinations",
-           "permute_records", "scatter_records", "spread_records")
+           "permute_records", "scatter_records")

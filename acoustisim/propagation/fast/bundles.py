@@ -1,8 +1,8 @@
 """Compiled kernels called with typed bundles at the cost of plain tuples.
 
 The fast engine's kernels take small NamedTuples (one per concern: geometry, candidates,
-output). numba's dispatcher types a plain tuple of arrays in C, but a NamedTuple in Python, at
-about 10 us for a dozen arrays: more than many a kernel's whole work. So a kernel receives each
+output). numba's dispatcher types a plain tuple of arrays in C, but a NamedTuple in Python,
+which for a dozen arrays costs more than many a kernel's whole work. So a kernel receives each
 bundle as a plain tuple of its fields and rebuilds the NamedTuple first thing (free in compiled
 code), and :func:`plain_tuple_arguments` makes the Python-side call take the NamedTuples.
 """
