@@ -65,6 +65,12 @@ class SolverConfig:
         "fast" (default) or "reference": which engine computes the rows
         (:mod:`acoustisim.propagation.engine`). Both give the same rows; the reference engine
         is the readable one, the fast one the one to run.
+    elastic_echoes : bool
+        True (default): echo rows off elastic posts, cylinders, spheres and pipes carry the
+        exact elastic echo's transfer function (specular echo, internal and circumferential
+        arrivals; :mod:`acoustisim.propagation.elastic_echoes`) and their ``amplitude`` its
+        level at the centre frequency. False: every object echoes as today's geometric-optics
+        row of its material's plane-wave reflection coefficient.
     """
 
     max_order: int = 3
@@ -79,6 +85,7 @@ class SolverConfig:
     threads: int | None = None
     diffuse_visibility: str = "exact"
     backend: str = "fast"
+    elastic_echoes: bool = True
 
     def __post_init__(self) -> None:
         def integer(name: str, minimum: int) -> None:
@@ -134,10 +141,10 @@ class SolverConfig:
             raise InputError(
                 f"solver.diffuse_visibility = {self.diffuse_visibility!r}: must be one of {', '.join(VISIBILITY_MODES)}"
             )
-
-
         if not isinstance(self.backend, str) or self.backend not in BACKENDS:
             raise InputError(f"solver.backend = {self.backend!r}: must be one of {', '.join(BACKENDS)}")
+        if not isinstance(self.elastic_echoes, bool):
+            raise InputError(f"solver.elastic_echoes = {self.elastic_echoes!r}: must be true or false")
 
 
 __all__ = ["BACKENDS", "MECHANISMS", "SolverConfig", "VISIBILITY_MODES"]

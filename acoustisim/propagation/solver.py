@@ -5,7 +5,9 @@ asks the engine ``config.backend`` names (:func:`~acoustisim.propagation.engine.
 for each mechanism named in ``config.mechanisms``, in the order of
 :data:`~acoustisim.propagation.config.MECHANISMS` (direct, specular, edge, diffuse), each
 starting its path ids at the next free one; the engine then assembles the rows (derived
-columns, order by channel and delay, amplitude floor judged across the pulse band).
+columns, order by channel and delay, amplitude floor judged across the pulse band). Then the
+engine-independent steps on the assembled rows: elastic echoes
+(:mod:`~acoustisim.propagation.elastic_echoes`, ``config.elastic_echoes``).
 """
 
 from __future__ import annotations
@@ -131,7 +133,13 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         if rows.size:
             next_id = max(next_id, int(rows["path_id"].max()) + 1)
     rows = engine.assemble_rows(parts, context, config)
-    return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s)
+    responses: tuple[Any, ...] = ()
+    if config.elastic_echoes:  # step: echoes off elastic posts, spheres and pipes get their transfer functions
+        from acoustisim.propagation.elastic_echoes import attach_elastic_echoes
+
+        rows, responses = attach_elastic_echoes(rows, responses, prepared, context)
+    return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s,
+                       responses)
 
 
 __all__ = ["check_sonar", "solve"]
