@@ -6,11 +6,13 @@ Which rows
 A specular row's interaction is *curved* when it lies on a sphere, on the side of a cylinder
 (not on its flat caps) or on a smooth user mesh; it is *elastic* when, besides, the object is a
 sphere, post or cylinder whose body (:func:`acoustisim.scattering.echo.object_body`) is an
-elastic solid (shear speed > 0) or a pipe (a cylinder with a wall thickness and a fill). Rigid,
+elastic solid (shear speed > 0) or a pipe (a cylinder with a wall thickness and a fill), and
+whose k a at the band's top is at most :data:`MAX_KA`. Rigid,
 pressure-release and fluid bodies keep today's echo: their exact echoes are today's up to the
 creeping waves and 1/(ka) corrections (phase 1's tests), and a fluid body's internal echoes are
-not modelled. Every row with at least one elastic interaction gets an
-:class:`~acoustisim.propagation.elastic_responses.ElasticEchoResponse`, one factor per elastic
+not modelled. Every row with at least one elastic interaction whose bistatic angle is at most
+:data:`MAX_BISTATIC_RAD` (90 deg) gets an
+:class:`~acoustisim.propagation.elastic_responses.ElasticEchoResponse`, one factor per such
 interaction.
 
 Geometry (physics)
@@ -42,24 +44,42 @@ same responses.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.elastic_responses import ElasticEchoResponse, ElasticRows
+from acoustisim.propagation.elastic_responses import BAND_LEVEL_DB, SPAN_LEVEL_DB, ElasticEchoResponse, ElasticRows
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, Paths
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.scattering.bodies import Body, Elastic, Fluid, Shell
 from acoustisim.scattering.echo import EchoGeometry, EchoTarget, echo_target_for
-from acoustisim.scattering.echo_series import series_transfer, todays_echo
-from acoustisim.scattering.modal import modal_coefficients
+from acoustisim.scattering.echo_series import todays_echo
 
-__all__ = ("INTERNAL_ARRIVAL_DTYPE", "SIDE_TOLERANCE_M", "attach_elastic_echoes", "internal_arrival_table",
+__all__ = ("INTERNAL_ARRIVAL_DTYPE", "MAX_BISTATIC_RAD", "MAX_KA", "SIDE_TOLERANCE_M", "attach_elastic_echoes", "internal_arrival_table",
            "is_elastic_body")
+
+MAX_BISTATIC_RAD = 0.5 * np.pi
+"""Largest bistatic angle (rad) at the object whose echo gets the elastic transfer function: 90
+deg, a reflection at 45 deg or less from the normal. The transfer function is the exact echo over
+geometric optics; for a rigid post (25-75 mm, 150-500 kHz) it stays within 0.2 dB of 1 up to 90
+deg, is off by 0.6-2 dB at 120 deg, and near forward (grazing reflections, the far-wall chains
+of the tank) the exact scattered field is the wave that forms the shadow, +5 to +35 dB over the
+grazing reflection: it belongs with the occluded incident field, not with this row. Rows beyond
+keep today's reflection."""
+
+MAX_KA = 600.0
+"""Largest k a (at the top of the synthesised band) of an object whose echo gets its transfer
+function: the series takes about k a + 30 orders at every bin, and beyond a few hundred the
+boundary systems' Bessel functions underflow (a fast-shear solid's, e.g. steel from ka ~ 1000).
+At the thesis pulse (band top 1.3 MHz) this is a radius of 11 cm: the tank's posts and pipe,
+the clutter experiment's objects are well inside; the curvature study's 0.3-1.5 m steel
+cylinders keep today's echo."""
 
 SIDE_TOLERANCE_M = 1e-6
 """A point within this distance (m) of a cylinder's side radius, and this far inside its caps,
@@ -75,6 +95,13 @@ INTERNAL_ARRIVAL_DTYPE = np.dtype([
     ("level_db", np.float64),     # its level in the sonar's echo, dB re the echo's peak (monostatic)
 ])
 """One row per internal arrival of each elastic echo (``/truth/internal_arrivals``)."""
+
+
+def _band_top_hz(context: SolveContext) -> float:
+    """The top of the band synthesis fills (the pulse 100 dB below its peak)."""
+    from acoustisim.synthesis.transducer import pulse_band_top_hz
+
+    return pulse_band_top_hz(context.sonar.pulse, BAND_LEVEL_DB)
 
 
 def is_elastic_body(body: Body) -> bool:
@@ -157,15 +184,6 @@ def _flat_rows(target: EchoTarget, geometry: EchoGeometry, water: Fluid
     return flat, compression, np.conj(compression * g_flat / g_row)
 
 
-def _h_at(batch: ElasticRows, frequency_hz: float, water: Fluid) -> NDArray[np.complex128]:
-    """H of every row of ``batch`` at ``frequency_hz`` (the flat rows at f cos(e))."""
-    scaled = frequency_hz * batch.compression
-    unique, which = np.unique(np.round(scaled, 6), return_inverse=True)
-    shape = "sphere" if batch.target.shape == "sphere" else "cylinder"
-    coefficients = modal_coefficients(shape, batch.target.body, batch.target.radius_m, unique, water)
-    return batch.factor * series_transfer(batch.target, batch.flat, water, coefficients, row_bins=which)
-
-
 def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared: PreparedScene,
                           context: SolveContext, *, bodies: Mapping[str, Body] | None = None
                           ) -> tuple[NDArray[Any], tuple[Any, ...]]:
@@ -196,9 +214,12 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
     water = Fluid(context.density_kg_m3, context.sound_speed_m_s)
     n_boundaries = len(scene.boundaries)
     targets: dict[int, tuple[EchoTarget, NDArray[np.float64], NDArray[np.float64] | None]] = {}
+    largest_radius = MAX_KA / (2.0 * np.pi * _band_top_hz(context) / water.sound_speed_m_s)
     for j, obj in enumerate(scene.objects):
         found = echo_target_for(obj, overrides.get(obj.name), water)
-        if found is not None and (obj.name in overrides or is_elastic_body(found[0].body)):
+        if found is None or found[0].radius_m > largest_radius:
+            continue
+        if obj.name in overrides or is_elastic_body(found[0].body):
             targets[n_boundaries + j] = found
     if not targets or rows.size == 0:
         return rows, responses
@@ -216,6 +237,18 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
         return rows, responses
     source, receiver = _unfolded_ends(rows, curved, hit_rows, hit_slots, context.transmitter_m, context.receivers_m)
     hit_objects = ids[hit_rows, hit_slots]
+    # every hit's geometry at its object; hits beyond MAX_BISTATIC_RAD keep today's row
+    geometry_of = np.empty((hit_rows.size, 4))
+    for surface in np.unique(hit_objects):
+        _, centre, axis = targets[int(surface)]
+        mine = hit_objects == surface
+        geometry = EchoGeometry.from_points(source[mine], receiver[mine], centre, axis)
+        geometry_of[mine] = np.column_stack([geometry.source_distance_m, geometry.receiver_distance_m,
+                                             geometry.bistatic_angle_rad, geometry.axial_offset_m])
+    keep = geometry_of[:, 2] <= MAX_BISTATIC_RAD
+    hit_rows, hit_slots, hit_objects, geometry_of = hit_rows[keep], hit_slots[keep], hit_objects[keep], geometry_of[keep]
+    if hit_rows.size == 0:
+        return rows, responses
 
     # one ElasticRows per body (shape, radius, body, material): objects alike share coefficients
     groups: dict[Any, list[int]] = {}
@@ -226,23 +259,24 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
     batches: list[ElasticRows] = []
     h0 = np.ones(rows.size, dtype=complex)
     for surfaces in groups.values():
-        members = np.flatnonzero(np.isin(hit_objects, surfaces))
-        pieces = []
-        for surface in surfaces:
-            target, centre, axis = targets[surface]
-            mine = members[hit_objects[members] == surface]
-            geometry = EchoGeometry.from_points(source[mine], receiver[mine], centre, axis)
-            pieces.append((mine, *_flat_rows(target, geometry, water)))
-        order = np.concatenate([p[0] for p in pieces])
-        flat = EchoGeometry(*(np.concatenate([getattr(p[1], name) for p in pieces]) for name in
-                              ("source_distance_m", "receiver_distance_m", "bistatic_angle_rad", "axial_offset_m")))
-        batch = ElasticRows(targets[surfaces[0]][0], flat, np.concatenate([p[2] for p in pieces]),
-                            np.concatenate([p[3] for p in pieces]), hit_objects[order], water.density_kg_m3,
+        order = np.flatnonzero(np.isin(hit_objects, surfaces))
+        target = targets[surfaces[0]][0]
+        flat, compression, factor = _flat_rows(target, EchoGeometry(*geometry_of[order].T), water)
+        batch = ElasticRows(target, flat, compression, factor, hit_objects[order], water.density_kg_m3,
                             water.sound_speed_m_s, context.sonar.pulse)
+        try:
+            at_f0 = batch.exact_transfers([context.centre_frequency_hz])[:, 0]
+        except InputError as exc:  # a body the series cannot describe (singular boundary systems)
+            warnings.warn(f"elastic echoes of {', '.join(scene.surface_names[i] for i in surfaces)} left out: {exc}",
+                          UserWarning, stacklevel=3)
+            part_of[order, 0] = -1
+            continue
         part_of[order, 0] = len(batches)
         part_of[order, 1] = np.arange(order.size)
-        np.multiply.at(h0, hit_rows[order], _h_at(batch, context.centre_frequency_hz, water))
+        np.multiply.at(h0, hit_rows[order], at_f0)
         batches.append(batch)
+    described = part_of[:, 0] >= 0
+    hit_rows, hit_objects, part_of = hit_rows[described], hit_objects[described], part_of[described]
 
     rows["amplitude"] *= np.abs(h0)
     names = scene.surface_names
@@ -268,7 +302,9 @@ def internal_arrival_table(paths: Paths) -> NDArray[Any]:
     back-wall echo of a pipe; :mod:`acoustisim.scattering.arrivals`), its delay the echo's plus
     the arrival's monostatic delay scaled by cos(e) (the oblique model's time compression), its
     level that of the sonar's monostatic echo at that delay (dB re the echo's peak; computed on
-    first use with the echo's transfer functions).
+    first use with the echo's transfer functions). Arrivals whose level is below
+    :data:`~acoustisim.propagation.elastic_responses.SPAN_LEVEL_DB` (what the synthesised echo
+    holds) are left out.
 
     Returns
     -------
@@ -287,6 +323,8 @@ def internal_arrival_table(paths: Paths) -> NDArray[Any]:
             after = np.array([a.delay_s for a in arrivals]) * batch.compression[index]
             levels = batch.level_db(after / batch.compression[index])
             for arrival, delay, level in zip(arrivals, after, levels):
+                if level < SPAN_LEVEL_DB:  # below what the synthesised echo holds
+                    continue
                 table.append((rows["path_id"][r], rows["channel"][r], batch.object_ids[index],
                               arrival.name.encode("ascii", "replace")[:64], rows["delay_s"][r] + delay, delay, level))
     out = np.array(table, dtype=INTERNAL_ARRIVAL_DTYPE)

@@ -68,7 +68,7 @@ from acoustisim.scattering.modal import modal_coefficients
 from acoustisim.scattering.series import ModalCoefficients
 from acoustisim.scattering.spectral_resampling import response_spectrum
 
-__all__ = ("BAND_LEVEL_DB", "ElasticEchoResponse", "ElasticRows", "FIRST_WINDOW_S", "GUARD_S", "MAX_WINDOW_S",
+__all__ = ("BAND_LEVEL_DB", "EXACT_FREQUENCIES", "ElasticEchoResponse", "ElasticRows", "FIRST_WINDOW_S", "GUARD_S", "MAX_WINDOW_S",
            "ResponseWindow", "SPAN_LEVEL_DB", "TAPER_FRACTION")
 
 BAND_LEVEL_DB = -100.0
@@ -97,6 +97,10 @@ MAX_WINDOW_S = 4.096e-3
 PRECURSOR_S = 10e-6
 """How early (s) before its specular delay an echo may rise above the span level (the pulse's
 own half-length and the 1/(ka) precursor of the exact series; phase 1)."""
+
+EXACT_FREQUENCIES = 256
+"""Requests needing at most this many distinct f cos(e) are evaluated exactly (a coefficient table
+of that size costs less than the time responses)."""
 
 SPAN_MARGIN = 0.05
 """Relative margin on the measured span (other distances and bistatic angles than the
@@ -293,16 +297,40 @@ class ElasticRows:
 
     def transfers(self, frequency_hz: ArrayLike, sound_speed_m_s: float,
                   indices: ArrayLike | None = None) -> NDArray[np.complex128]:
-        """H of rows ``indices`` (default all) at ``frequency_hz``: (len(indices), K), engineering convention."""
+        """H of rows ``indices`` (default all) at ``frequency_hz``: (len(indices), K), engineering convention.
+
+        A few frequencies (at most :data:`EXACT_FREQUENCIES` distinct f cos(e) over the rows) are
+        evaluated exactly (:meth:`exact_transfers`); more (a synthesis grid) through the time
+        responses (module docstring, steps 3-4).
+        """
         f = np.asarray(frequency_hz, dtype=float).ravel()
         c = float(sound_speed_m_s)
         key = ("transfer", c, f.tobytes())
         if key not in self.memo:
-            top = float(f.max()) if f.size else 0.0
-            samples, start, step = self.time_responses(c, top)
-            self.memo[key] = response_spectrum(samples, start, step, f, self.compression) * self.factor[:, None]
+            if np.unique(np.multiply.outer(self.compression, f)).size <= EXACT_FREQUENCIES:
+                self.memo[key] = self.exact_transfers(f, c)
+            else:
+                samples, start, step = self.time_responses(c, float(f.max()))
+                self.memo[key] = response_spectrum(samples, start, step, f, self.compression) * self.factor[:, None]
         table = self.memo[key]
         return table if indices is None else table[np.asarray(indices, dtype=np.int64)]
+
+    def exact_transfers(self, frequency_hz: ArrayLike, sound_speed_m_s: float | None = None
+                        ) -> NDArray[np.complex128]:
+        """H of every row at ``frequency_hz`` (K,) from coefficients at each f cos(e): (R, K), exact."""
+        f = np.asarray(frequency_hz, dtype=float).ravel()
+        water = self.water(sound_speed_m_s)
+        scaled = np.multiply.outer(self.compression, f)
+        out = np.zeros(scaled.shape, dtype=complex)
+        positive = scaled > 0.0
+        if np.any(positive):
+            unique, which = np.unique(scaled[positive], return_inverse=True)
+            index = np.zeros(scaled.shape, dtype=np.int64)
+            index[positive] = which
+            coefficients = self._coefficients(unique, water)
+            values = series_transfer(self.target, self.flat, water, coefficients, row_bins=index)
+            out = np.where(positive, values, 0.0) * self.factor[:, None]
+        return out
 
     # ------------------------------------------------------------------ ground truth
     def internal_arrivals(self) -> tuple[InternalArrival, ...]:

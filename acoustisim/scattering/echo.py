@@ -301,7 +301,8 @@ def _hankel_products(shape: TargetShape, coefficients: ModalCoefficients, kappa:
     else:
         angular = np.cos(np.multiply.outer(geometry.bistatic_angle_rad, n))
         weights = np.where(n == 0.0, 1.0, 2.0)
-    terms = np.where(keep[None], coefficients.coefficients[None] * h_s * h_r, 0.0)
+    with np.errstate(over="ignore", invalid="ignore"):  # orders beyond a bin's truncation are masked out
+        terms = np.where(keep[None], coefficients.coefficients[None] * h_s * h_r, 0.0)
     return np.einsum("rfn,rn->rf", terms, weights[None, :] * angular)
 
 

@@ -135,13 +135,13 @@ def series_transfer(target: EchoTarget, geometry: EchoGeometry, water: Fluid, co
     coefficients : ModalCoefficients
         A_n at K frequencies (:func:`~acoustisim.scattering.modal.modal_coefficients` with
         ``target.body``, ``target.radius_m`` and ``water``; shape "cylinder" for a post).
-    row_bins : ndarray of int, shape (R,), optional
-        Evaluate row r only at frequency ``row_bins[r]`` of the table.
+    row_bins : ndarray of int, shape (R,) or (R, J), optional
+        Evaluate row r only at frequency ``row_bins[r]`` (or ``row_bins[r, j]``) of the table.
 
     Returns
     -------
     ndarray of complex
-        (R, K), or (R,) with ``row_bins``: engineering convention, multiply the row's spectrum.
+        (R, K); with ``row_bins`` its shape: engineering convention, multiply the row's spectrum.
 
     Raises
     ------
@@ -162,10 +162,11 @@ def series_transfer(target: EchoTarget, geometry: EchoGeometry, water: Fluid, co
     tops = np.where(table != 0.0, np.arange(table.shape[1])[None, :], 0).max(axis=1).astype(np.int64)
     if row_bins is not None:
         bins = np.asarray(row_bins, dtype=np.int64)
-        kappa = k[bins][:, None]
-        series = _modal_sum(spherical, table, tops, bins[:, None], kappa * rho_s[:, None], kappa * rho_r[:, None],
-                            cos_beta)
-        return _normalised(spherical, series, kappa, length[:, None], today[:, None])[:, 0]
+        which = bins.reshape(geometry.n_rows, -1)
+        kappa = k[which]
+        series = _modal_sum(spherical, table, tops, which, kappa * rho_s[:, None], kappa * rho_r[:, None], cos_beta)
+        out = _normalised(spherical, series, kappa, length[:, None], today[:, None])
+        return out[:, 0] if bins.ndim == 1 else out
     which = np.broadcast_to(np.arange(k.size), (geometry.n_rows, k.size))
     series = _modal_sum(spherical, table, tops, which, rho_s[:, None] * k[None, :], rho_r[:, None] * k[None, :],
                         cos_beta)

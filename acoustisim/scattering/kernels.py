@@ -25,7 +25,8 @@ def solve_small_systems(matrix: NDArray[np.complex128], rhs: NDArray[np.complex1
 
     Each system is equilibrated (columns by their largest entry, then rows by theirs; an entry's
     size is max(|Re|, |Im|), the modulus to within sqrt 2) and solved by LU with partial pivoting
-    on that size; the solution is scaled back by the column scales.
+    on that size; the solution is scaled back by the column scales. A singular system (a zero
+    pivot) gives NaN.
     """
     count, m = rhs.shape
     out = np.empty((count, m), dtype=np.complex128)
@@ -58,12 +59,20 @@ def solve_small_systems(matrix: NDArray[np.complex128], rhs: NDArray[np.complex1
                 for j in range(m):
                     a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
                 y[k], y[pivot] = y[pivot], y[k]
+            if a[k, k] == 0.0:  # singular (a whole column underflowed): no solution
+                break
             inverse = 1.0 / a[k, k]
             for i in range(k + 1, m):
                 factor = a[i, k] * inverse
                 for j in range(k + 1, m):
                     a[i, j] -= factor * a[k, j]
                 y[i] -= factor * y[k]
+        singular = False
+        for k in range(m):
+            singular = singular or a[k, k] == 0.0
+        if singular:
+            out[b, :] = np.nan
+            continue
         for i in range(m - 1, -1, -1):
             total = y[i]
             for j in range(i + 1, m):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from acoustisim.errors import InputError
 from acoustisim.scattering.kernels import solve_small_systems
 
 __all__ = ("solve_equilibrated",)
@@ -32,8 +33,16 @@ def solve_equilibrated(matrix: NDArray[np.complex128], rhs: NDArray[np.complex12
     Returns
     -------
     ndarray, shape (..., m)
+
+    Raises
+    ------
+    InputError
+        A singular system (a zero pivot after equilibration).
     """
     m = matrix.shape[-1]
     flat = np.ascontiguousarray(np.broadcast_to(matrix, rhs.shape[:-1] + (m, m)), dtype=complex).reshape(-1, m, m)
     solution = solve_small_systems(flat, np.ascontiguousarray(rhs, dtype=complex).reshape(-1, m))
+    if np.isnan(solution).any():
+        raise InputError("modal series: a boundary system is singular (its Bessel functions underflow: the body "
+                         "is beyond the series' reach at these frequencies)")
     return solution.reshape(rhs.shape)
