@@ -10,7 +10,55 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ("modal_sums", "solve_small_systems")
+__all__ = ("downward_recurrence", "modal_sums", "solve_small_systems", "upward_recurrence")
+
+
+@njit(cache=True, nogil=True)
+def upward_recurrence(first: NDArray[np.complex128], second: NDArray[np.complex128], x: NDArray[np.complex128],
+                      top: int, nu0: float) -> NDArray[np.complex128]:
+    """Z_{nu0 + m}(x), m = 0..top, (n, top + 1), from Z_{nu0} = ``first`` and Z_{nu0 + 1} = ``second``
+    by Z_{m+1} = 2 (m + nu0) / x Z_m - Z_{m-1} (:mod:`acoustisim.scattering.special`)."""
+    n = x.size
+    table = np.empty((n, top + 1), dtype=np.complex128)
+    for i in range(n):
+        inverse = 1.0 / x[i]
+        previous = first[i]
+        table[i, 0] = previous
+        if top >= 1:
+            current = second[i]
+            table[i, 1] = current
+            for m in range(1, top):
+                following = 2.0 * (m + nu0) * inverse * current - previous
+                table[i, m + 1] = following
+                previous, current = current, following
+    return table
+
+
+@njit(cache=True, nogil=True)
+def downward_recurrence(x: NDArray[np.complex128], top: int, start: int, nu0: float,
+                        rescale: float) -> NDArray[np.complex128]:
+    """Unnormalised J_{nu0 + m}(x), m = 0..top, (n, top + 1), by Miller's downward recurrence from
+    order ``start`` (> top) with the values (0, 1e-30), rescaled by 1 / ``rescale`` whenever they
+    pass ``rescale``; entries stored before a rescaling are rescaled with it (the caller
+    normalises each row against two known orders; :func:`acoustisim.scattering.special`)."""
+    n = x.size
+    table = np.zeros((n, top + 1), dtype=np.complex128)
+    for i in range(n):
+        inverse = 1.0 / x[i]
+        upper = 0.0 + 0.0j
+        current = 1e-30 + 0.0j
+        for m in range(start, 0, -1):
+            if m <= top:
+                table[i, m] = current
+            lower = 2.0 * (m + nu0) * inverse * current - upper
+            if abs(lower) > rescale:
+                lower /= rescale
+                current /= rescale
+                for j in range(m, top + 1):
+                    table[i, j] /= rescale
+            upper, current = current, lower
+        table[i, 0] = current
+    return table
 
 
 @njit(cache=True, nogil=True)
