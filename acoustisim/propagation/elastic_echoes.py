@@ -61,8 +61,8 @@ from acoustisim.scattering.bodies import Body, Elastic, Fluid, Shell
 from acoustisim.scattering.echo import EchoGeometry, EchoTarget, echo_target_for
 from acoustisim.scattering.echo_series import todays_echo
 
-__all__ = ("INTERNAL_ARRIVAL_DTYPE", "MAX_BISTATIC_RAD", "MAX_KA", "SIDE_TOLERANCE_M", "attach_elastic_echoes", "internal_arrival_table",
-           "is_elastic_body")
+__all__ = ("INTERNAL_ARRIVAL_DTYPE", "MAX_BISTATIC_RAD", "MAX_KA", "SIDE_TOLERANCE_M", "attach_elastic_echoes",
+           "curved_interactions", "flat_rows", "internal_arrival_table", "is_elastic_body", "unfolded_ends")
 
 MAX_BISTATIC_RAD = 0.5 * np.pi
 """Largest bistatic angle (rad) at the object whose echo gets the elastic transfer function: 90
@@ -109,7 +109,7 @@ def is_elastic_body(body: Body) -> bool:
     return isinstance(body, Shell) or (isinstance(body, Elastic) and not body.is_fluid)
 
 
-def _curved_flags(rows: NDArray[Any], prepared: PreparedScene, n_boundaries: int) -> NDArray[np.bool_]:
+def curved_interactions(rows: NDArray[Any], prepared: PreparedScene, n_boundaries: int) -> NDArray[np.bool_]:
     """(n, MAX_INTERACTIONS): interaction on a sphere, a cylinder's side or a smooth mesh."""
     ids = rows["object_ids"].astype(np.int64)
     points = rows["points_m"]
@@ -134,7 +134,7 @@ def _curved_flags(rows: NDArray[Any], prepared: PreparedScene, n_boundaries: int
     return curved
 
 
-def _unfolded_ends(rows: NDArray[Any], curved: NDArray[np.bool_], hits: NDArray[np.int64], slots: NDArray[np.int64],
+def unfolded_ends(rows: NDArray[Any], curved: NDArray[np.bool_], hits: NDArray[np.int64], slots: NDArray[np.int64],
                    transmitter: NDArray[np.float64], receivers: NDArray[np.float64]
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The unfolded source and receiver (h, 3) of interactions ``slots`` of rows ``hits``."""
@@ -170,7 +170,7 @@ def _unfolded_ends(rows: NDArray[Any], curved: NDArray[np.bool_], hits: NDArray[
     return source, image_receiver
 
 
-def _flat_rows(target: EchoTarget, geometry: EchoGeometry, water: Fluid
+def flat_rows(target: EchoTarget, geometry: EchoGeometry, water: Fluid
                ) -> tuple[EchoGeometry, NDArray[np.float64], NDArray[np.complex128]]:
     """The flat geometry, cos(e) and conj(C) of rows (elastic_responses' module docstring)."""
     if target.shape == "sphere":
@@ -229,13 +229,13 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
     if candidates.size == 0:
         return rows, responses
     curved = np.zeros(ids.shape, dtype=bool)
-    curved[candidates] = _curved_flags(rows[candidates], prepared, n_boundaries)
+    curved[candidates] = curved_interactions(rows[candidates], prepared, n_boundaries)
     slot_valid = np.arange(MAX_INTERACTIONS)[None, :] < rows["order"][:, None]
     elastic = curved & np.isin(ids, list(targets)) & slot_valid
     hit_rows, hit_slots = np.nonzero(elastic)
     if hit_rows.size == 0:
         return rows, responses
-    source, receiver = _unfolded_ends(rows, curved, hit_rows, hit_slots, context.transmitter_m, context.receivers_m)
+    source, receiver = unfolded_ends(rows, curved, hit_rows, hit_slots, context.transmitter_m, context.receivers_m)
     hit_objects = ids[hit_rows, hit_slots]
     # every hit's geometry at its object; hits beyond MAX_BISTATIC_RAD keep today's row
     geometry_of = np.empty((hit_rows.size, 4))
@@ -261,7 +261,7 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
     for surfaces in groups.values():
         order = np.flatnonzero(np.isin(hit_objects, surfaces))
         target = targets[surfaces[0]][0]
-        flat, compression, factor = _flat_rows(target, EchoGeometry(*geometry_of[order].T), water)
+        flat, compression, factor = flat_rows(target, EchoGeometry(*geometry_of[order].T), water)
         batch = ElasticRows(target, flat, compression, factor, hit_objects[order], water.density_kg_m3,
                             water.sound_speed_m_s, context.sonar.pulse)
         try:

@@ -84,9 +84,9 @@ SPAN_LEVEL_DB = -60.0
 noise of the tank's pings (the demo's averaged record, the clutter experiment's 40 dB SNR)."""
 
 GUARD_S = 30e-6
-"""Room kept at both ends of the window (s): the taper's Gaussian smoothing (standard deviation
-1 / (2 pi sigma_f), sigma_f = 0.15 F / (8 sqrt 2) = 17 kHz at the thesis pulse's F = 1.3 MHz,
-9.2 us) is below 1e-9 beyond 6.5 of them... at the band edge; see the module docstring."""
+"""Room kept at both ends of the window (s) for what the taper and the span level leave out: the
+taper's Gaussian smoothing (sigma_f = 0.15 F / (8 sqrt 2) = 17 kHz at the thesis pulse's
+F = 1.3 MHz, i.e. 9 us in time) and the ring-down just under the span level."""
 
 FIRST_WINDOW_S = 192e-6
 """The first window tried (s)."""

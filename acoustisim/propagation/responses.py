@@ -41,7 +41,8 @@ class EchoResponse(Protocol):
         What it is, for the ground truth (e.g. "elastic cylinder, pvc, bistatic 3.2 deg").
     span_s : tuple of 2 float
         (earliest, latest) time (s) of its impulse response relative to the row's delay:
-        H's energy outside it is negligible (below -80 dB of its peak).
+        H's energy outside it is negligible for the synthesised echo (each response states its
+        level: the elastic echoes' ring-down is below -60 dB of the echo's peak outside it).
     """
 
     label: str

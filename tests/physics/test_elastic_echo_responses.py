@@ -13,7 +13,7 @@ import pytest
 from scipy.signal import hilbert
 
 from acoustisim.materials import get_material
-from acoustisim.propagation.elastic_echoes import _flat_rows
+from acoustisim.propagation.elastic_echoes import flat_rows
 from acoustisim.propagation.elastic_responses import SPAN_LEVEL_DB, ElasticRows
 from acoustisim.scattering.bodies import AIR, Fluid, Shell, body_from_material
 from acoustisim.scattering.echo import EchoGeometry, EchoTarget, echo_transfer
@@ -33,7 +33,7 @@ RECEIVERS = np.array([[0.065, -1.5, 0.5], [0.0, -1.5, 0.5], [0.3, -2.0, 0.5], [0
 def body_rows(body, radius: float) -> tuple[ElasticRows, EchoTarget, EchoGeometry]:
     target = EchoTarget("post", radius, body, PVC)
     geometry = EchoGeometry.from_points(SOURCES, RECEIVERS, [0.0, 0.0, 0.5], [0.0, 0.0, 1.0])
-    flat, compression, factor = _flat_rows(target, geometry, WATER)
+    flat, compression, factor = flat_rows(target, geometry, WATER)
     batch = ElasticRows(target, flat, compression, factor, np.zeros(len(SOURCES), dtype=np.int64),
                         WATER.density_kg_m3, WATER.sound_speed_m_s, PULSE)
     return batch, target, geometry
@@ -44,7 +44,7 @@ def pvc_post():
     return body_rows(body_from_material(PVC), 0.025)
 
 
-def test_rows_at_an_elevation_are_flat_rows_at_f_cos_e(pvc_post) -> None:
+def test_rows_at_an_elevation_areflat_rows_at_f_cos_e(pvc_post) -> None:
     # H_row(f) = conj(C) T_flat(f cos e) is an identity of phase 1's oblique model (module
     # docstring): exact evaluation both ways agrees to rounding (1e-8 of max |H|: echo_transfer
     # groups the elevations by cos(e) rounded to 1e-12, a frequency shift of 5e-7 Hz at 500 kHz,

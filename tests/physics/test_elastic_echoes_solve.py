@@ -16,7 +16,7 @@ from acoustisim.errors import InputError
 from acoustisim.materials import Material
 from acoustisim.propagation import PathKind, SolverConfig, prepare, solve
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.elastic_echoes import (MAX_BISTATIC_RAD, _curved_flags, _unfolded_ends,
+from acoustisim.propagation.elastic_echoes import (MAX_BISTATIC_RAD, curved_interactions, unfolded_ends,
                                                   attach_elastic_echoes)
 from acoustisim.propagation.responses import evaluate_transfers
 from acoustisim.scattering.bodies import Elastic, PressureRelease, Rigid
@@ -44,11 +44,11 @@ def test_echoes_off_the_posts_and_the_pipe_get_responses(thesis_tank, backend) -
     # have one, unless that reflection is beyond 90 deg of bistatic angle (grazing)
     prepared = prepare(thesis_tank)
     context = SolveContext.build(thesis_tank, thesis_tank.sonar, prepared.raycaster)
-    curved = _curved_flags(rows, prepared, 6) & (np.arange(4)[None, :] < rows["order"][:, None])
+    curved = curved_interactions(rows, prepared, 6) & (np.arange(4)[None, :] < rows["order"][:, None])
     curved &= (rows["kind"] == PathKind.SPECULAR)[:, None]
     assert np.all(curved.any(axis=1)[has])
     hit_rows, slots = np.nonzero(curved & ~has[:, None])
-    source, receiver = _unfolded_ends(rows, curved, hit_rows, slots, context.transmitter_m, context.receivers_m)
+    source, receiver = unfolded_ends(rows, curved, hit_rows, slots, context.transmitter_m, context.receivers_m)
     for i, surface in enumerate(rows["object_ids"][hit_rows, slots]):
         centre = np.asarray(thesis_tank.objects[surface - 6].primitive.center_m)
         geometry = EchoGeometry.from_points(source[i:i + 1], receiver[i:i + 1], centre, [0, 0, 1])
@@ -98,12 +98,12 @@ def test_unfolding_through_mirrors_is_the_image_method(thesis_tank) -> None:
     context = SolveContext.build(thesis_tank, thesis_tank.sonar, prepared.raycaster)
     rows = paths.rows
     labels = paths.object_labels()
-    curved = _curved_flags(rows, prepared, 6)
+    curved = curved_interactions(rows, prepared, 6)
     tx, receivers = context.transmitter_m, context.receivers_m
     for label, slot, expect in (("floor>post-1", 1, "source"), ("post-1>wall-y0", 0, "receiver")):
         picks = np.array([i for i, text in enumerate(labels) if text == label and rows["kind"][i] == 1])
         assert picks.size >= 1
-        source, receiver = _unfolded_ends(rows, curved, picks, np.full(picks.size, slot), tx, receivers)
+        source, receiver = unfolded_ends(rows, curved, picks, np.full(picks.size, slot), tx, receivers)
         rx = receivers[rows["channel"][picks]]
         if expect == "source":
             np.testing.assert_allclose(source, np.broadcast_to(tx * [1, 1, -1], source.shape), atol=1e-9)
