@@ -540,15 +540,13 @@ def calibrate_threshold(range_m: float, bearing_deg: float, n_pings: int, seed: 
         ``range_m``, ``bearing_deg``.
     """
     from acoustisim.propagation import solve
-    from acoustisim.propagation.paths import Paths
     from acoustisim.simulation import simulate
     from acoustisim.synthesis.pings import PingSynthesiser
 
     scene, sonar, _, _, gate = position_setup(range_m, bearing_deg)
     paths = solve(scene, sonar, solver_config({"reverberation": reverberation}))
     synthesiser = PingSynthesiser.create(sonar, scene.medium)
-    edge = Paths(paths.rows[path_subsets(paths)["edge"]], paths.surface_names, paths.centre_frequency_hz,
-                 paths.sound_speed_m_s)
+    edge = paths.select(path_subsets(paths)["edge"])  # keeps the rows' transfer functions (Paths.responses)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
         sim = simulate(scene, sonar, paths=paths, seed=seed, n_pings=n_pings, average=n_pings > 1,
@@ -586,7 +584,6 @@ def measure_position(trial: Trial) -> dict[str, Any]:
         ``noise_free_all_by_repeat``, the ``all`` part of every repeat.
     """
     from acoustisim.propagation import solve
-    from acoustisim.propagation.paths import Paths
     from acoustisim.simulation import simulate
     from acoustisim.synthesis.pings import PingSynthesiser
     from binsonar.detection import detect
@@ -642,8 +639,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
                 if part == "all":
                     clean = sim.clean
                 else:
-                    subset = Paths(paths.rows[masks[part]], paths.surface_names, paths.centre_frequency_hz,
-                                   paths.sound_speed_m_s)
+                    subset = paths.select(masks[part])
                     with warnings.catch_warnings():
                         warnings.simplefilter("ignore")
                         clean = simulate(scene, sonar, paths=subset, seed=0, n_pings=1,
