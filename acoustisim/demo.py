@@ -9,9 +9,12 @@ Steps (``run_demo``):
    would give it (no truth): ``binsonar.localization.localize(recording, method=...,
    average=True)`` averages the pings (seed eq. 4.33), detects every echo and localises and
    classifies the reflectors.
-3. Attribute every localised target's echoes to ground-truth arrivals (``labels``), match each
-   scene object to the target of its direct echo, and report truth, estimate, error, class and
-   standard deviations, plus the other detections (multipaths, walls) by name.
+3. Attribute every localised target's echoes to ground-truth arrivals (``labels``; an echo of an
+   elastic object by its own ring: its unresolved internal arrivals, within a pulse length, are
+   the echo, a resolved one is named, e.g. "post-1 (compressional through the diameter)"),
+   match each scene object to the target of its direct echo, and report truth, estimate,
+   error, class and standard deviations, plus the other detections (multipaths, walls, the
+   elastic echoes' false targets) by name.
 4. Figures: the three channels with their echoes labelled, the matched-filter outputs, and a
    top view of the tank with the estimates and their 2-sigma error ellipses.
 """
@@ -61,6 +64,8 @@ class DemoConfig:
         Propagation: most reflections per path.
     backend : str
         Propagation engine, "fast" or "reference" (:class:`~acoustisim.propagation.SolverConfig`).
+    elastic_echoes : bool
+        Elastic echoes of the PVC posts and pipe (``SolverConfig.elastic_echoes``; default on).
     """
 
     scene: str = "thesis-tank"
@@ -71,6 +76,7 @@ class DemoConfig:
     blanking_s: float = BLANKING_S
     max_order: int = 3
     backend: str = "fast"
+    elastic_echoes: bool = True
 
 
 @dataclass
@@ -105,17 +111,25 @@ class DemoResult:
                             "accepted": self.accepted, "timings_s": self.timings_s, "figures": self.figures})
 
 
-def _target_label(target: Any, arrivals: Any, labels: list[str]) -> tuple[str, list[str]]:
+def _target_label(target: Any, arrivals: Any, labels: list[str], internal: Any = None,
+                  resolution_s: float = 0.0) -> tuple[str, list[str]]:
     """The target's name from its echoes (the centre's if any, else the side channels' agreement)."""
     per_channel = []
     for ch, echo in enumerate(target.echoes):
-        per_channel.append("" if echo is None else label_echo(arrivals, labels, ch, echo.tof_s)[0])
+        per_channel.append("" if echo is None else label_echo(arrivals, labels, ch, echo.tof_s, internal=internal,
+                                                              resolution_s=resolution_s)[0])
     named = [lab for lab in per_channel if lab]
     if per_channel[1]:
         return per_channel[1], per_channel
     if named and all(lab == named[0] for lab in named):
         return named[0], per_channel
     return " / ".join(named) if named else "unexplained", per_channel
+
+
+def elastic_label(label: str) -> bool:
+    """Whether a detection's name is an internal arrival of an elastic echo ("post-1 (compressional
+    through the diameter)"): a parenthesised suffix other than "(diffuse)"."""
+    return any(part.endswith(")") and "(" in part and not part.endswith("(diffuse)") for part in label.split(" / "))
 
 
 def _estimate_dict(target: Any) -> dict[str, Any]:
@@ -186,8 +200,8 @@ def run_demo(config: DemoConfig, out_dir: Path | str, *, figures: bool = True) -
     t = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # arrivals later than the record are left out: expected
-        sim = simulate(scene, sonar, solver_config=SolverConfig(max_order=config.max_order, backend=config.backend), seed=config.seed,
-                       n_pings=config.n_pings)
+        solver = SolverConfig(max_order=config.max_order, backend=config.backend, elastic_echoes=config.elastic_echoes)
+        sim = simulate(scene, sonar, solver_config=solver, seed=config.seed, n_pings=config.n_pings)
     timings["simulate"] = time.perf_counter() - t
     recording = gate_recording(sim.recording, config.blanking_s)
     t = time.perf_counter()
@@ -200,7 +214,8 @@ def run_demo(config: DemoConfig, out_dir: Path | str, *, figures: bool = True) -
     arrivals = sim.paths.arrivals()
     boundary_names = [b.name for b in scene.boundaries]
     labels = arrival_labels(arrivals, sim.paths.surface_names, boundary_names)
-    named = [_target_label(tg, arrivals, labels) for tg in targets]
+    internal = sim.truth.get("internal_arrivals")
+    named = [_target_label(tg, arrivals, labels, internal, float(sonar.pulse_duration_s)) for tg in targets]
     truths = scene_truth(scene, sonar)
     rows, left_over = match_objects(truths, targets, [n for n, _ in named])
     extra = []
@@ -225,6 +240,7 @@ def run_demo(config: DemoConfig, out_dir: Path | str, *, figures: bool = True) -
                                       and abs(r["bearing_error_deg"]) < ACCEPT_BEARING_DEG)
     settings = {
         "scene": config.scene, "seed": config.seed, "pings_averaged": config.n_pings, "method": config.method,
+        "elastic_echoes": config.elastic_echoes,
         "blanking_s": config.blanking_s, "record_length_s": sonar.record_length_s,
         "sonar_position_m": list(sonar.position_m), "sonar_yaw_deg": sonar.yaw_deg,
         "noise": "the receiver chain's default noise (no --snr-db); binsonar averages the pings",
@@ -291,6 +307,10 @@ def format_table(demo: DemoResult) -> str:
             lines.append(f"  {e['label']:<34} range {_num(e['range_m'], 1, '.4f'):>7} m  bearing "
                          f"{_num(e['bearing_deg'], 1, '.2f'):>7} deg  class {e['class']}")
     s = demo.settings
+    if s.get("elastic_echoes"):
+        ringing = [e for e in demo.extra if elastic_label(e["label"])]
+        lines += ["", f"elastic echoes on: {len(ringing)} false target(s) from the objects' internal arrivals"
+                  + "".join(f"; {e['label']} at {_num(e['range_m'], 1, '.4f')} m" for e in ringing)]
     lines += ["", f"{s['scene']}: {s['pings_averaged']} pings averaged by binsonar, method {s['method']}, "
                   f"default receiver noise, blanking {s['blanking_s'] * 1e6:.0f} us, seed {s['seed']}; "
                   f"every localisable edge and post within 1 mm / 0.1 deg: {'yes' if demo.accepted else 'NO'}"]

@@ -63,7 +63,9 @@ class Simulation:
         Noise-free ADC input (V): echoes and main bang after the chain.
     truth : mapping
         Datasets/attributes for ``/truth``: ``arrivals`` (structured array, one row per
-        arrival), ``surface_names``, ``objects`` (JSON), ``scene_toml`` (when available).
+        arrival), ``surface_names``, ``objects`` (JSON), ``scene_toml`` (when available),
+        ``internal_arrivals`` (when an elastic object's echo rings: one row per named internal
+        arrival of each such echo).
     noise_sigma_v : ndarray (3,) or None
         White-noise standard deviation per channel (V) set by ``snr_db``.
     """
@@ -77,7 +79,7 @@ class Simulation:
 
 
 def echo_rows(
-    paths: Paths, echo: str | int | None, n_boundaries: int
+    paths: Paths, echo: str | int | None, n_boundaries: int, record_s: float | None = None
 ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any]]:
     """The rows of one named echo on each channel (left, centre, right).
 
@@ -86,10 +88,13 @@ def echo_rows(
     paths : Paths
     echo : str, int or None
         None: the strongest target echo on each channel (a specular or edge arrival that touches
-        only scene objects, no tank boundary). A surface name: the strongest arrival on each
-        channel whose every interaction is on that surface. An int: that ``path_id``.
+        only scene objects, no tank boundary) that arrives within ``record_s``. A surface name:
+        the strongest arrival on each channel whose every interaction is on that surface. An
+        int: that ``path_id``.
     n_boundaries : int
         Number of tank boundaries (they come first in ``paths.surface_names``).
+    record_s : float, optional
+        The record's length (s): with ``echo`` None, later echoes are not candidates.
 
     Raises
     ------
@@ -103,6 +108,8 @@ def echo_rows(
     if echo is None:
         mask = np.isin(kind, (PathKind.SPECULAR, PathKind.EDGE)) & touched.any(axis=1)
         mask &= np.all(~touched | (ids >= n_boundaries), axis=1)
+        if record_s is not None:
+            mask &= arrivals["delay_s"] < record_s
         label = "the strongest target echo"
     elif isinstance(echo, (int, np.integer)) and not isinstance(echo, bool):
         mask = arrivals["path_id"] == int(echo)
@@ -167,14 +174,21 @@ def _scene_toml(scene: Scene) -> str | None:
 
 
 def truth_of(scene: Scene, paths: Paths) -> dict[str, Any]:
-    """The ground truth written under ``/truth``."""
+    """The ground truth written under ``/truth``: ``arrivals``, ``surface_names``, ``objects``,
+    ``scene_toml`` and, when echoes of elastic objects ring, ``internal_arrivals``
+    (:func:`acoustisim.propagation.elastic_echoes.internal_arrival_table`)."""
     import h5py
+
+    from acoustisim.propagation.elastic_echoes import internal_arrival_table
 
     truth: dict[str, Any] = {
         "arrivals": paths.arrivals(),
         "surface_names": np.array(paths.surface_names, dtype=h5py.string_dtype()),
         "objects": objects_json(scene),
     }
+    internal = internal_arrival_table(paths)
+    if internal.size:
+        truth["internal_arrivals"] = internal
     toml = _scene_toml(scene)
     if toml is not None:
         truth["scene_toml"] = toml
@@ -252,7 +266,7 @@ def simulate(
     snr_db : float, optional
         Set 2E/N0 of ``snr_echo`` on each channel with white noise (replaces the noise models).
     snr_echo : str or int, optional
-        A surface name or a path_id; default the strongest target echo.
+        A surface name or a path_id; default the strongest target echo within the record.
     average : bool
         Store the mean of the digitised pings as one float ping.
     paths : Paths, optional
@@ -284,7 +298,7 @@ def simulate(
         _check_synthesiser(synthesiser, sonar, scene, chain)
     snr_rows = None
     if snr_db is not None:
-        snr_rows = echo_rows(paths, snr_echo, len(scene.boundaries))
+        snr_rows = echo_rows(paths, snr_echo, len(scene.boundaries), float(sonar.record_length_s))
     pings = synthesiser.render(paths.rows, seed=seed, n_pings=n_pings, snr_db=snr_db, snr_rows=snr_rows,
                                responses=paths.responses)
     samples, t0 = synthesiser.template()

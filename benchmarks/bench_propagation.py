@@ -19,6 +19,9 @@ baseline of the rule evaluated on every arrival
 ``acoustisim/propagation/reference/columns.py``) timed interleaved with it as the same-run
 baseline.
 
+The default deterministic solve (direct + specular + edges, amplitude floor on) is timed with
+and without the elastic-echo step (``SolverConfig.elastic_echoes``), interleaved.
+
 The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``)
 is timed against the fast engine's in the same run.
 
@@ -124,6 +127,24 @@ def _print_per_pose(prepared, repeats: int, fine: bool) -> None:
     print(f"  CPU-time medians per pose over {repeats} (goal < 20 ms for direct + specular + edges):")
     for key, (cpu, n_rows) in _per_pose(prepared, repeats, fine).items():
         print(f"    {labels[key]}: {cpu * 1e3:.2f} ms, {n_rows} rows")
+
+
+def _elastic_step(prepared, repeats: int) -> None:
+    """CPU-time medians of the default deterministic solve (direct + specular + edges, floor on)
+    with and without the elastic-echo step, interleaved (goal: < 50 ms with it)."""
+    from acoustisim.propagation import SolverConfig, solve
+
+    configs = {on: SolverConfig(mechanisms=("direct", "specular", "edge"), elastic_echoes=on) for on in (True, False)}
+    samples: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(repeats):
+        for on, config in configs.items():
+            start = time.process_time()
+            solve(prepared, config=config)
+            samples[on].append(time.process_time() - start)
+    with_step, without = float(np.median(samples[True])), float(np.median(samples[False]))
+    print(f"  deterministic paths, default settings (floor -80 dB), CPU-time medians over {repeats}: "
+          f"{with_step * 1e3:.2f} ms with the elastic-echo step, {without * 1e3:.2f} ms without "
+          f"(the step {(with_step - without) * 1e3:.2f} ms; goal < 50 ms in all)")
 
 
 def _reference_engine(prepared, repeats: int) -> None:
@@ -276,6 +297,7 @@ def main() -> None:
         return
     if args.deterministic_only:
         _print_per_pose(prepared, max(3, args.repeats), fine=False)
+        _elastic_step(prepared, max(3, args.repeats))
         _reference_engine(prepared, max(3, args.repeats // 3))
         if args.before_tree:
             _before_and_after(args)
@@ -299,6 +321,7 @@ def main() -> None:
     print(f"  baseline raw Embree occlusion of {n_legs} segments: median {t_raw * 1e3:.3f} ms "
           f"(solve / baseline = {t_specular / t_raw:.1f})")
     _print_per_pose(prepared, max(3, args.repeats), fine=True)
+    _elastic_step(prepared, max(3, args.repeats))
     _reference_engine(prepared, max(3, args.repeats // 3))
     if args.before_tree:
         _before_and_after(args)

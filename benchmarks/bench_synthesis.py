@@ -24,7 +24,10 @@ untimed):
     FFT of that record: the least any synthesis with noise must do;
   - ping: ``PingSynthesiser.render`` of one ping with every mechanism on (all path rows with
     per-bin directivity and absorption, main bang and cross-talk, band-pass, TVG, thermal and
-    electrical noise with lines, ADC);
+    electrical noise with lines, ADC), the paths' elastic transfer functions already computed;
+  - the first ping of newly solved paths, which computes the elastic echoes' transfer functions
+    (``acoustisim.propagation.elastic_responses``; kept for later pings of the same paths), against
+    the same paths solved without elastic echoes;
   - extra ping: the marginal cost of one more ping in a multi-ping render (the paths'
     deterministic part is computed once per render);
   - planning: ``PingSynthesiser.create`` (once per sonar, medium and chain);
@@ -136,13 +139,18 @@ def main() -> int:
     scene = builtin_scene(args.scene)
     sonar = scene.sonar
     start = time.perf_counter()
+    responses: tuple = ()
     if args.rows:
         rows = np.load(args.rows)
+        if "response_id" in rows.dtype.names:
+            rows = rows.copy()
+            rows["response_id"] = -1  # stored rows carry no transfer functions
         origin = f"{rows.size} path rows from {args.rows}"
     else:
         paths = solve(scene, sonar)
-        rows = paths.rows
-        origin = f"{len(paths)} path rows ({paths.arrivals().size} arrivals), solve {time.perf_counter() - start:.2f} s"
+        rows, responses = paths.rows, paths.responses
+        origin = (f"{len(paths)} path rows ({paths.arrivals().size} arrivals, {len(responses)} with elastic transfer"
+                  f" functions), solve {time.perf_counter() - start:.2f} s")
         if args.save_rows:
             np.save(args.save_rows, rows)
     chain = ReceiverChain(tvg=TimeVaryingGain())  # every mechanism on
@@ -156,7 +164,7 @@ def main() -> int:
 
     planning = median_time(lambda: PingSynthesiser.create(sonar, scene.medium, chain), max(3, args.repeats // 3))
     synth = PingSynthesiser.create(sonar, scene.medium, chain)
-    synth.render(rows, seed=0)  # untimed warm-up: loads (or compiles) the numba loops
+    synth.render(rows, seed=0, responses=responses)  # untimed warm-up: numba loops, elastic transfer functions
     counter = iter(range(10**9))
     before = None
     if args.before:
@@ -166,21 +174,35 @@ def main() -> int:
     samples: dict[str, list[tuple[float, float]]] = {k: [] for k in ("floor", "ping", "paths", "ten", "before")}
     for _ in range(args.repeats):
         samples["floor"].append(cpu_and_wall(floor))
-        samples["ping"].append(cpu_and_wall(lambda: synth.render(rows, seed=next(counter))))
-        samples["paths"].append(cpu_and_wall(lambda: synth.paths.decimated_record(rows)))
+        samples["ping"].append(cpu_and_wall(lambda: synth.render(rows, seed=next(counter), responses=responses)))
+        samples["paths"].append(cpu_and_wall(lambda: synth.paths.decimated_record(rows, responses=responses)))
         if before is not None:
             samples["before"].append(cpu_and_wall(lambda: before.decimated_record(rows)))
-        samples["ten"].append(cpu_and_wall(lambda: synth.render(rows, seed=next(counter), n_pings=10)))
+        samples["ten"].append(cpu_and_wall(lambda: synth.render(rows, seed=next(counter), n_pings=10,
+                                                                responses=responses)))
     cpu = {k: statistics.median(c for c, _ in v) for k, v in samples.items() if v}
     wall = {k: statistics.median(w for _, w in v) for k, v in samples.items() if v}
     floor_s, ping_s, ten_s, paths_s = cpu["floor"], cpu["ping"], cpu["ten"], cpu["paths"]
     extra_s = (ten_s - ping_s) / 9.0
     ratios = sorted(p / f for (p, _), (f, _) in zip(samples["ping"], samples["floor"]))
 
-    memory = peak_memory(lambda: synth.render(rows, seed=1))
+    memory = peak_memory(lambda: synth.render(rows, seed=1, responses=responses))
     long_sonar = dataclasses.replace(sonar, record_length_s=2 * sonar.record_length_s)
     long_synth = PingSynthesiser.create(long_sonar, scene.medium, chain)
-    memory_long = peak_memory(lambda: long_synth.render(rows, seed=1))
+    memory_long = peak_memory(lambda: long_synth.render(rows, seed=1, responses=responses))
+
+    elastic = None
+    if not args.rows:  # the elastic echoes' transfer functions: computed by the first render of new paths
+        from acoustisim.propagation import SolverConfig, prepare
+
+        prepared = prepare(scene)
+        fresh, plain = [], []
+        for _ in range(max(3, args.repeats // 3)):
+            new = solve(prepared, sonar)
+            fresh.append(cpu_and_wall(lambda: synth.render(new.rows, seed=1, responses=new.responses)))
+            off = solve(prepared, sonar, SolverConfig(elastic_echoes=False))
+            plain.append(cpu_and_wall(lambda: synth.render(off.rows, seed=1)))
+        elastic = (statistics.median(c for c, _ in fresh), statistics.median(c for c, _ in plain))
 
     with tempfile.TemporaryDirectory() as cache_dir:
         cold = first_render_cost(cache_dir)
@@ -208,6 +230,9 @@ def main() -> int:
             f" (output {'identical' if same else 'different'})"
         )
     print(f"each extra ping (of 10)              {extra_s * 1e3:8.1f} ms   ratio {extra_s / floor_s:5.2f} x floor")
+    if elastic is not None:
+        print(f"first ping of newly solved paths (elastic transfer functions computed) median {elastic[0] * 1e3:8.1f} ms;"
+              f" the same paths without elastic echoes {elastic[1] * 1e3:8.1f} ms (ratio {elastic[0] / elastic[1]:.1f})")
     print(f"planning (create, once)       median {planning * 1e3:8.1f} ms")
     print(
         f"compiled loops, first renders in a new process: {cold[0]:.2f} s CPU [{cold[1]:.2f}] with an empty"

@@ -28,6 +28,7 @@ from acoustisim.errors import InputError
 from acoustisim.ranges import PhysicalRange
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.materials import Material, get_material
+from acoustisim.scattering.bodies import PIPE_FILLS
 from acoustisim.scene import SceneObject
 from acoustisim.sonar import SonarHead
 from scenes.tessellation import circle_segments, icosphere_subdivisions
@@ -122,6 +123,24 @@ def _vertical_extent(owner: str, bottom_m: float, top_m: float) -> tuple[float, 
 
 
 # --------------------------------------------------------------------------- builders
+def _pipe(owner: str, radius: float, material: Material, wall_thickness_m: float | None,
+          fill: str | None) -> tuple[tuple[str, Any], ...]:
+    """The checked pipe keys of a cylinder (empty for a solid one)."""
+    if wall_thickness_m is None and fill is None:
+        return ()
+    if wall_thickness_m is None or fill is None:
+        missing = "wall_thickness_m" if wall_thickness_m is None else "fill"
+        raise InputError(f"{owner}.{missing}: missing (a pipe needs both wall_thickness_m and fill)")
+    wall = _number(owner, "wall_thickness_m", wall_thickness_m, positive=True)
+    if not wall < radius:
+        raise InputError(f"{owner}.wall_thickness_m = {wall_thickness_m!r}: must be below radius_m = {radius!r}")
+    if fill not in PIPE_FILLS:
+        raise InputError(f"{owner}.fill = {fill!r}: expected one of {', '.join(map(repr, PIPE_FILLS))}")
+    if material.model not in ("rigid", "pressure-release") and not material.is_solid:
+        raise InputError(f"{owner}.material = {material.name!r}: a pipe's wall must be a solid (shear_speed_m_s > 0)")
+    return (("wall_thickness_m", wall), ("fill", fill))
+
+
 def cylinder(
     name: str,
     center_m: Sequence[float],
@@ -129,8 +148,11 @@ def cylinder(
     radius_m: float,
     length_m: float,
     material: str | Material = "pvc",
+    *,
+    wall_thickness_m: float | None = None,
+    fill: str | None = None,
 ) -> SceneObject:
-    """A finite circular cylinder with flat caps.
+    """A finite circular cylinder with flat caps: solid, or a pipe (a wall around a fill).
 
     Parameters
     ----------
@@ -143,7 +165,13 @@ def cylinder(
     radius_m, length_m : float
         Radius and length (m), > 0.
     material : str or Material
-        Material name in the library, or a Material.
+        Material name in the library, or a Material; a pipe's is its wall's (a solid).
+    wall_thickness_m : float, keyword-only, optional
+        A pipe's wall thickness (m), 0 < h < radius_m; with ``fill``. Its elastic echo
+        (:mod:`acoustisim.propagation.elastic_echoes`) is the shell's; the geometry (a closed
+        cylinder, caps included) is the same.
+    fill : {"air", "water"}, keyword-only, optional
+        What fills the pipe (:func:`acoustisim.scattering.bodies.pipe_fill`).
     """
     owner = _owner(name)
     center = _vector(owner, "center_m", center_m, 3)
@@ -151,6 +179,7 @@ def cylinder(
     radius = _number(owner, "radius_m", radius_m, positive=True)
     length = _number(owner, "length_m", length_m, positive=True)
     mat = _material(owner, material)
+    pipe = _pipe(owner, radius, mat, wall_thickness_m, fill)
     primitive = CylinderPrimitive(center, direction, radius, length)
     rotation = _rotation_between(np.array([0.0, 0.0, 1.0]), np.asarray(primitive.axis))
     mesh = trimesh.creation.cylinder(
@@ -162,7 +191,7 @@ def cylinder(
         mat,
         _outward(mesh, owner),
         primitive,
-        (("center_m", center), ("axis", direction), ("radius_m", radius), ("length_m", length)),
+        (("center_m", center), ("axis", direction), ("radius_m", radius), ("length_m", length)) + pipe,
     )
 
 

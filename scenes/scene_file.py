@@ -17,7 +17,8 @@ and an array ``[[objects]]`` whose ``kind`` is ``post``, ``edge``, ``cylinder``,
 - objects: ``name`` (default ``<kind>-<n>``), ``material`` (default per kind), and for
   ``post``/``edge`` ``bottom_m`` and ``top_m`` (default the floor and the surface; required in
   free field); ``plate`` takes ``center_m``, ``normal``, ``width_m``, ``height_m``,
-  ``thickness_m`` and optional ``up``; ``mesh`` takes ``path`` (relative to the scene file),
+  ``thickness_m`` and optional ``up``; a ``cylinder`` may be a pipe: ``wall_thickness_m`` and
+  ``fill`` (``"air"`` or ``"water"``) together; ``mesh`` takes ``path`` (relative to the scene file),
   ``position_m`` and optional ``yaw_deg``, ``pitch_deg``, ``roll_deg``, ``scale``.
 
 Every mistake raises :class:`SceneFileError` with one line naming the file, the key and the
@@ -42,6 +43,7 @@ from acoustisim.checks import shown
 from acoustisim.errors import InputError
 from acoustisim.materials import Material, get_material, material_library
 from acoustisim.medium import Medium
+from acoustisim.scattering.bodies import PIPE_FILLS
 from acoustisim.scene import Scene, SceneObject, Tank
 from acoustisim.sonar import SonarHead
 from scenes import builders
@@ -267,6 +269,8 @@ _OBJECTS: Mapping[str, Mapping[str, _Field]] = MappingProxyType({
         "axis": _Field(_vector(3, nonzero=True), True),
         "radius_m": _Field(_positive, True),
         "length_m": _Field(_positive, True),
+        "wall_thickness_m": _Field(_positive),  # a pipe (with fill): scenes.builders.cylinder
+        "fill": _Field(_choice(*PIPE_FILLS)),
     },
     "sphere": {**_COMMON, "center_m": _Field(_vector(3), True), "radius_m": _Field(_positive, True)},
     "plate": {
@@ -385,7 +389,8 @@ def _object(ctx: _Context, index: int, table: Any, tank: Tank | None, base_dir: 
                 bottom_m=bottom,
             )
         if kind == "cylinder":
-            return builders.cylinder(name, v["center_m"], v["axis"], v["radius_m"], v["length_m"], material)
+            return builders.cylinder(name, v["center_m"], v["axis"], v["radius_m"], v["length_m"], material,
+                                     wall_thickness_m=v.get("wall_thickness_m"), fill=v.get("fill"))
         if kind == "sphere":
             return builders.sphere(name, v["center_m"], v["radius_m"], material)
         if kind == "plate":

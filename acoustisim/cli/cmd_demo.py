@@ -1,6 +1,6 @@
 """``acoustisim demo``: the main job (simulate the thesis tank, detect, localise, compare with the truth).
 
-``acoustisim demo [--out DIR] [--seed S] [--method M] [--pings N] [--json]`` prints a table of
+``acoustisim demo [--out DIR] [--seed S] [--method M] [--pings N] [--no-elastic] [--json]`` prints a table of
 the targets (truth, estimate, error, class, standard deviations; the other detections named from
 the ground truth) and writes three figures to ``DIR`` (default ``demo-out``).
 """
@@ -31,7 +31,8 @@ def _run(args: argparse.Namespace) -> int:
     existed = out.exists()
     _preflight(args)
     demo = run_demo(DemoConfig(scene=args.scene, seed=args.seed, n_pings=args.pings, method=args.method,
-                               record_length_s=args.record_length, backend=args.backend), out)
+                               record_length_s=args.record_length, backend=args.backend,
+                               elastic_echoes=not args.no_elastic), out)
     note_created_folder(out, existed, "acoustisim")
     if args.json:
         print(json.dumps(demo.to_dict()))
@@ -81,6 +82,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="record length (s; default the sonar's)")
     parser.add_argument("--backend", default="fast", choices=("fast", "reference"),
                         help="propagation engine: fast (default) or reference (the readable one; minutes)")
+    parser.add_argument("--no-elastic", action="store_true",
+                        help="echoes of the PVC posts and pipe as geometric-optics rows (no elastic echoes)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     add_limit_arguments(parser)
     parser.set_defaults(run=with_limits(_run))

@@ -37,15 +37,45 @@ def arrival_labels(arrivals: NDArray, surface_names: Sequence[str], boundary_nam
 
 
 def label_echo(arrivals: NDArray, labels: Sequence[str], channel: int, tof_s: float,
-               window_s: float = MATCH_WINDOW_S) -> tuple[str, float]:
-    """The label and delay (s) of the strongest arrival on ``channel`` within ``window_s`` of ``tof_s``.
+               window_s: float = MATCH_WINDOW_S, internal: NDArray | None = None,
+               resolution_s: float = 0.0) -> tuple[str, float]:
+    """The label and delay (s) of what made an echo on ``channel`` at ``tof_s``.
 
-    Returns ("unexplained", NaN) when no arrival is that close (noise or a detector artefact).
+    1. The strongest arrival within ``window_s`` of ``tof_s``, unless it is diffuse.
+    2. With ``internal`` (the truth's internal arrivals of elastic echoes,
+       :func:`acoustisim.propagation.elastic_echoes.internal_arrival_table`): an elastic echo whose
+       own pulse holds ``tof_s`` (from ``window_s`` before its delay to ``resolution_s`` after it:
+       its internal arrivals closer than that are not resolved from it, and move its peak), named
+       as the echo; else a resolved internal arrival within ``window_s``, named
+       "<echo> (<arrival>)", e.g. "post-1 (compressional through the diameter)" (the strongest,
+       by the echo's amplitude and the arrival's level).
+    3. That strongest arrival, diffuse ("<label> (diffuse)").
+
+    Returns ("unexplained", NaN) when nothing explains it (noise or a detector artefact).
     """
-    near = np.flatnonzero((arrivals["channel"] == channel) & (np.abs(arrivals["delay_s"] - tof_s) <= window_s)
-                          & (arrivals["kind"] != 0))
-    if near.size == 0:
-        return "unexplained", float("nan")
-    best = near[int(np.argmax(np.abs(arrivals["amplitude"][near])))]
-    suffix = " (diffuse)" if int(arrivals["kind"][best]) == 3 else ""
-    return labels[best] + suffix, float(arrivals["delay_s"][best])
+    on_channel = (arrivals["channel"] == channel) & (arrivals["kind"] != 0)
+    near = np.flatnonzero(on_channel & (np.abs(arrivals["delay_s"] - tof_s) <= window_s))
+    best = near[int(np.argmax(np.abs(arrivals["amplitude"][near])))] if near.size else -1
+    if best >= 0 and int(arrivals["kind"][best]) != 3:
+        return labels[best], float(arrivals["delay_s"][best])
+    if internal is not None and internal.size:
+        elastic = np.flatnonzero(on_channel & np.isin(arrivals["path_id"], internal["path_id"])
+                                 & (arrivals["delay_s"] - window_s <= tof_s)
+                                 & (tof_s <= arrivals["delay_s"] + resolution_s))
+        if elastic.size:
+            echo = elastic[int(np.argmax(np.abs(arrivals["amplitude"][elastic])))]
+            return labels[echo], float(arrivals["delay_s"][echo])
+        rows = internal[(internal["channel"] == channel) & (np.abs(internal["delay_s"] - tof_s) <= window_s)
+                        & (internal["after_echo_s"] >= resolution_s)]
+        scored = []
+        for row in rows:
+            echo = np.flatnonzero(on_channel & (arrivals["path_id"] == row["path_id"]))
+            if echo.size:
+                scored.append((abs(float(arrivals["amplitude"][echo[0]])) * 10.0 ** (row["level_db"] / 20.0),
+                               f"{labels[echo[0]]} ({row['arrival'].decode()})", float(row["delay_s"])))
+        if scored:
+            _, label, delay = max(scored, key=lambda item: item[0])
+            return label, delay
+    if best >= 0:
+        return labels[best] + " (diffuse)", float(arrivals["delay_s"][best])
+    return "unexplained", float("nan")

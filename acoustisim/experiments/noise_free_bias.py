@@ -30,7 +30,6 @@ from acoustisim.experiments.sweep_detectors import (
 def noise_free_records(position: Position, paths: Any, synthesiser: Any, clean_all: Any) -> dict[str, Any]:
     """The noise-free record (3, n) of each of ``NOISE_FREE_PARTS``: the edge alone, plus the
     specular paths, everything (``clean_all``, the simulation's own noise-free record)."""
-    from acoustisim.propagation.paths import Paths
     from acoustisim.simulation import simulate
 
     masks = path_subsets(paths)
@@ -39,7 +38,7 @@ def noise_free_records(position: Position, paths: Any, synthesiser: Any, clean_a
         if part == "all":
             records[part] = clean_all
             continue
-        subset = Paths(paths.rows[masks[part]], paths.surface_names, paths.centre_frequency_hz, paths.sound_speed_m_s)
+        subset = paths.select(masks[part])  # keeps the rows' transfer functions (Paths.responses)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # arrivals past the short record are left out on purpose
             records[part] = simulate(position.scene, position.sonar, paths=subset, seed=0, n_pings=1,

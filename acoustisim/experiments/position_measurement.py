@@ -71,15 +71,13 @@ def calibrate_threshold(range_m: float, bearing_deg: float, n_pings: int, seed: 
         ``range_m``, ``bearing_deg``.
     """
     from acoustisim.propagation import solve
-    from acoustisim.propagation.paths import Paths
     from acoustisim.simulation import simulate
     from acoustisim.synthesis.pings import PingSynthesiser
 
     position = position_setup(range_m, bearing_deg)
     paths = solve(position.scene, position.sonar, solver_config({"reverberation": reverberation}))
     synthesiser = PingSynthesiser.create(position.sonar, position.scene.medium)
-    edge = Paths(paths.rows[path_subsets(paths)["edge"]], paths.surface_names, paths.centre_frequency_hz,
-                 paths.sound_speed_m_s)
+    edge = paths.select(path_subsets(paths)["edge"])  # keeps the rows' transfer functions (Paths.responses)
     sim = _simulate(position, paths, synthesiser, seed, n_pings)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

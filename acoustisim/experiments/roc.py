@@ -11,6 +11,14 @@ would explain every noise peak); an unexplained echo is a *false alarm*. Sweepin
 gives the ROC: P_D(s) = fraction of targets with best score >= s, and false alarms per ping
 FA(s) = unexplained echoes with score >= s / pings. Both fall as s rises: the curve is
 monotone by construction.
+
+Elastic echoes (``/truth/internal_arrivals``, :mod:`acoustisim.propagation.elastic_echoes`): an
+echo that is no target's but lies within the tolerance of an internal arrival of an elastic
+echo (the compressional echo through a post's diameter, 42 us after it; a pipe's wall
+reverberations), with the noise-free envelope above the noise there, is *elastic*: a real echo
+the truth explains (not a false alarm), but one that no object is at: a false target if a
+localiser takes it for one. Internal arrivals within the tolerance of their own echo are that
+echo (unresolved from it).
 """
 
 from __future__ import annotations
@@ -65,11 +73,35 @@ def arrival_object(arrivals: NDArray[Any], row: int | None, surface_names: Seque
     return None
 
 
+def elastic_object(internal: NDArray[Any] | None, channel: int, tof_s: float, tolerance_s: float) -> int | None:
+    """The surface index of the elastic object whose resolved internal arrival lies within
+    ``tolerance_s`` of an echo on ``channel`` (the strongest by level; None: none)."""
+    if internal is None or internal.size == 0:
+        return None
+    near = internal[(internal["channel"] == channel) & (np.abs(internal["delay_s"] - tof_s) <= tolerance_s)
+                    & (internal["after_echo_s"] > tolerance_s)]
+    if near.size == 0:
+        return None
+    return int(near["object_id"][int(np.argmax(near["level_db"]))])
+
+
 def score_echoes(echoes: Sequence[Sequence[Any]], targets: list[tuple[int, str, NDArray[np.float64]]],
                  arrivals: NDArray[Any], clean_envelope: NDArray[np.float64], t0_s: float, sample_rate_hz: float,
                  noise_sigma_v: NDArray[np.float64], tolerance_s: float,
                  explained_fraction: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Best score of every target and the scores of the false alarms, for one ping.
+    """Best score of every target and the scores of the false alarms, for one ping
+    (:func:`score_echoes_elastic` without internal arrivals)."""
+    best, fa, _ = score_echoes_elastic(echoes, targets, arrivals, clean_envelope, t0_s, sample_rate_hz,
+                                       noise_sigma_v, tolerance_s, explained_fraction)
+    return best, fa
+
+
+def score_echoes_elastic(echoes: Sequence[Sequence[Any]], targets: list[tuple[int, str, NDArray[np.float64]]],
+                         arrivals: NDArray[Any], clean_envelope: NDArray[np.float64], t0_s: float,
+                         sample_rate_hz: float, noise_sigma_v: NDArray[np.float64], tolerance_s: float,
+                         explained_fraction: float = 1.0, internal: NDArray[Any] | None = None
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Best score of every target, the scores of the false alarms and of the elastic echoes, for one ping.
 
     Parameters
     ----------
@@ -84,15 +116,20 @@ def score_echoes(echoes: Sequence[Sequence[Any]], targets: list[tuple[int, str, 
     tolerance_s : float
     explained_fraction : float
         An echo is explained only where the clean envelope reaches this x sigma.
+    internal : structured ndarray, optional
+        The ping's internal arrivals (``INTERNAL_ARRIVAL_DTYPE``).
 
     Returns
     -------
     target_best : ndarray, shape (len(targets),)
         -inf for a target no echo matches.
     false_alarm_scores : ndarray
+    elastic_scores : ndarray
+        Echoes explained by an internal arrival of an elastic echo (and no target).
     """
     best = np.full(len(targets), -np.inf)
     fa: list[float] = []
+    elastic: list[float] = []
     n = clean_envelope.shape[1]
     half = int(np.ceil(tolerance_s * sample_rate_hz))
     for ch in range(3):
@@ -108,10 +145,13 @@ def score_echoes(echoes: Sequence[Sequence[Any]], targets: list[tuple[int, str, 
             i = int(round((e.tof_s - t0_s) * sample_rate_hz))
             lo, hi = max(0, i - half), min(n, i + half + 1)
             strong = hi > lo and float(np.max(clean_envelope[ch, lo:hi])) >= explained_fraction * noise_sigma_v[ch]
+            if strong and elastic_object(internal, ch, e.tof_s, tolerance_s) is not None:
+                elastic.append(e.score)
+                continue
             near = bool(np.any(np.abs(on_ch - e.tof_s) <= tolerance_s))
             if not (strong and near):
                 fa.append(e.score)
-    return best, np.asarray(fa, dtype=float)
+    return best, np.asarray(fa, dtype=float), np.asarray(elastic, dtype=float)
 
 
 def roc_curve(target_best: NDArray[np.float64], false_alarm_scores: NDArray[np.float64], n_pings: int,

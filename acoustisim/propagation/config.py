@@ -76,6 +76,12 @@ class SolverConfig:
         1 keeps at most one curved surface (a sphere, a cylinder's side or a smooth mesh) per
         path. Planar reflections (walls, floor, surface, facets of polyhedra, cylinder caps)
         are not counted.
+    elastic_echoes : bool
+        True (default): echo rows off elastic posts, cylinders, spheres and pipes carry the
+        exact elastic echo's transfer function (specular echo, internal and circumferential
+        arrivals; :mod:`acoustisim.propagation.elastic_echoes`) and their ``amplitude`` its
+        level at the centre frequency. False: every object echoes as today's geometric-optics
+        row of its material's plane-wave reflection coefficient.
     """
 
     max_order: int = 3
@@ -91,6 +97,7 @@ class SolverConfig:
     diffuse_visibility: str = "exact"
     backend: str = "fast"
     max_curved_per_path: int = 2
+    elastic_echoes: bool = True
 
     def __post_init__(self) -> None:
         def integer(name: str, minimum: int) -> None:
@@ -152,10 +159,10 @@ class SolverConfig:
             raise InputError(
                 f"solver.diffuse_visibility = {self.diffuse_visibility!r}: must be one of {', '.join(VISIBILITY_MODES)}"
             )
-
-
         if not isinstance(self.backend, str) or self.backend not in BACKENDS:
             raise InputError(f"solver.backend = {self.backend!r}: must be one of {', '.join(BACKENDS)}")
+        if not isinstance(self.elastic_echoes, bool):
+            raise InputError(f"solver.elastic_echoes = {self.elastic_echoes!r}: must be true or false")
 
 
 __all__ = ["BACKENDS", "MAX_CURVED_PER_PATH", "MECHANISMS", "SolverConfig", "VISIBILITY_MODES"]

@@ -15,14 +15,21 @@ synthesis adds directivity and absorption per frequency. Two effects need more:
 Conventions: H is in the engineering convention of synthesis (a delay d is exp(-j 2 pi f d));
 H = 1 leaves the row as it is. ``span_s`` bounds the impulse response of H relative to the
 row's delay (s), so that synthesis can size the kernel that holds it.
+
+Batches: responses of many rows are cheaper together (the elastic echoes of one body share
+their modal coefficients and are evaluated as one array). A response may therefore say that it
+is the product of rows of :class:`ResponseBatch` es (``parts``: (batch, index) pairs) and of
+other responses (``others``); :func:`evaluate_transfers` calls each batch once for all the rows
+it serves. A response without ``parts`` is evaluated by its own ``transfer``.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 
 class EchoResponse(Protocol):
@@ -34,7 +41,8 @@ class EchoResponse(Protocol):
         What it is, for the ground truth (e.g. "elastic cylinder, pvc, bistatic 3.2 deg").
     span_s : tuple of 2 float
         (earliest, latest) time (s) of its impulse response relative to the row's delay:
-        H's energy outside it is negligible (below -80 dB of its peak).
+        H's energy outside it is negligible for the synthesised echo (each response states its
+        level: the elastic echoes' ring-down is below -60 dB of the echo's peak outside it).
     """
 
     label: str
@@ -42,6 +50,49 @@ class EchoResponse(Protocol):
 
     def transfer(self, frequency_hz: NDArray[np.float64], sound_speed_m_s: float) -> NDArray[np.complex128]:
         """H at ``frequency_hz`` (Hz, shape (n,)), complex, shape (n,)."""
+
+
+class ResponseBatch(Protocol):
+    """Transfer functions of many rows evaluated together.
+
+    Its ``transfers`` gives the rows ``indices`` at ``frequency_hz``, complex (len(indices), n);
+    a batch keeps what it computed, so asking again (other indices, the same frequencies) is cheap.
+    """
+
+    def transfers(self, frequency_hz: ArrayLike, sound_speed_m_s: float,
+                  indices: ArrayLike | None = None) -> NDArray[np.complex128]:
+        """H of rows ``indices`` (default all) at ``frequency_hz``."""
+
+
+def evaluate_transfers(responses: Sequence[Any], frequency_hz: NDArray[np.float64],
+                       sound_speed_m_s: float) -> NDArray[np.complex128]:
+    """H of each response at ``frequency_hz``: (len(responses), n), complex.
+
+    A response with ``parts`` (a tuple of (ResponseBatch, index)) is the product of those batch
+    rows and of the transfer functions of its ``others``; every batch is asked once, for all its
+    rows that the responses use. Any other response is asked for its own ``transfer``.
+    """
+    f = np.asarray(frequency_hz, dtype=float).ravel()
+    out = np.ones((len(responses), f.size), dtype=complex)
+    wanted: dict[int, tuple[Any, list[int]]] = {}
+    for response in responses:
+        for batch, index in getattr(response, "parts", ()):
+            wanted.setdefault(id(batch), (batch, []))[1].append(int(index))
+    tables = {}
+    for key, (batch, indices) in wanted.items():
+        unique = np.unique(indices)
+        tables[key] = (unique, np.asarray(batch.transfers(f, sound_speed_m_s, unique), dtype=complex))
+    for i, response in enumerate(responses):
+        parts = getattr(response, "parts", None)
+        if parts is None:
+            out[i] = np.asarray(response.transfer(f, sound_speed_m_s), dtype=complex)
+            continue
+        for batch, index in parts:
+            unique, table = tables[id(batch)]
+            out[i] *= table[np.searchsorted(unique, int(index))]
+        for other in getattr(response, "others", ()):
+            out[i] *= np.asarray(other.transfer(f, sound_speed_m_s), dtype=complex)
+    return out
 
 
 def roughness_factor(roughness_m2: NDArray[np.float64], frequency_hz: NDArray[np.float64],
@@ -69,4 +120,4 @@ def roughness_span_s(roughness_m2: float, sound_speed_m_s: float) -> float:
     return 7.0 * np.sqrt(2.0 * max(float(roughness_m2), 0.0)) / float(sound_speed_m_s)
 
 
-__all__ = ("EchoResponse", "roughness_factor", "roughness_span_s")
+__all__ = ("EchoResponse", "ResponseBatch", "evaluate_transfers", "roughness_factor", "roughness_span_s")

@@ -5,9 +5,11 @@ asks the engine ``config.backend`` names (:func:`~acoustisim.propagation.engine.
 for each mechanism named in ``config.mechanisms``, in the order of
 :data:`~acoustisim.propagation.config.MECHANISMS` (direct, specular, edge, diffuse), each
 starting its path ids at the next free one; the engine then assembles the rows (derived
-columns, order by channel and delay, amplitude floor judged across the pulse band). Last, the
-engine-independent coherent-roughness step (:func:`~acoustisim.propagation.roughness.apply_coherent_roughness`)
-gives the specular rows on rough surfaces their ``roughness_m2`` and their loss at f0.
+columns, order by channel and delay, amplitude floor judged across the pulse band). Then the
+engine-independent steps on the assembled rows: the coherent roughness of specular rows on rough
+surfaces (:func:`~acoustisim.propagation.roughness.apply_coherent_roughness`: their
+``roughness_m2`` and their loss at f0), and elastic echoes
+(:mod:`~acoustisim.propagation.elastic_echoes`, ``config.elastic_echoes``).
 """
 
 from __future__ import annotations
@@ -138,7 +140,13 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     rows = engine.assemble_rows(parts, context, config)
     # coherent roughness: every specular reflection on a rough surface, exp(-S k^2) (both engines)
     apply_coherent_roughness(rows, prepared, context)
-    return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s)
+    responses: tuple[Any, ...] = ()
+    if config.elastic_echoes:  # echoes off elastic posts, spheres and pipes get their transfer functions
+        from acoustisim.propagation.elastic_echoes import attach_elastic_echoes
+
+        rows, responses = attach_elastic_echoes(rows, responses, prepared, context)
+    return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s,
+                       responses)
 
 
 __all__ = ["check_sonar", "solve"]

@@ -65,7 +65,7 @@ from scipy import special
 
 from acoustisim.errors import InputError
 from acoustisim.materials import Material
-from acoustisim.scattering.bodies import Body, Fluid, body_from_material
+from acoustisim.scattering.bodies import Body, Fluid, body_from_material, pipe_fill
 from acoustisim.scattering.modal import modal_coefficients
 from acoustisim.scattering.series import DEFAULT_EXTRA_ORDERS, ModalCoefficients
 from acoustisim.scattering.special import bessel_table
@@ -74,7 +74,7 @@ if TYPE_CHECKING:
     from acoustisim.scene import SceneObject
 
 __all__ = ("EchoGeometry", "EchoTarget", "SpecularPoint", "echo_target_for", "echo_transfer", "exact_echo",
-           "specular_point")
+           "object_body", "specular_point")
 
 TargetShape = Literal["post", "sphere"]
 
@@ -163,16 +163,33 @@ class EchoTarget:
             raise InputError(f"echo target radius_m = {self.radius_m!r}: must be > 0")
 
 
-def echo_target_for(obj: "SceneObject", body: Body | None = None) -> tuple[EchoTarget, NDArray[np.float64],
-                                                                            NDArray[np.float64] | None] | None:
+def object_body(obj: "SceneObject", water: Fluid) -> Body:
+    """What a scene object is made of: its material's body, or, for a pipe (a ``cylinder`` whose
+    scene-file table gives ``wall_thickness_m`` and ``fill``), a :class:`Shell` of that wall
+    around :func:`~acoustisim.scattering.bodies.pipe_fill` (rigid and pressure-release
+    materials stay those limits).
+
+    Raises
+    ------
+    InputError
+        A pipe whose material is not a solid, or an unknown fill.
+    """
+    wall = obj.parameter("wall_thickness_m")
+    fill = obj.parameter("fill")
+    if wall is None or fill is None or obj.material.model in ("rigid", "pressure-release"):
+        return body_from_material(obj.material)
+    return body_from_material(obj.material, wall_thickness_m=float(wall), fill=pipe_fill(str(fill), water))
+
+
+def echo_target_for(obj: "SceneObject", body: Body | None = None, water: Fluid | None = None
+                    ) -> tuple[EchoTarget, NDArray[np.float64], NDArray[np.float64] | None] | None:
     """The exact-echo description of a scene object, with its centre and axis for
     :meth:`EchoGeometry.from_points`, or None when no series describes it.
 
     Posts and cylinders (a finite cylinder: the axial stationary phase needs its ends outside
-    the first Fresnel zone) become "post" targets, spheres "sphere" targets; their body is the
-    material's (:func:`acoustisim.scattering.bodies.body_from_material`) unless ``body`` is
-    given (a pipe's :class:`Shell`, whose wall thickness and fill the scene file does not hold
-    yet).
+    the first Fresnel zone) become "post" targets, spheres "sphere" targets; their body is
+    ``body`` if given, else :func:`object_body` (a pipe's :class:`Shell` from its scene-file
+    ``wall_thickness_m`` and ``fill``, which needs ``water``), else the material's.
 
     Returns
     -------
@@ -181,7 +198,12 @@ def echo_target_for(obj: "SceneObject", body: Body | None = None) -> tuple[EchoT
     primitive = obj.primitive
     if primitive is None or obj.kind not in ("post", "cylinder", "sphere"):
         return None
-    chosen = body if body is not None else body_from_material(obj.material)
+    if body is not None:
+        chosen = body
+    elif water is not None:
+        chosen = object_body(obj, water)
+    else:
+        chosen = body_from_material(obj.material)
     if obj.kind == "sphere":
         return (EchoTarget("sphere", float(primitive.radius_m), chosen, obj.material),
                 np.asarray(primitive.center_m, dtype=float), None)
@@ -279,7 +301,8 @@ def _hankel_products(shape: TargetShape, coefficients: ModalCoefficients, kappa:
     else:
         angular = np.cos(np.multiply.outer(geometry.bistatic_angle_rad, n))
         weights = np.where(n == 0.0, 1.0, 2.0)
-    terms = np.where(keep[None], coefficients.coefficients[None] * h_s * h_r, 0.0)
+    with np.errstate(over="ignore", invalid="ignore"):  # orders beyond a bin's truncation are masked out
+        terms = np.where(keep[None], coefficients.coefficients[None] * h_s * h_r, 0.0)
     return np.einsum("rfn,rn->rf", terms, weights[None, :] * angular)
 
 

@@ -169,9 +169,8 @@ def boundary_system(shape: Shape, body: Rigid | PressureRelease | Elastic, x: ND
                 matrix[..., 2, 2] = (xt * xt - 2.0 * n * n) * z_t.value + 2.0 * xt * z_t.derivative
             # n = 0 (orders start at 0): the shear potential does not couple to the water (c = 0).
             matrix[:, 0, :, :] = _decoupled_shear(matrix[:, 0])
-    identity = np.broadcast_to(np.eye(3, dtype=complex), shape_systems)
-    matrix = np.where(keep[..., None, None], matrix, identity)
-    rhs = np.where(keep[..., None], rhs, 0.0)
+    matrix[~keep] = np.eye(3)  # orders beyond a bin's truncation: the identity (in place: no copy)
+    rhs[~keep] = 0.0
     return matrix, rhs
 
 

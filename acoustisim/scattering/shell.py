@@ -145,9 +145,8 @@ def shell_coefficients(shell: Shell, radius_m: float, frequencies_hz: ArrayLike,
     order0[:, (2, 5), :] = 0.0
     order0[:, 2, 3] = 1.0
     order0[:, 5, 4] = 1.0
-    identity = np.broadcast_to(np.eye(6, dtype=complex), systems.shape)
-    systems = np.where(keep[..., None, None], systems, identity)
-    rhs = np.where(keep[..., None], rhs, 0.0)
+    systems[~keep] = np.eye(6)  # orders beyond a bin's truncation: the identity (in place: no copy)
+    rhs[~keep] = 0.0
     solution = solve_equilibrated(systems, rhs)
     return ModalCoefficients("cylinder", orders, np.where(keep, solution[..., 0], 0.0), k, float(radius_m))
 

@@ -32,6 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import special
 
+from acoustisim.scattering.kernels import downward_recurrence, upward_recurrence
+
 __all__ = ("BesselPair", "bessel_pair", "bessel_table")
 
 Kind = Literal["J", "Y", "H"]
@@ -62,45 +64,18 @@ which they are relative to the lower ones)."""
 
 
 def _upward(kind: Kind, top: int, x: NDArray[np.complex128], nu0: float) -> NDArray[np.complex128]:
-    """Z_{nu0 + m}(x), m = 0..top, (n_bins, top + 1), by upward recurrence."""
-    table = np.empty((x.size, top + 1), dtype=complex)
-    table[:, 0] = _start(kind, nu0, x)
-    if top >= 1:
-        table[:, 1] = _start(kind, nu0 + 1.0, x)
-    inverse = 1.0 / x
-    for m in range(1, top):
-        table[:, m + 1] = 2.0 * (m + nu0) * inverse * table[:, m] - table[:, m - 1]
-    return table
+    """Z_{nu0 + m}(x), m = 0..top, (n_bins, top + 1), by upward recurrence (compiled loop)."""
+    return upward_recurrence(np.ascontiguousarray(_start(kind, nu0, x), dtype=complex),
+                             np.ascontiguousarray(_start(kind, nu0 + 1.0, x), dtype=complex),
+                             np.ascontiguousarray(x, dtype=complex), int(top), float(nu0))
 
 
 def _miller(top: int, x: NDArray[np.complex128], nu0: float) -> NDArray[np.complex128]:
-    """J_{nu0 + m}(x), m = 0..top, (n_bins, top + 1), by Miller's downward recurrence.
-
-    Overflow is avoided by rescaling the running pair by 1 / _RESCALE where it grows too large,
-    counting the rescalings per bin; each stored order is multiplied at the end by
-    _RESCALE^-(rescalings after it was stored) (so the work stays O(orders x bins))."""
+    """J_{nu0 + m}(x), m = 0..top, (n_bins, top + 1), by Miller's downward recurrence (compiled
+    loop, rescaled against overflow: values past _RESCALE are divided by it, with every order
+    already stored), normalised by scipy's two lowest orders."""
     start = max(top, int(np.ceil(np.max(np.abs(x))))) + _MILLER_MARGIN
-    table = np.zeros((x.size, top + 1), dtype=complex)
-    stored_at = np.zeros((x.size, top + 1), dtype=np.int64)
-    rescalings = np.zeros(x.size, dtype=np.int64)
-    inverse = 1.0 / x
-    upper = np.zeros(x.size, dtype=complex)
-    current = np.full(x.size, 1e-30, dtype=complex)
-    for m in range(start, 0, -1):
-        if m <= top:
-            table[:, m] = current
-            stored_at[:, m] = rescalings
-        lower = 2.0 * (m + nu0) * inverse * current - upper
-        big = np.abs(lower) > _RESCALE
-        if np.any(big):
-            scale = np.where(big, 1.0 / _RESCALE, 1.0)
-            lower, current = lower * scale, current * scale
-            rescalings += big
-        upper, current = current, lower
-    table[:, 0] = current
-    stored_at[:, 0] = rescalings
-    # entries stored before later rescalings are too large by _RESCALE per rescaling
-    table *= np.float_power(_RESCALE, -(rescalings[:, None] - stored_at).astype(float))
+    table = downward_recurrence(np.ascontiguousarray(x, dtype=complex), int(top), int(start), float(nu0), _RESCALE)
     size = np.maximum(np.abs(table[:, 0]), np.abs(table[:, 1]))
     r0, r1 = table[:, 0] / size, table[:, 1] / size
     reference0, reference1 = special.jv(nu0, x), special.jv(nu0 + 1.0, x)

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.medium import Medium
 from acoustisim.propagation.directivity import piston_directivity
-from acoustisim.propagation.responses import EchoResponse, roughness_factor, roughness_span_s
+from acoustisim.propagation.responses import EchoResponse, evaluate_transfers, roughness_factor, roughness_span_s
 from acoustisim.synthesis.transducer import Pulse, pulse_spectrum, pulse_support_s
 
 BLOCK_ROWS = 256
@@ -80,9 +80,12 @@ def add_spectral_rows(record: NDArray[np.float64], rows: NDArray[Any], responses
     if ids.max() >= len(responses):
         bad = int(np.flatnonzero(ids >= len(responses))[0])
         raise InputError(f"paths.response_id = {int(ids[bad])} at row {bad}: only {len(responses)} response(s) given")
+    used = np.unique(ids[ids >= 0])
+    position = np.searchsorted(used, ids)  # row -> its response among ``used`` (rows without: unused)
     spans = np.zeros((rows.size, 2))
-    for rid in np.unique(ids[ids >= 0]):
-        spans[ids == rid] = responses[int(rid)].span_s
+    if used.size:
+        spans = np.where((ids >= 0)[:, None], np.array([responses[int(rid)].span_s for rid in used])[
+            np.minimum(position, used.size - 1)], 0.0)
     rough = np.array([roughness_span_s(s, sound_speed_m_s) for s in np.unique(rows["roughness_m2"])]).max()
     start, stop = pulse_support_s(pulse)
     spread = (np.abs(np.sin(rows["angle_tx_rad"])) + np.abs(np.sin(rows["angle_rx_rad"]))) * radius_m / sound_speed_m_s
@@ -95,8 +98,10 @@ def add_spectral_rows(record: NDArray[np.float64], rows: NDArray[Any], responses
     f = bins[inside]
     q = fs_dec * pulse_spectrum(pulse, f)
     alpha_db_per_m = np.asarray(medium.absorption_db_per_m(f), dtype=float)
-    transfer = {int(rid): np.asarray(responses[int(rid)].transfer(f, sound_speed_m_s), dtype=complex)
-                for rid in np.unique(ids[ids >= 0])}
+    # one row per distinct response (batched responses evaluated together), then a row of ones
+    transfer = np.vstack([evaluate_transfers([responses[int(rid)] for rid in used], f, sound_speed_m_s),
+                          np.ones((1, f.size), dtype=complex)])
+    row_transfer = np.where(ids >= 0, np.minimum(position, used.size - 1), used.size)
     live = np.flatnonzero(first < keep)
     for lo in range(0, live.size, BLOCK_ROWS):
         block = live[lo:lo + BLOCK_ROWS]
@@ -108,9 +113,8 @@ def add_spectral_rows(record: NDArray[np.float64], rows: NDArray[Any], responses
                   * 10.0 ** (-np.multiply.outer(r["path_length_m"], alpha_db_per_m) / 20.0)
                   * (r["geometric_gain"] * np.exp(1j * r["phase_rad"]))[:, None]
                   * roughness_factor(r["roughness_m2"], f, sound_speed_m_s)
-                  * np.exp(-2j * np.pi * np.multiply.outer(shift, f)))
-        for rid in np.unique(r["response_id"][r["response_id"] >= 0]):  # a loop over distinct responses
-            values[r["response_id"] == rid] *= transfer[int(rid)]
+                  * np.exp(-2j * np.pi * np.multiply.outer(shift, f))
+                  * transfer[row_transfer[block]])
         spectra[:, inside] = values
         kernels = np.fft.irfft(spectra, n=length, axis=1)
         samples = first[block][:, None] + np.arange(length)

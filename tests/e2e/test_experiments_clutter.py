@@ -119,6 +119,16 @@ def test_tiny_run_fields_and_invariants(tiny):
     # of a prism's rear edges would show if the errors were taken against the wrong feature.
     assert cfar["associated_targets"] > 0
     assert cfar["range_error_median_abs_m"] < 5e-3
+    # elastic echoes: both runs (the default --elastic compare), the same targets and pings
+    assert r["elastic"] == "compare" and r["scenes"][0]["elastic_echoes"]
+    assert not r["scenes"][0]["without_elastic"]["elastic_echoes"]
+    for m in ("ca-cfar", "dwt", "threshold"):
+        s, w = r["summary"]["all"][m], r["summary_without_elastic"]["all"][m]
+        assert s["pings"] == w["pings"] == 2 and s["targets"] == w["targets"]
+        assert w["nominal_elastic_per_ping"] == 0 and w["elastic_targets"] == 0  # nothing rings without the step
+        assert 0 <= s["elastic_ghosts"] <= s["elastic_targets"] <= s["localised_targets"]
+        assert s["nominal_elastic_per_ping"] <= s["elastic_per_ping_most_permissive"]
+    assert "Elastic echoes" in (out / "report.md").read_text()
     assert set(r["figures"]) == {"clutter_roc.png", "clutter_errors.png"}
     for name in r["figures"]:
         assert (out / name).stat().st_size > 10_000
@@ -135,6 +145,8 @@ def test_bad_options(tmp_path):
         run(densities="0")
     with pytest.raises(InputError, match="--snrs"):
         run(snrs="a,b")
+    with pytest.raises(InputError, match="--elastic"):
+        run(elastic="maybe")
 
 
 @pytest.mark.slow

@@ -27,9 +27,11 @@ def _directivity(x: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def tank() -> tuple[Any, SolveContext, np.ndarray]:
-    """The thesis tank's rows (specular to order 2, graded edges, 3000 diffuse rays), keep-all."""
+    """The thesis tank's rows (specular to order 2, graded edges, 3000 diffuse rays), keep-all, as
+    the floor sees them (before the elastic-echo step, which follows the assembly)."""
     prepared = prepare(builtin_scene("thesis-tank"))
-    rows = solve(prepared, config=SolverConfig(max_order=2, diffuse_rays=3000, amplitude_floor_db=None)).rows.copy()
+    config = SolverConfig(max_order=2, diffuse_rays=3000, amplitude_floor_db=None, elastic_echoes=False)
+    rows = solve(prepared, config=config).rows.copy()
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
     return prepared, context, rows
 
