@@ -363,10 +363,11 @@ def test_reciprocity_swapping_transmitter_and_receiver(backend):
 
 def test_one_curved_reflection_per_path_gives_exactly_the_other_rows(backend):
     """``max_curved_per_path`` = 1 drops the chains between two objects and changes nothing
-    else (the new chains are numbered after every other)."""
+    else (the new chains are numbered after every other). Elastic echoes off: their transfer
+    functions are numbered over every echo, so ``response_id`` would shift with the new rows."""
     prepared = prepare(_tank_scene())
-    two = solve(prepared, config=replace(CONFIG, backend=backend))
-    one = solve(prepared, config=replace(CONFIG, backend=backend, max_curved_per_path=1))
+    two = solve(prepared, config=replace(CONFIG, backend=backend, elastic_echoes=False))
+    one = solve(prepared, config=replace(CONFIG, backend=backend, max_curved_per_path=1, elastic_echoes=False))
     pairs = _pair_rows(two, prepared.scene)
     assert pairs.size > 30 and _pair_rows(one, prepared.scene).size == 0
     curved = np.array(sorted(_curved_surfaces(prepared.scene)))
