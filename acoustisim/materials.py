@@ -19,10 +19,9 @@ Reflection models
     through complex speeds, c~ = c / (1 + i eta / 2), so that k = (w / c)(1 + i eta / 2) with
     time dependence exp(-i w t). Method: the formula multiplied through by cos t cos t_L / Z_w,
     written with the refraction indices n = c_w / c~ (complex), a_L = sqrt(n_L^2 - sin^2 t) =
-    n_L cos t_L, a_S = sqrt(n_S^2 - sin^2 t), m = rho / rho_w:
+    n_L cos t_L, a_S = sqrt(n_S^2 - sin^2 t), m = rho / rho_w, x = sin^2 t / n_S^2 = sin^2 t_S:
 
-        R = (m cos t G - a_L) / (m cos t G + a_L),  G = (1 - 2 sin^2 t / n_S^2)^2
-                                                        + 4 sin^2 t a_S a_L / n_S^4,
+        R = (m cos t G - a_L) / (m cos t G + a_L),  G = (1 - 2 x)^2 + 4 x a_S a_L / n_S^2,
 
     G being the Rayleigh function (it vanishes at the Rayleigh slowness of the free solid). It has
     no division by a vanishing cosine at the critical angles; the root a of each square root is
@@ -226,17 +225,27 @@ class Material:
 
     def _elastic_reflection(self, cos1: NDArray[np.float64], medium_density_kg_m3: float,
                             medium_sound_speed_m_s: float) -> NDArray[np.complex128]:
-        """The ``elastic`` model (module docstring) at incidence cosines ``cos1`` (in [0, 1])."""
+        """The ``elastic`` model (module docstring) at incidence cosines ``cos1`` (in [0, 1]).
+
+        Written with x = sin^2 t / n_S^2 (= sin^2 t_S): G = (1 - 2 x)^2 + 4 x a_S a_L / n_S^2, in
+        place where it can (the fast engine calls it once per material and solve).
+        """
         sin_sq = 1.0 - cos1 * cos1
         n_l = self.refraction_index(medium_sound_speed_m_s, "compressional")
         a_l = upper_root(n_l * n_l - sin_sq)
-        rayleigh: NDArray[np.complex128] | complex = 1.0 + 0.0j
+        solid = (self.density_kg_m3 / medium_density_kg_m3) * cos1
         if self.shear_speed_m_s > 0.0:
             n_s = self.refraction_index(medium_sound_speed_m_s, "shear")
+            inverse_sq = 1.0 / (n_s * n_s)
             a_s = upper_root(n_s * n_s - sin_sq)
-            n_s_sq = n_s * n_s
-            rayleigh = (1.0 - 2.0 * sin_sq / n_s_sq) ** 2 + 4.0 * sin_sq * a_s * a_l / (n_s_sq * n_s_sq)
-        solid = (self.density_kg_m3 / medium_density_kg_m3) * cos1 * rayleigh
+            x = sin_sq * inverse_sq
+            rayleigh = 1.0 - 2.0 * x
+            rayleigh *= rayleigh
+            x *= 4.0 * inverse_sq
+            x *= a_s
+            x *= a_l
+            rayleigh += x
+            solid = solid * rayleigh
         return (solid - a_l) / (solid + a_l)
 
     def refraction_index(self, medium_sound_speed_m_s: float, wave: Literal["compressional", "shear"]) -> complex:
@@ -281,7 +290,9 @@ def upper_root(values: ArrayLike) -> NDArray[np.complex128]:
     = -2j); the root is negated where its imaginary part is negative.
     """
     root = np.sqrt(np.asarray(values, dtype=complex))
-    return np.where(root.imag < 0.0, -root, root)
+    if root.ndim == 0:
+        return -root if root.imag < 0.0 else root
+    return np.negative(root, out=root, where=root.imag < 0.0)
 
 
 def material_library() -> Mapping[str, Material]:

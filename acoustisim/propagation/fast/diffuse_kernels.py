@@ -212,12 +212,14 @@ def elastic_energy(rough: RoughTable, s: int, c1: float) -> float:
     sin_sq = 1.0 - c1 * c1
     n_l, n_s = rough.index_l[s], rough.index_s[s]
     a_l = upper_root(n_l * n_l - sin_sq)
-    rayleigh = 1.0 + 0.0j
+    solid = complex(rough.density_ratio[s] * c1)
     if n_s != 0.0:
+        inverse_sq = 1.0 / (n_s * n_s)
         a_s = upper_root(n_s * n_s - sin_sq)
-        n_s_sq = n_s * n_s
-        rayleigh = (1.0 - 2.0 * sin_sq / n_s_sq) ** 2 + 4.0 * sin_sq * a_s * a_l / (n_s_sq * n_s_sq)
-    solid = rough.density_ratio[s] * c1 * rayleigh
+        x = sin_sq * inverse_sq
+        rayleigh = 1.0 - 2.0 * x
+        rayleigh = rayleigh * rayleigh + 4.0 * inverse_sq * x * a_s * a_l
+        solid = solid * rayleigh
     r = (solid - a_l) / (solid + a_l)
     return r.real * r.real + r.imag * r.imag
 
