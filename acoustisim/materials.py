@@ -17,13 +17,14 @@ Reflection models
     cos t_S too, and a lossless solid reflects totally with a phase that turns by 2 pi through
     the leaky Rayleigh angle (sin t_R = c_w / c_R); with losses |R| dips there. Losses enter
     through complex speeds, c~ = c / (1 + i eta / 2), so that k = (w / c)(1 + i eta / 2) with
-    time dependence exp(-i w t). Method: the formula multiplied through by cos t cos t_L / Z_w,
+    time dependence exp(-i w t). Method: the formula multiplied through by a_L cos t / (rho_w c_w),
     written with the refraction indices n = c_w / c~ (complex), a_L = sqrt(n_L^2 - sin^2 t) =
     n_L cos t_L, a_S = sqrt(n_S^2 - sin^2 t), m = rho / rho_w, x = sin^2 t / n_S^2 = sin^2 t_S:
 
         R = (m cos t G - a_L) / (m cos t G + a_L),  G = (1 - 2 x)^2 + 4 x a_S a_L / n_S^2,
 
-    G being the Rayleigh function (it vanishes at the Rayleigh slowness of the free solid). It has
+    G being Rayleigh's function times c_S^4 (it vanishes at the Rayleigh slowness of the free
+    solid, sin t = c_w / c_R, where R = -1 without losses). It has
     no division by a vanishing cosine at the critical angles; the root a of each square root is
     the one with Im(a) >= 0 (a wave that decays, or leaves, into the solid), Re(a) > 0 below the
     critical angle without losses. A fluid (c_S = 0) has G = 1: the ``fluid`` formula below, with
@@ -34,9 +35,9 @@ Reflection models
     Plane-wave fluid-fluid reflection R = (Z2 cos t1 - Z1 cos t2) / (Z2 cos t1 + Z1 cos t2),
     Z = rho c, Snell's law for t2; complex (total reflection with a phase) beyond the critical
     angle; lossless (the loss factors are not used). Shear waves are ignored, which overstates
-    oblique |R| of a solid (|R| = 1 past the compressional critical angle, where an elastic PVC
-    face reflects -3 to -12 dB and concrete -1 to -10 dB): kept for fluids (sand) and for
-    comparisons.
+    oblique |R| of a solid (|R| = 1 past the compressional critical angle, where between 40 and
+    80 deg an elastic PVC face reflects -3 to -13 dB and concrete -1 to -12 dB): kept for fluids
+    (sand) and for comparisons.
 ``rigid``
     R = +1 at every angle (validation).
 ``pressure-release``
