@@ -2,10 +2,42 @@
 
 Reflection models
 -----------------
+``elastic``
+    Plane wave in the water on an elastic solid half-space (the default of the built-in solids),
+    in the form of Brekhovskikh (*Waves in Layered Media*, 2nd ed., 1980, section 4;
+    Brekhovskikh & Lysanov, *Fundamentals of Ocean Acoustics*, section 4.2; Jensen et al.,
+    *Computational Ocean Acoustics*, 2nd ed., 2011, section 1.6):
+
+        R = (Z_L cos^2 2t_S + Z_S sin^2 2t_S - Z_w) / (Z_L cos^2 2t_S + Z_S sin^2 2t_S + Z_w),
+
+    Z_w = rho_w c_w / cos t, Z_L = rho c_L / cos t_L, Z_S = rho c_S / cos t_S, with Snell's law
+    sin t_L / c_L = sin t_S / c_S = sin t / c_w. The compressional and shear waves carry energy
+    into the solid, so |R| < 1 between the critical angles; past the compressional critical angle
+    (c_L > c_w) cos t_L is imaginary, past the shear one (c_S > c_w: metals, glass, concrete)
+    cos t_S too, and a lossless solid reflects totally with a phase that turns by 2 pi through
+    the leaky Rayleigh angle (sin t_R = c_w / c_R); with losses |R| dips there. Losses enter
+    through complex speeds, c~ = c / (1 + i eta / 2), so that k = (w / c)(1 + i eta / 2) with
+    time dependence exp(-i w t). Method: the formula multiplied through by a_L cos t / (rho_w c_w),
+    written with the refraction indices n = c_w / c~ (complex), a_L = sqrt(n_L^2 - sin^2 t) =
+    n_L cos t_L, a_S = sqrt(n_S^2 - sin^2 t), m = rho / rho_w, x = sin^2 t / n_S^2 = sin^2 t_S:
+
+        R = (m cos t G - a_L) / (m cos t G + a_L),  G = (1 - 2 x)^2 + 4 x a_S a_L / n_S^2,
+
+    G being Rayleigh's function times c_S^4 (it vanishes at the Rayleigh slowness of the free
+    solid, sin t = c_w / c_R, where R = -1 without losses). It has
+    no division by a vanishing cosine at the critical angles; the root a of each square root is
+    the one with Im(a) >= 0 (a wave that decays, or leaves, into the solid), Re(a) > 0 below the
+    critical angle without losses. A fluid (c_S = 0) has G = 1: the ``fluid`` formula below, with
+    the losses of c_L. Accuracy: rounding only (a few ulp of the complex arithmetic; the tests
+    check it against the 3 x 3 boundary-condition system solved numerically, and against energy
+    conservation). ``Material.is_solid`` tells whether a material has shear.
 ``fluid``
     Plane-wave fluid-fluid reflection R = (Z2 cos t1 - Z1 cos t2) / (Z2 cos t1 + Z1 cos t2),
     Z = rho c, Snell's law for t2; complex (total reflection with a phase) beyond the critical
-    angle. Shear waves are ignored, which overstates oblique |R| for PVC and concrete.
+    angle; lossless (the loss factors are not used). Shear waves are ignored, which overstates
+    oblique |R| of a solid (|R| = 1 past the compressional critical angle, where between 40 and
+    80 deg an elastic PVC face reflects -3 to -13 dB and concrete -1 to -12 dB): kept for fluids
+    (sand) and for comparisons.
 ``rigid``
     R = +1 at every angle (validation).
 ``pressure-release``
@@ -85,7 +117,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from acoustisim.errors import InputError
 
-ReflectionModel = Literal["fluid", "rigid", "pressure-release", "fixed"]
+ReflectionModel = Literal["elastic", "fluid", "rigid", "pressure-release", "fixed"]
+
+REFLECTION_MODELS: tuple[str, ...] = ("elastic", "fluid", "rigid", "pressure-release", "fixed")
+"""The reflection models (module docstring), as scene files name them."""
 
 
 @dataclass(frozen=True)
@@ -102,9 +137,10 @@ class Material:
         Longitudinal (compressional) sound speed c_L (m/s); also ``compressional_speed_m_s``.
     shear_speed_m_s : float
         Shear speed c_S (m/s), 0 for a fluid; the plane-wave ``fluid`` reflection model ignores
-        it, the elastic scattering of :mod:`acoustisim.scattering` uses it.
-    model : {"fluid", "rigid", "pressure-release", "fixed"}
-        Reflection model (see module docstring).
+        it, the ``elastic`` one and the elastic scattering of :mod:`acoustisim.scattering` use it.
+    model : {"elastic", "fluid", "rigid", "pressure-release", "fixed"}
+        Reflection model (see module docstring). The built-in solids use ``elastic``; the default
+        ``fluid`` keeps a material built without naming its model as it was.
     fixed_reflection : float
         The coefficient of the ``fixed`` model.
     diffuse_mu : float
@@ -127,8 +163,9 @@ class Material:
     roughness_rms_m: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.model not in ("fluid", "rigid", "pressure-release", "fixed"):
-            raise InputError(f"material {self.name!r}: unknown reflection model {self.model!r}")
+        if self.model not in REFLECTION_MODELS:
+            raise InputError(f"material {self.name!r}: unknown reflection model {self.model!r} "
+                             f"(known: {', '.join(REFLECTION_MODELS)})")
         for field in ("density_kg_m3", "sound_speed_m_s"):
             value = getattr(self, field)
             if not (math.isfinite(value) and value > 0.0):
@@ -175,6 +212,8 @@ class Material:
             return -np.ones_like(cos1, dtype=complex)
         if self.model == "fixed":
             return np.full_like(cos1, self.fixed_reflection, dtype=complex)
+        if self.model == "elastic":
+            return self._elastic_reflection(cos1, medium_density_kg_m3, medium_sound_speed_m_s)
         z1 = medium_density_kg_m3 * medium_sound_speed_m_s
         z2 = self.density_kg_m3 * self.sound_speed_m_s
         sin1_sq = 1.0 - cos1 * cos1
@@ -184,8 +223,51 @@ class Material:
         cos2 = np.sqrt((1.0 - ratio * ratio * sin1_sq).astype(complex))
         return (z2 * cos1 - z1 * cos2) / (z2 * cos1 + z1 * cos2)
 
+    def _elastic_reflection(self, cos1: NDArray[np.float64], medium_density_kg_m3: float,
+                            medium_sound_speed_m_s: float) -> NDArray[np.complex128]:
+        """The ``elastic`` model (module docstring) at incidence cosines ``cos1`` (in [0, 1]).
+
+        Written with x = sin^2 t / n_S^2 (= sin^2 t_S): G = (1 - 2 x)^2 + 4 x a_S a_L / n_S^2, in
+        place where it can (the fast engine calls it once per material and solve).
+        """
+        sin_sq = 1.0 - cos1 * cos1
+        n_l = self.refraction_index(medium_sound_speed_m_s, "compressional")
+        a_l = upper_root(n_l * n_l - sin_sq)
+        solid = (self.density_kg_m3 / medium_density_kg_m3) * cos1
+        if self.shear_speed_m_s > 0.0:
+            n_s = self.refraction_index(medium_sound_speed_m_s, "shear")
+            inverse_sq = 1.0 / (n_s * n_s)
+            a_s = upper_root(n_s * n_s - sin_sq)
+            x = sin_sq * inverse_sq
+            rayleigh = 1.0 - 2.0 * x
+            rayleigh *= rayleigh
+            x *= 4.0 * inverse_sq
+            x *= a_s
+            x *= a_l
+            rayleigh += x
+            solid = solid * rayleigh
+        return (solid - a_l) / (solid + a_l)
+
+    def refraction_index(self, medium_sound_speed_m_s: float, wave: Literal["compressional", "shear"]) -> complex:
+        """n = c_w / c~ = (c_w / c)(1 + i eta / 2) of the compressional or shear wave (complex,
+        Im >= 0: the wave's loss, time dependence exp(-i w t)).
+
+        Raises
+        ------
+        InputError
+            ``wave`` is "shear" and the material has none (c_S = 0).
+        """
+        if wave == "compressional":
+            speed, eta = self.sound_speed_m_s, self.compressional_loss_factor
+        elif self.shear_speed_m_s > 0.0:
+            speed, eta = self.shear_speed_m_s, self.shear_loss_factor
+        else:
+            raise InputError(f"material {self.name!r} carries no shear wave (shear_speed_m_s = 0)")
+        return complex(medium_sound_speed_m_s / speed, 0.5 * eta * medium_sound_speed_m_s / speed)
+
     def normal_reflection(self, medium_density_kg_m3: float, medium_sound_speed_m_s: float) -> float:
-        """Real reflection coefficient at normal incidence."""
+        """Real part of the reflection coefficient at normal incidence (the coefficient itself
+        but for a lossy ``elastic`` material, whose small imaginary part it drops)."""
         return float(self.reflection_coefficient(1.0, medium_density_kg_m3, medium_sound_speed_m_s).real)
 
 
@@ -200,27 +282,42 @@ class Material:
         return self.shear_speed_m_s > 0.0
 
 
+def upper_root(values: ArrayLike) -> NDArray[np.complex128]:
+    """The square root with Im >= 0 of complex ``values`` (any shape): the vertical wavenumber of
+    a wave that decays, or carries energy, away from the interface (time dependence exp(-i w t)).
+
+    numpy's principal root has Re >= 0 but takes the sign of a zero imaginary part (sqrt(-4 - 0j)
+    = -2j); the root is negated where its imaginary part is negative.
+    """
+    root = np.sqrt(np.asarray(values, dtype=complex))
+    if root.ndim == 0:
+        return -root if root.imag < 0.0 else root
+    return np.negative(root, out=root, where=root.imag < 0.0)
+
+
 def material_library() -> Mapping[str, Material]:
     """The built-in materials, by name (a read-only mapping, built fresh on each call).
 
-    Elastic values and losses with their sources in the module docstring.
+    Elastic values and losses with their sources in the module docstring. The solids reflect by
+    the ``elastic`` model; sand is a fluid; the pipes keep their ``fixed`` coefficients (the echo
+    of a thin wall is dominated by its fill, which a half-space model cannot describe).
     """
     materials = (
-        Material("concrete", 2300.0, 4000.0, 2300.0, "fluid", diffuse_mu=0.01,
+        Material("concrete", 2300.0, 4000.0, 2300.0, "elastic", diffuse_mu=0.01,
                  compressional_loss_factor=0.05, shear_loss_factor=0.08),
-        Material("glass", 2500.0, 5800.0, 3400.0, "fluid", diffuse_mu=0.001,
+        Material("glass", 2500.0, 5800.0, 3400.0, "elastic", diffuse_mu=0.001,
                  compressional_loss_factor=0.002, shear_loss_factor=0.003),
-        Material("pvc", 1380.0, 2380.0, 1060.0, "fluid", diffuse_mu=0.003,
+        Material("pvc", 1380.0, 2380.0, 1060.0, "elastic", diffuse_mu=0.003,
                  compressional_loss_factor=0.03, shear_loss_factor=0.05),
-        Material("steel", 7850.0, 5900.0, 3200.0, "fluid", diffuse_mu=0.002,
+        Material("steel", 7850.0, 5900.0, 3200.0, "elastic", diffuse_mu=0.002,
                  compressional_loss_factor=0.002, shear_loss_factor=0.003),
         # Machined finish, rms 3 um: small-perturbation mu at 500 kHz, 60 deg, 1.93e-5 (module docstring).
-        Material("steel-machined", 7850.0, 5900.0, 3200.0, "fluid", diffuse_mu=1.9338212442616098e-05,
+        Material("steel-machined", 7850.0, 5900.0, 3200.0, "elastic", diffuse_mu=1.9338212442616098e-05,
                  compressional_loss_factor=0.002, shear_loss_factor=0.003),
-        Material("aluminium", 2700.0, 6320.0, 3130.0, "fluid", diffuse_mu=0.002,
+        Material("aluminium", 2700.0, 6320.0, 3130.0, "elastic", diffuse_mu=0.002,
                  compressional_loss_factor=0.001, shear_loss_factor=0.002),
         # Soft rubber: heavily damped (loss factors of order 0.1-0.3 are typical of elastomers).
-        Material("rubber", 1100.0, 1600.0, 50.0, "fluid", diffuse_mu=0.005,
+        Material("rubber", 1100.0, 1600.0, 50.0, "elastic", diffuse_mu=0.005,
                  compressional_loss_factor=0.1, shear_loss_factor=0.3),
         # Water-saturated sand as a fluid: Hamilton's attenuation about 0.5 dB/(m kHz) -> eta = 0.03.
         Material("sand", 1900.0, 1650.0, 0.0, "fluid", diffuse_mu=0.03, compressional_loss_factor=0.03),

@@ -11,8 +11,10 @@ from acoustisim.demo import DemoConfig, DemoResult, format_table, run_demo
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # 5 ms holds the edge (2.0 ms), the posts (2.7, 3.0 ms) and the pipe (4.65 ms); post-3 (7.5 ms)
-# is beyond it, and shadowed by post-1 for the left receiver anyway.
-REDUCED = dict(n_pings=8, record_length_s=5e-3)
+# is beyond it, and shadowed by post-1 for the left receiver anyway. 16 pings: the posts' corner
+# multipaths (via the floor and the surface, 2.8 and 3.0 ms) are detected from about 12 pings
+# since the elastic reflection of the PVC and concrete weakened them (8 pings no longer do).
+REDUCED = dict(n_pings=16, record_length_s=5e-3)
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +33,7 @@ def test_every_object_in_the_table(demo: tuple[DemoResult, Path]) -> None:
     for name in ("edge-1", "post-2", "pipe-1"):
         assert rows[name]["found"], name
         assert rows[name]["localisable"]
-        # 8 pings instead of 50: allow 3 mm / 0.3 deg here; the full demo is held to 1 mm / 0.1 deg.
+        # 16 pings instead of 50: allow 3 mm / 0.3 deg here; the full demo is held to 1 mm / 0.1 deg.
         # (The air-filled pipe's echo peaks 3.1 us late, its wall's reverberations unresolved from
         # its front face: 2.3 mm.)
         assert abs(rows[name]["range_error_m"]) < 3e-3, name
@@ -51,7 +53,7 @@ def test_every_object_in_the_table(demo: tuple[DemoResult, Path]) -> None:
     # post-3 is beyond this record (and shadowed by post-1 for the left receiver).
     assert not rows["post-3"]["localisable"] and not rows["post-3"]["found"]
     assert "not localisable from this pose" in table
-    assert result.settings["pings_averaged"] == 8
+    assert result.settings["pings_averaged"] == REDUCED["n_pings"]
 
 
 def test_extra_detections_are_named_from_the_truth(demo: tuple[DemoResult, Path]) -> None:

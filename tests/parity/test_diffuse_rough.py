@@ -19,11 +19,12 @@ from support.parity import assert_rows_match
 
 
 def rough_thesis_tank(scene):
-    """Every reflection model rough: a fluid floor (concrete) and fluid walls without a mu of
-    their own (only the roughness scatters there), a pressure-release surface, a fixed-model pipe."""
+    """Every reflection model rough (rigid as fixed: a constant): an elastic floor (concrete) and
+    fluid-model walls (concrete, its shear ignored) without a mu of their own (only the roughness
+    scatters there), a pressure-release surface, a fixed-model pipe."""
     concrete = get_material("concrete")
     floor = replace(concrete, name="floor-rough", roughness_rms_m=0.5e-3)
-    wall = replace(concrete, name="wall-rough", roughness_rms_m=0.2e-3, diffuse_mu=0.0)
+    wall = replace(concrete, name="wall-rough", model="fluid", roughness_rms_m=0.2e-3, diffuse_mu=0.0)
     surface = replace(get_material("pressure-release"), name="waves", roughness_rms_m=0.1e-3)
     pipe = replace(get_material("pvc-pipe-air"), name="pipe-rough", roughness_rms_m=0.3e-3)
     tank = replace(scene.tank, materials=(floor, wall, surface), floor_material=floor.name,
@@ -40,10 +41,12 @@ def rough_context(thesis_tank) -> SolveContext:
 
 def test_compiled_rough_mu_is_the_references(rough_context):
     # Every surface (four reflection models) over grazing sines 0..1, the critical angles of the
-    # fluid ones included: the same formula, real arithmetic against numpy's complex (|R|^2
-    # within a few ulp): 1e-13 relative, or 1e-18 absolute where it vanishes (grazing, or R = 0).
+    # fluid and elastic ones included: the same formulas, real arithmetic (fluid) or compiled
+    # complex scalars (elastic) against numpy's complex arrays (|R|^2 within a few ulp): 1e-13
+    # relative, or 1e-18 absolute where it vanishes (grazing, or R = 0).
     rough = reference.rough_scattering(rough_context)
     table = fast.rough_table(rough, len(rough_context.scene.surface_names))
+    assert {m.model for m in rough.material} == {"elastic", "fluid", "pressure-release", "fixed"}
     sines = np.linspace(0.0, 1.0, 2001)
     for s in range(len(rough_context.scene.surface_names)):
         expected = reference.rough_lambert_mu(rough, np.full(sines.size, s), sines)

@@ -53,15 +53,22 @@ def test_surface_and_floor_multipaths(tank):
     # the sonar is at mid-depth (0.5 m in 1 m of water): both at 1 m of path
     assert surface["delay_s"][0] == pytest.approx(1.0 / c, rel=1e-12)
     assert surface["geometric_gain"][0] == pytest.approx(-1.0, rel=1e-12)  # R = -1 over 1 m
-    concrete = scene.tank.boundaries[4].material.normal_reflection(scene.medium.density, c)
-    assert floor["geometric_gain"][0] == pytest.approx(concrete, rel=1e-12)
+    # the floor at normal incidence: the concrete's complex (lossy, elastic) R, as |R| and -arg R
+    concrete = scene.tank.boundaries[4].material.reflection_coefficient(1.0, scene.medium.density, c)
+    assert floor["geometric_gain"][0] == pytest.approx(abs(concrete), rel=1e-12)
+    assert floor["phase_rad"][0] == pytest.approx(-np.angle(concrete), rel=1e-9)
     # target echoes via the surface and the floor (the posts span the water: corner returns)
     for label in ("post-1>surface", "post-1>floor", "post-2>surface", "floor>pipe-1>surface"):
         assert _rows(paths, 1, label).size == 1, label
     direct = _rows(paths, 1, "post-1")["delay_s"][0]
     assert _rows(paths, 1, "post-1>surface")["delay_s"][0] > direct
-    # the surface bounce flips the sign, the floor bounce keeps it
-    assert _rows(paths, 1, "post-1>surface")["geometric_gain"][0] < 0
+    # the surface bounce flips the sign, the floor bounce keeps it (the lossy PVC's and
+    # concrete's R carry small phases: the sign is that of the real part, gain x cos(phase))
+    def signed(label):
+        row = _rows(paths, 1, label)
+        return row["geometric_gain"][0] * np.cos(row["phase_rad"][0])
+
+    assert signed("post-1>surface") < 0 < signed("post-1>floor")
 
 
 def test_far_wall_is_shadowed_by_the_prism_on_the_axis(tank):

@@ -148,6 +148,12 @@ def test_synthesised_floor_echo_is_the_smooth_one_times_exp_minus_s_k_squared(th
         return rows[rows["channel"] == 1].copy()
 
     smooth_row, rough_row = floor_row(smooth), floor_row(rough)
+    # The concrete's elastic R has a small phase (its losses: -arg R = 0.008 rad); a constant
+    # phase on a row whose spectrum reaches DC (this echo leaves the transducers at 90 deg, where
+    # the directivity favours low frequencies) has slowly decaying Hilbert tails that the two
+    # kernels cut at different lengths. Equal in both rows, it is set aside here.
+    assert smooth_row["phase_rad"][0] == pytest.approx(rough_row["phase_rad"][0], abs=1e-15)
+    smooth_row["phase_rad"] = rough_row["phase_rad"] = 0.0
     tx = np.asarray(thesis_tank.sonar.transmitter_position, dtype=float)
     sin_g = 2 * tx[2] / rough_row["path_length_m"][0]
     s = 2 * (FLOOR_H * sin_g) ** 2

@@ -229,6 +229,10 @@ def rough_table(rough: RoughScattering | None, n_surfaces: int) -> RoughTable:
     constant = np.ones(n_surfaces)
     impedance = np.ones(n_surfaces)
     index_sq = np.ones(n_surfaces)
+    elastic = np.zeros(n_surfaces, dtype=bool)
+    density_ratio = np.ones(n_surfaces)
+    index_l = np.ones(n_surfaces, dtype=complex)
+    index_s = np.zeros(n_surfaces, dtype=complex)
     if rough is not None:
         k0h[:] = rough.k0 * rough.rms_height_m
         z1 = rough.density_kg_m3 * rough.sound_speed_m_s
@@ -238,9 +242,16 @@ def rough_table(rough: RoughScattering | None, n_surfaces: int) -> RoughTable:
                 impedance[s] = material.density_kg_m3 * material.sound_speed_m_s / z1
                 ratio = material.sound_speed_m_s / rough.sound_speed_m_s
                 index_sq[s] = ratio * ratio
+            elif material.model == "elastic":
+                constant[s] = np.nan
+                elastic[s] = True
+                density_ratio[s] = material.density_kg_m3 / rough.density_kg_m3
+                index_l[s] = material.refraction_index(rough.sound_speed_m_s, "compressional")
+                if material.is_solid:
+                    index_s[s] = material.refraction_index(rough.sound_speed_m_s, "shear")
             elif material.model == "fixed":
                 constant[s] = material.fixed_reflection * material.fixed_reflection
-    return RoughTable(k0h, constant, impedance, index_sq)
+    return RoughTable(k0h, constant, impedance, index_sq, elastic, density_ratio, index_l, index_s)
 
 
 def _float32_rows(components: NDArray[np.float64], shift: NDArray[np.float64] | None, n: int) -> NDArray[np.float32]:

@@ -24,6 +24,7 @@ checks (every divisor is guarded by the test before it).
 
 from __future__ import annotations
 
+import cmath
 import math
 from typing import NamedTuple
 
@@ -51,13 +52,19 @@ class RoughTable(NamedTuple):
     """Per surface (n_surfaces,), what the Lambert strength of the coherent-roughness loss
     (:func:`acoustisim.propagation.reference.diffuse.rough_lambert_mu`) is computed from:
     ``k0h`` = k0 h (0: smooth surface); for the reflection energy |R|^2, ``constant_energy`` of
-    the angle-independent models (rigid, pressure release, fixed), NaN for the fluid model, whose
-    |R|^2 comes from ``impedance_ratio`` Z2 / Z1 and ``index_sq`` (c2 / c1)^2."""
+    the angle-independent models (rigid, pressure release, fixed), NaN for the angle-dependent
+    ones: the fluid model's |R|^2 comes from ``impedance_ratio`` Z2 / Z1 and ``index_sq``
+    (c2 / c1)^2, the elastic model's (``elastic`` True) from ``density_ratio`` rho / rho_w and the
+    complex refraction indices ``index_l``, ``index_s`` (c_w / c~; 0 without shear)."""
 
     k0h: NDArray[np.float64]
     constant_energy: NDArray[np.float64]
     impedance_ratio: NDArray[np.float64]
     index_sq: NDArray[np.float64]
+    elastic: NDArray[np.bool_]
+    density_ratio: NDArray[np.float64]
+    index_l: NDArray[np.complex128]
+    index_s: NDArray[np.complex128]
 
 
 class RayBatch(NamedTuple):
@@ -192,14 +199,42 @@ def _slab(px: float, py: float, pz: float, ix: float, iy: float, iz: float, lx: 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def upper_root(value: complex) -> complex:
+    """The square root with Im >= 0 (``acoustisim.materials.upper_root`` for one value)."""
+    root = cmath.sqrt(value)
+    return -root if root.imag < 0.0 else root
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def elastic_energy(rough: RoughTable, s: int, c1: float) -> float:
+    """|R|^2 of the elastic model of surface ``s`` at incidence cosine ``c1``: the formula of
+    ``Material``'s ``elastic`` model (``acoustisim.materials``), operation for operation."""
+    sin_sq = 1.0 - c1 * c1
+    n_l, n_s = rough.index_l[s], rough.index_s[s]
+    a_l = upper_root(n_l * n_l - sin_sq)
+    solid = complex(rough.density_ratio[s] * c1)
+    if n_s != 0.0:
+        inverse_sq = 1.0 / (n_s * n_s)
+        a_s = upper_root(n_s * n_s - sin_sq)
+        x = sin_sq * inverse_sq
+        rayleigh = 1.0 - 2.0 * x
+        rayleigh = rayleigh * rayleigh + 4.0 * inverse_sq * x * a_s * a_l
+        solid = solid * rayleigh
+    r = (solid - a_l) / (solid + a_l)
+    return r.real * r.real + r.imag * r.imag
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def rough_lambert_mu(rough: RoughTable, s: int, sin_grazing: float) -> float:
     """|R|^2 (1 - exp(-4 (k0 h sin g)^2)) / pi of a hit on rough surface ``s`` at incidence grazing
     sine ``sin_grazing``: the reference's (3), |R|^2 of the fluid model without complex numbers
-    (real below the critical angle, |R| = 1 beyond)."""
+    (real below the critical angle, |R| = 1 beyond), of the elastic one by :func:`elastic_energy`."""
     c1 = min(max(sin_grazing, 0.0), 1.0)  # the cosine of the incidence angle
     phase = rough.k0h[s] * c1
     energy = rough.constant_energy[s]
-    if math.isnan(energy):
+    if rough.elastic[s]:
+        energy = elastic_energy(rough, s, c1)
+    elif math.isnan(energy):
         q = 1.0 - rough.index_sq[s] * (1.0 - c1 * c1)  # cos^2 of the transmitted angle
         if q <= 0.0:
             energy = 1.0
@@ -511,4 +546,4 @@ def pack_rows(events: EventArrays, receivers: NDArray[np.float64], first_path_id
 
 __all__ = ("BounceCounts", "BounceCursor", "Continuation", "EventArrays", "PairBuffers", "RayBatch", "ReceiverSet",
            "RoughTable", "SpeckleLattice", "TriangleSet", "clear_blocked", "copy_chunk", "pack_rows",
-           "rough_lambert_mu", "scatter_and_pair", "write_receptions")
+           "elastic_energy", "rough_lambert_mu", "scatter_and_pair", "upper_root", "write_receptions")

@@ -9,9 +9,10 @@ the incoming and outgoing legs. Its pressure factor relative to the source's pre
     g = prod_j R_j(theta_j) x spreading,
 
 with R_j the plane-wave reflection coefficient of reflection j's material at its incidence
-angle theta_j (``Material.reflection_coefficient``: fluid-fluid Rayleigh formula with Snell's
-law, complex beyond the critical angle; -1 for the pressure-release free surface; physics.md
-sections 1 and 3) and the spreading
+angle theta_j (``Material.reflection_coefficient``: the liquid / elastic-solid coefficient of
+the solids, the fluid-fluid Rayleigh formula of fluids, complex with losses and beyond the
+critical angles; -1 for the pressure-release free surface; physics.md sections 1 and 3) and the
+spreading
 
 * 1 / L for chains of planar mirrors (the image source at L, :mod:`.image_source`);
 * the geometric-optics factor cos(theta_i) / (r1 r2 sqrt|det H|) of the curved specular point
