@@ -41,30 +41,32 @@ def label_echo(arrivals: NDArray, labels: Sequence[str], channel: int, tof_s: fl
                resolution_s: float = 0.0) -> tuple[str, float]:
     """The label and delay (s) of what made an echo on ``channel`` at ``tof_s``.
 
-    1. The strongest arrival within ``window_s`` of ``tof_s``, unless it is diffuse.
-    2. With ``internal`` (the truth's internal arrivals of elastic echoes,
-       :func:`acoustisim.propagation.elastic_echoes.internal_arrival_table`): an elastic echo whose
-       own pulse holds ``tof_s`` (from ``window_s`` before its delay to ``resolution_s`` after it:
-       its internal arrivals closer than that are not resolved from it, and move its peak), named
-       as the echo; else a resolved internal arrival within ``window_s``, named
-       "<echo> (<arrival>)", e.g. "post-1 (compressional through the diameter)" (the strongest,
-       by the echo's amplitude and the arrival's level).
-    3. That strongest arrival, diffuse ("<label> (diffuse)").
+    1. The strongest of the arrivals within ``window_s`` of ``tof_s`` and, with ``internal`` (the
+       truth's internal arrivals of elastic echoes,
+       :func:`acoustisim.propagation.elastic_echoes.internal_arrival_table`), the elastic echoes
+       whose own pulse holds ``tof_s`` (from ``window_s`` before their delay to
+       ``resolution_s`` after it: internal arrivals closer than that are not resolved from the
+       echo, and move its peak), unless it is diffuse. A ringing echo peaks later than its
+       specular delay: a weak arrival nearer that peak (a chain grazing another object) does
+       not name it.
+    2. Else a resolved internal arrival within ``window_s``, named "<echo> (<arrival>)", e.g.
+       "post-1 (compressional through the diameter)" (the strongest, by the echo's amplitude and
+       the arrival's level).
+    3. Else that strongest arrival, diffuse ("<label> (diffuse)").
 
     Returns ("unexplained", NaN) when nothing explains it (noise or a detector artefact).
     """
     on_channel = (arrivals["channel"] == channel) & (arrivals["kind"] != 0)
     near = np.flatnonzero(on_channel & (np.abs(arrivals["delay_s"] - tof_s) <= window_s))
+    if internal is not None and internal.size:
+        holding = np.flatnonzero(on_channel & np.isin(arrivals["path_id"], internal["path_id"])
+                                 & (arrivals["delay_s"] - window_s <= tof_s)
+                                 & (tof_s <= arrivals["delay_s"] + resolution_s))
+        near = np.union1d(near, holding)
     best = near[int(np.argmax(np.abs(arrivals["amplitude"][near])))] if near.size else -1
     if best >= 0 and int(arrivals["kind"][best]) != 3:
         return labels[best], float(arrivals["delay_s"][best])
     if internal is not None and internal.size:
-        elastic = np.flatnonzero(on_channel & np.isin(arrivals["path_id"], internal["path_id"])
-                                 & (arrivals["delay_s"] - window_s <= tof_s)
-                                 & (tof_s <= arrivals["delay_s"] + resolution_s))
-        if elastic.size:
-            echo = elastic[int(np.argmax(np.abs(arrivals["amplitude"][elastic])))]
-            return labels[echo], float(arrivals["delay_s"][echo])
         rows = internal[(internal["channel"] == channel) & (np.abs(internal["delay_s"] - tof_s) <= window_s)
                         & (internal["after_echo_s"] >= resolution_s)]
         scored = []

@@ -61,6 +61,20 @@ def test_label_echo_picks_the_strongest_arrival_in_the_window() -> None:
     assert label_echo(arrivals, labels, 0, 0.0)[0] == "unexplained"  # the direct path is not an echo
 
 
+def test_a_ringing_elastic_echo_names_its_late_peak_before_a_weak_arrival_nearer_it() -> None:
+    # The pipe's elastic echo peaks ~3 us after its specular delay; a chain grazing another post,
+    # 40 dB weaker, lies 0.5 us from that peak: the echo is the pipe's.
+    dtype = [("path_id", "i8"), ("channel", "i1"), ("delay_s", "f8"), ("kind", "i1"), ("amplitude", "f8")]
+    arrivals = np.array([(7, 1, 4.6517e-3, 1, 4e-3), (8, 1, 4.6539e-3, 1, 4.8e-5)], dtype=dtype)
+    internal = np.array([(7, 1, 2, b"wall", 4.6557e-3, 4e-6, -20.0)],
+                        dtype=[("path_id", "i8"), ("channel", "i1"), ("object_id", "i2"), ("arrival", "S40"),
+                               ("delay_s", "f8"), ("after_echo_s", "f8"), ("level_db", "f8")])
+    labels = ["pipe-1", "post-2+pipe-1"]
+    tof = 4.6545e-3
+    assert label_echo(arrivals, labels, 1, tof)[0] == "post-2+pipe-1"  # without the elastic truth
+    assert label_echo(arrivals, labels, 1, tof, internal=internal, resolution_s=4e-6)[0] == "pipe-1"
+
+
 def test_registry_finds_the_experiments() -> None:
     names = experiment_names()
     for name in ("range-sweep", "angle-sweep", "nine-methods"):
