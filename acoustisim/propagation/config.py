@@ -50,11 +50,14 @@ class SolverConfig:
         element is one delay step (the fine reference discretisation).
     edge_reflections : int
         Most reflections combined with one edge diffraction (0 to
-        :data:`MAX_EDGE_REFLECTIONS`): 0, first-order edge diffraction only; 1 (default), also
+        :data:`MAX_EDGE_REFLECTIONS`): 0 (default), first-order edge diffraction only; 1, also
         the paths edge -> reflection and reflection -> edge (kind ``edge``, order 2; planar
         mirrors by the image method, curved surfaces at their specular point from each edge
-        element); 2, also two planar reflections before, after or around the edge (order 3).
-        :mod:`acoustisim.propagation.reference.edge_reflections`.
+        element: the edges heard via the floor and the surface); 2, also two planar reflections
+        before, after or around the edge (order 3).
+        :mod:`acoustisim.propagation.reference.edge_reflections`. Each such path is a line
+        integral of about as many rows as a first-order edge's: on the thesis tank, 1 multiplies
+        the edge rows by about 14 (see ``benchmarks/bench_propagation.py``).
     shadows : bool
         True (default): a specular leg passing near or blocked by a smooth convex obstacle
         (sphere, cylinder) is weighted by the field diffracted around it (a Kirchhoff-Fresnel
@@ -88,7 +91,7 @@ class SolverConfig:
     diffuse_bounces: int = 1
     edge_segment_m: float = 5e-4
     edge_adaptive: bool = True
-    edge_reflections: int = 1
+    edge_reflections: int = 0
     shadows: bool = True
     amplitude_floor_db: float | None = -80.0
     amplitude_floor_band_hz: tuple[float, float] | None = None
