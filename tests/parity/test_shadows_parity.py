@@ -1,9 +1,8 @@
 """Shadowed rows on both engines: the same rows and, row for row, the same responses.
 
 The shadow step is one engine-independent function applied to each engine's direct and specular
-rows, so the responses of matching rows must be equal: their aperture terms within 1e-12 m
-(computed from the rows, whose points agree within 1e-9 m) and their transfer
-functions within 1e-9 relative."""
+rows (whose points agree within 1e-9 m), so matching rows must carry equal responses: the same
+labels and spans, transfer functions within 1e-9 relative."""
 
 from __future__ import annotations
 

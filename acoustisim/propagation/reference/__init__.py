@@ -3,22 +3,21 @@
 Modules, each opening with its Physics (equations and sources), Method and Accuracy:
 
 * :mod:`.direct`: the direct path;
-<<<<<<< HEAD
 * :mod:`.specular`: specular chains of planar mirrors and at most one curved surface, their
   occlusion, duplicates and reflection coefficients, built on :mod:`.image_source` (image
   sources, unfolding and back-tracing on planar mirrors), :mod:`.curved` (specular points on
   spheres and cylinders, the geometric-optics amplitude) and :mod:`.chains` (the candidate
   chains);
-* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral);
-=======
-* :mod:`.specular`: image-source chains on planar mirrors and specular points on curved
-  surfaces (spheres, cylinders, smooth meshes), with geometric-optics amplitudes;
-* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge
-  formulas and the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`);
->>>>>>> p2-edges
+* :mod:`.edges`: edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge formulas and
+  the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`), and with
+  :mod:`.edge_reflections` the edges combined with reflections (image method, curved
+  reflectors at each element's specular point);
 * :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
 * :mod:`.floor`: the amplitude floor;
 * :mod:`.columns`: the derived columns and the solve's assembled rows.
+
+The shadows of smooth obstacles (:mod:`acoustisim.propagation.shadows`) are one
+engine-independent step after the mechanisms.
 
 Occlusion is asked of Embree in batches (:class:`~acoustisim.propagation.raycast.RayCaster`);
 everything else is numpy. The fast engine (:mod:`acoustisim.propagation.fast`) computes the
