@@ -162,8 +162,8 @@ class ApertureTerms(NamedTuple):
     cap: NDArray[np.float64]
     infinite: NDArray[np.bool_]
 
-    def select(self, index: NDArray[np.intp] | NDArray[np.bool_]) -> "ApertureTerms":
-        """The terms ``index``."""
+    def select(self, index: NDArray[np.intp] | NDArray[np.bool_] | slice) -> "ApertureTerms":
+        """The terms ``index`` (a slice gives views)."""
         return ApertureTerms(*(column[index] for column in self))
 
     def farthest_m(self) -> NDArray[np.float64]:
@@ -247,6 +247,16 @@ def aperture_terms(legs: Legs, obstacles: SmoothObstacles, centre_frequency_hz: 
     a = legs.start_m[leg]
     segment = legs.end_m[leg] - a
     length = np.linalg.norm(segment, axis=1)
+    # a first cut: the obstacle's bounding sphere (a post's within the water: every leg is) farther
+    # from the segment than the reach can be anywhere along it (sigma is least at its middle,
+    # where 1/d1 + 1/d2 = 4 / L)
+    bounding = np.hypot(obstacles.radius_m, obstacles.half_length_m)[k]
+    to_centre = obstacles.centre_m[k] - a
+    along = np.clip(np.einsum("ij,ij->i", to_centre, segment) / np.maximum(length * length, 1e-300), 0.0, 1.0)
+    gap = np.linalg.norm(to_centre - along[:, None] * segment, axis=1) - bounding
+    reach = FRESNEL_REACH * np.sqrt(length * sound_speed_m_s / (8.0 * centre_frequency_hz))
+    near = np.flatnonzero(gap < reach)
+    leg, k, a, segment, length = leg[near], k[near], a[near], segment[near], length[near]
     t = segment / np.where(length > 0.0, length, 1.0)[:, None]
     centre, axis = obstacles.centre_m[k], obstacles.axis[k]
     sphere, infinite = obstacles.sphere[k], obstacles.infinite[k]
@@ -303,79 +313,104 @@ def blocked_integral(terms: ApertureTerms, frequency_hz: NDArray[np.float64],
 
 
 class ContourNodes(NamedTuple):
-    """Quadrature nodes on the boundary of a region of the aperture plane, shape (q,) each:
-    ``rho2`` the squared distance from the leg (m^2) and ``weight`` (x w' - w x') ds (m^2),
-    so that Int_region exp(i pi sigma^2 |x|^2 / 2) d^2 x = sum weight (exp(i pi sigma^2 rho2
-    / 2) - 1) / (i pi sigma^2 rho2) sigma^2 (the contour form, :func:`cap_contour`)."""
+    """Quadrature nodes on the boundaries of regions of the aperture plane, shape (q,) each:
+    ``term`` the region (term) each belongs to (non-decreasing), ``rho2`` the squared distance
+    from the leg (m^2) and ``weight`` (x w' - w x') ds (m^2), so that Int_region
+    exp(i pi sigma^2 |x|^2 / 2) d^2 x = sum over its nodes of weight (exp(i pi sigma^2 rho2 / 2)
+    - 1) / (i pi sigma^2 rho2) (the contour form, :func:`cap_contours`)."""
 
+    term: NDArray[np.int64]
     rho2: NDArray[np.float64]
     weight: NDArray[np.float64]
 
 
-def equal_phase_nodes(curve: Any, sigma_max: float, rule: tuple[NDArray[np.float64], NDArray[np.float64]]
-                      ) -> ContourNodes:
-    """Gauss-Legendre nodes on the parametrised curve ``curve(u) -> (x, w, dx/du, dw/du)``,
-    u in [0, 1], on panels over which the phase pi sigma_max^2 rho^2 / 2 turns by at most
-    :data:`PANEL_PHASE_RAD` (panel ends placed at equal steps of the phase's variation, sampled
-    on 257 points); ``rule`` the nodes and weights on [-1, 1] of one panel."""
-    u = np.linspace(0.0, 1.0, 257)
-    x, w, _, _ = curve(u)
-    phase = 0.5 * np.pi * sigma_max**2 * (x * x + w * w)
-    variation = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(phase)))])
-    panels = int(math.ceil(variation[-1] / PANEL_PHASE_RAD)) + 1
-    bounds = np.interp(np.linspace(0.0, variation[-1], panels + 1), variation, u) if variation[-1] > 0.0 \
-        else np.linspace(0.0, 1.0, panels + 1)
-    nodes, weights = rule
-    half = 0.5 * np.diff(bounds)
-    at = ((0.5 * (bounds[:-1] + bounds[1:]))[:, None] + half[:, None] * nodes[None, :]).reshape(-1)
-    x, w, dx, dw = curve(at)
-    return ContourNodes(x * x + w * w, (x * dw - w * dx) * (half[:, None] * weights[None, :]).reshape(-1))
+SAMPLES = 257
+"""Points per boundary piece at which the phase's variation is sampled to place the panels."""
 
 
-def cap_contour(term: ApertureTerms, sigma_max: float,
-                rule: tuple[NDArray[np.float64], NDArray[np.float64]]) -> ContourNodes:
-    """The boundary nodes of the two cap segments of one finite silhouette (a one-row
-    :class:`ApertureTerms`), counter-clockwise in (x, w): each cap's elliptical arc and the
-    straight chord it shares with the rectangle.
+def cap_pieces(terms: ApertureTerms, u: NDArray[np.float64], shared: bool) -> tuple[NDArray[np.float64], ...]:
+    """The four boundary pieces of each term's two caps, counter-clockwise in (x, w): x, w,
+    dx/du, dw/du (m) at parameters ``u`` in [0, 1] (pieces: the arc beyond x_c + h, its chord
+    x = x_c + h downwards, the arc beyond x_c - h, its chord upwards).
+
+    ``shared``: ``u`` (k,) for every term, results (t, 4, k); else one ``u`` per term (t,),
+    results (t, 4).
+    """
+    shape = (-1, 1, 1) if shared else (-1, 1)
+    x_c, w_c, h, a, cap = (v.reshape(shape) for v in
+                           (terms.x_centre, terms.w_centre, terms.half_length, terms.radius, terms.cap))
+    pieces = (1, 4, 1) if shared else (1, 4)
+    side = np.array([1.0, 1.0, -1.0, -1.0]).reshape(pieces)
+    arc = np.array([True, False, True, False]).reshape(pieces)
+    u = u.reshape((1, 1, -1) if shared else (-1, 1))
+    phi = np.pi * (u - 0.5)
+    x = np.where(arc, x_c + side * (h + cap * np.cos(phi)), x_c + side * h)
+    w = np.where(arc, w_c + side * a * np.sin(phi), w_c + side * a * (1.0 - 2.0 * u))
+    dx = np.where(arc, -side * np.pi * cap * np.sin(phi), 0.0)
+    dw = np.where(arc, side * np.pi * a * np.cos(phi), -2.0 * side * a)
+    return x, w, dx, dw
+
+
+def cap_contours(terms: ApertureTerms, sigma_max: NDArray[np.float64]) -> ContourNodes:
+    """The boundary nodes of the two cap segments of every finite silhouette of ``terms`` (each
+    cap's elliptical arc and the straight chord it shares with the rectangle), Gauss-Legendre
+    (:data:`GAUSS_NODES` per panel) on panels over which the phase pi sigma_max^2 rho^2 / 2 of
+    the term turns by at most :data:`PANEL_PHASE_RAD` (panel ends at equal steps of the
+    phase's variation, sampled on :data:`SAMPLES` points per piece).
 
     By Green's theorem in polar coordinates about the leg, Int_R g(|x|) d^2 x =
     oint (Int_0^rho g(r) r dr) dtheta, and Int_0^rho exp(i pi sigma^2 r^2 / 2) r dr =
     (exp(i pi sigma^2 rho^2 / 2) - 1) / (i pi sigma^2); dtheta = (x dw - w dx) / rho^2.
-    ``rule``: Gauss-Legendre nodes and weights of one panel.
     """
-    x_c, w_c, h = float(term.x_centre[0]), float(term.w_centre[0]), float(term.half_length[0])
-    a, cap = float(term.radius[0]), float(term.cap[0])
-    pieces = []
-    for side in (1.0, -1.0):  # the cap beyond x_c + h, then the one beyond x_c - h
-        def arc(u: NDArray[np.float64], side: float = side) -> tuple[NDArray[np.float64], ...]:
-            phi = np.pi * (u - 0.5)
-            return (x_c + side * (h + cap * np.cos(phi)), w_c + side * a * np.sin(phi),
-                    -side * np.pi * cap * np.sin(phi), side * np.pi * a * np.cos(phi))
-
-        def chord(u: NDArray[np.float64], side: float = side) -> tuple[NDArray[np.float64], ...]:
-            return (np.full(u.shape, x_c + side * h), w_c + side * a * (1.0 - 2.0 * u),
-                    np.zeros(u.shape), np.full(u.shape, -2.0 * side * a))
-
-        pieces += [equal_phase_nodes(arc, sigma_max, rule), equal_phase_nodes(chord, sigma_max, rule)]
-    return ContourNodes(*(np.concatenate(column) for column in zip(*pieces)))
+    t = terms.row.size
+    u = np.linspace(0.0, 1.0, SAMPLES)
+    x, w, _, _ = cap_pieces(terms, u, shared=True)  # (t, 4, SAMPLES)
+    phase = 0.5 * np.pi * sigma_max[:, None, None] ** 2 * (x * x + w * w)
+    variation = np.concatenate([np.zeros((t, 4, 1)), np.cumsum(np.abs(np.diff(phase, axis=2)), axis=2)], axis=2)
+    total = variation[:, :, -1].reshape(-1)  # per piece
+    panels = np.ceil(total / PANEL_PHASE_RAD).astype(np.int64) + 1
+    # panel ends: equal steps of each piece's variation, by one interpolation over all pieces
+    # laid end to end (each piece's variation offset past the previous ones')
+    offset = np.cumsum(np.r_[0.0, total[:-1] + 1.0])
+    piece_of_bound = np.repeat(np.arange(total.size), panels + 1)
+    step_index = np.arange(piece_of_bound.size) - np.repeat(np.cumsum(panels + 1) - (panels + 1), panels + 1)
+    target = offset[piece_of_bound] + total[piece_of_bound] * step_index / panels[piece_of_bound]
+    flat_variation = (variation.reshape(total.size, SAMPLES) + offset[:, None]).reshape(-1)
+    flat_u = np.tile(u, total.size)
+    bounds = np.interp(target, flat_variation, flat_u)
+    flat = total[piece_of_bound] < PANEL_PHASE_RAD * 1e-6  # (nearly) no variation: equal steps of u
+    bounds[flat] = (step_index / panels[piece_of_bound])[flat]
+    # each piece from exactly 0 to exactly 1 (the offsets may absorb a flat end's last increments)
+    bounds[step_index == 0] = 0.0
+    bounds[step_index == panels[piece_of_bound]] = 1.0
+    # Gauss nodes of every panel (a panel: bounds j, j + 1 of one piece)
+    last = np.cumsum(panels + 1) - 1
+    starts = np.setdiff1d(np.arange(bounds.size), last)
+    lo, hi = bounds[starts], bounds[starts + 1]
+    nodes, weights = np.polynomial.legendre.leggauss(GAUSS_NODES)
+    half = 0.5 * (hi - lo)
+    at = (0.5 * (lo + hi))[:, None] + half[:, None] * nodes[None, :]  # (panels, g)
+    piece = np.repeat(piece_of_bound[starts], GAUSS_NODES)
+    term = piece // 4
+    x, w, dx, dw = cap_pieces(terms.select(term), at.reshape(-1), shared=False)  # (q, 4)
+    which = piece % 4
+    pick = np.arange(which.size)
+    x, w, dx, dw = x[pick, which], w[pick, which], dx[pick, which], dw[pick, which]
+    return ContourNodes(term, x * x + w * w, (x * dw - w * dx) * (half[:, None] * weights[None, :]).reshape(-1))
 
 
 def cap_integral(terms: ApertureTerms, sigma: NDArray[np.float64]) -> NDArray[np.complex128]:
     """(1) over the cap segments of finite silhouettes (t terms, sigma (t, n)) by the contour
-    form (:func:`cap_contour`), the nodes placed for the largest sigma of each term."""
-    out = np.empty(sigma.shape, dtype=complex)
-    rule = np.polynomial.legendre.leggauss(GAUSS_NODES)
-    for j in range(terms.row.size):  # a loop over a row's few terms, vectorised over nodes and bins
-        nodes = cap_contour(terms.select(np.array([j])), float(np.max(sigma[j])), rule)
-        # sum weight (exp(i pi sigma^2 rho2 / 2) - 1) / (i pi rho2), expm1 keeping it exact where
-        # a node lies near the leg (rho2 -> 0, the contour grazing it)
-        # (1 / 2i) sum weight (exp(i phi) - 1) / (i pi rho2), phi = pi sigma^2 rho2 / 2, in real
-        # arithmetic: exp(i phi) - 1 = -2 sin^2(phi / 2) + i sin(phi), exact as rho2 -> 0
-        per_node = nodes.weight / (np.pi * np.maximum(nodes.rho2, TINY_RHO2))
-        half_phase = 0.25 * np.pi * np.multiply.outer(sigma[j] ** 2, nodes.rho2)
-        sine = np.sin(half_phase)
-        out[j] = (sine * sine) @ per_node - 0.5j * (np.sin(2.0 * half_phase) @ per_node)
-    return out
+    form (:func:`cap_contours`), the nodes placed for the largest sigma of each term."""
+    nodes = cap_contours(terms, np.max(sigma, axis=1))
+    # (1 / 2i) sum weight (exp(i phi) - 1) / (i pi rho2), phi = pi sigma^2 rho2 / 2, in real
+    # arithmetic: exp(i phi) - 1 = -2 sin^2(phi / 2) + i sin(phi), exact as rho2 -> 0
+    per_node = nodes.weight / (np.pi * np.maximum(nodes.rho2, TINY_RHO2))
+    half_phase = 0.25 * np.pi * sigma[nodes.term] ** 2 * nodes.rho2[:, None]  # (q, n)
+    sine = np.sin(half_phase)
+    value = (sine * sine - 0.5j * np.sin(2.0 * half_phase)) * per_node[:, None]
+    first = np.searchsorted(nodes.term, np.arange(terms.row.size))
+    return np.add.reduceat(value, first, axis=0)
 
 
 def shadow_factor(terms: ApertureTerms, frequency_hz: NDArray[np.float64],
@@ -396,7 +431,9 @@ class ShadowResponse:
     span_s : tuple of 2 float
         (0, the latest edge wave's delay + :data:`TAIL_S`) (s).
     terms : ApertureTerms
-        The row's (leg, obstacle) terms.
+        The solve's (leg, obstacle) terms, grouped by row (shared by its responses).
+    first, stop : int
+        This row's terms: ``terms`` rows ``first:stop``.
     scale : float
         |H(f0)|, already in the row's gain: :meth:`transfer` divides by it.
     """
@@ -404,11 +441,18 @@ class ShadowResponse:
     label: str
     span_s: tuple[float, float]
     terms: ApertureTerms = field(repr=False)
+    first: int
+    stop: int
     scale: float
+
+    @property
+    def own_terms(self) -> ApertureTerms:
+        """This row's terms."""
+        return self.terms.select(slice(self.first, self.stop))
 
     def transfer(self, frequency_hz: NDArray[np.float64], sound_speed_m_s: float) -> NDArray[np.complex128]:
         """H(f) / |H(f0)| in the engineering convention (complex conjugate of (1)), shape (n,)."""
-        return np.conj(shadow_factor(self.terms, frequency_hz, sound_speed_m_s)) / self.scale
+        return np.conj(shadow_factor(self.own_terms, frequency_hz, sound_speed_m_s)) / self.scale
 
 
 def shadow_rows(rows: NDArray[Any], context: SolveContext, obstacles: SmoothObstacles,
@@ -426,33 +470,36 @@ def shadow_rows(rows: NDArray[Any], context: SolveContext, obstacles: SmoothObst
     if obstacles.count == 0 or rows.size == 0:
         return rows, ()
     f0, c = context.centre_frequency_hz, context.sound_speed_m_s
-    terms = aperture_terms(row_legs(rows, context), obstacles, f0, c)
+    legs = row_legs(rows, context)
+    if legs.row.size == 0:
+        return rows, ()
+    terms = aperture_terms(legs, obstacles, f0, c)
     if terms.row.size == 0:
         return rows, ()
+    order = np.argsort(terms.row, kind="stable")
+    terms = terms.select(order)  # grouped by row, each row's terms a slice
     at_f0 = 1.0 - blocked_integral(terms, np.array([f0]), c)[:, 0]
-    shadowed, term_row = np.unique(terms.row, return_inverse=True)
-    factor = np.ones(shadowed.size, dtype=complex)
-    np.multiply.at(factor, term_row, at_f0)
+    shadowed, first = np.unique(terms.row, return_index=True)
+    bounds = np.r_[first, terms.row.size]
+    factor = np.multiply.reduceat(at_f0, first)
     scale = np.maximum(np.abs(factor), MIN_SCALE)
     out = rows.copy()
     out["geometric_gain"][shadowed] *= scale
     out["response_id"][shadowed] = first_response_id + np.arange(shadowed.size)
-    delay = terms.farthest_m() ** 2 * terms.inverse_distance / (2.0 * c)
+    latest = np.maximum.reduceat(terms.farthest_m() ** 2 * terms.inverse_distance / (2.0 * c), first) + TAIL_S
     names = context.scene.surface_names
-    order = np.argsort(term_row, kind="stable")
-    bounds = np.searchsorted(term_row[order], np.arange(shadowed.size + 1))
+    obstacle_names = [names[s] for s in obstacles.surface[terms.obstacle]]
+    levels = 20.0 * np.log10(scale)
     responses = []
-    for j in range(shadowed.size):  # a loop over the shadowed rows (tens), building their responses
-        mine = order[bounds[j]:bounds[j + 1]]
-        level = 20.0 * math.log10(scale[j])
-        label = (f"shadow of {', '.join(names[s] for s in obstacles.surface[np.unique(terms.obstacle[mine])])} "
-                 f"(Kirchhoff-Fresnel), {level:+.1f} dB at {f0 / 1e3:g} kHz")
-        responses.append(ShadowResponse(label, (0.0, float(np.max(delay[mine])) + TAIL_S),
-                                        terms.select(mine), float(scale[j])))
+    for j in range(shadowed.size):  # a loop over the shadowed rows (hundreds), sharing the terms
+        lo, hi = int(bounds[j]), int(bounds[j + 1])
+        label = (f"shadow of {', '.join(dict.fromkeys(obstacle_names[lo:hi]))} (Kirchhoff-Fresnel), "
+                 f"{levels[j]:+.1f} dB at {f0 / 1e3:g} kHz")
+        responses.append(ShadowResponse(label, (0.0, float(latest[j])), terms, lo, hi, float(scale[j])))
     return out, tuple(responses)
 
 
 __all__ = ("ApertureTerms", "FRESNEL_REACH", "GAUSS_NODES", "Legs", "MIN_SCALE", "PANEL_PHASE_RAD", "TAIL_S",
            "TINY_RHO2",
-           "ShadowResponse", "ContourNodes", "aperture_terms", "blocked_integral", "cap_contour", "cap_integral", "equal_phase_nodes", "fresnel_integral",
+           "ShadowResponse", "ContourNodes", "SAMPLES", "aperture_terms", "blocked_integral", "cap_contours", "cap_integral", "cap_pieces", "fresnel_integral",
            "fresnel_scale", "perpendicular_unit", "row_legs", "shadow_factor", "shadow_rows")

@@ -86,7 +86,7 @@ def test_response_is_normalised_and_in_the_engineering_convention(thesis_tank) -
     terms = ApertureTerms(np.array([0]), np.array([0]), np.array([1.0]), np.array([0.0]), np.array([0.2]),
                           np.array([0.0]), np.array([0.025]), np.array([0.0]), np.array([True]))
     scale = float(np.abs(shadow_factor(terms, np.array([500e3]), C))[0])
-    response = ShadowResponse("test", (0.0, 1e-4), terms, scale)
+    response = ShadowResponse("test", (0.0, 1e-4), terms, 0, 1, scale)
     assert abs(response.transfer(np.array([500e3]), C)[0]) == pytest.approx(1.0, rel=1e-14)
     fs, n = 4e6, 1 << 12
     f = np.fft.rfftfreq(n, 1 / fs)
