@@ -8,7 +8,8 @@ reflection coefficients) with this engine's per-element steps (:func:`fast_kerne
 1. the discretisation and the quadrature: the first-order edges' kernels
    (:mod:`.edge_elements`, :mod:`.edge_gains`);
 2. the reflection points: :func:`.mirror_kernels.backtrace_chains` (the specular chains'
-   compiled back-tracing, the reference's arithmetic);
+   compiled back-tracing, the reference's arithmetic), and on curved reflectors
+   :func:`.curved_kernels.specular_points`;
 3. the visibility: :func:`screen_path_legs` decides the legs without Embree where it can (the
    walls of the tank box, but for the boundary a leg starts or ends on, which it ignores as
    Embree's exclusion does; the objects by :func:`.edge_visibility.screen_legs`'s boxes and
@@ -30,6 +31,7 @@ from numpy.typing import NDArray
 
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.fast.curved_kernels import specular_points
 from acoustisim.propagation.fast.edge_elements import discretise_edges
 from acoustisim.propagation.fast.edge_visibility import (BLOCKED, CLEAR, MASK_BITS, OTHERS_BIT, UNDECIDED,
                                                          ScreenGeometry, scene_screen, screen_legs)
@@ -166,7 +168,7 @@ def fast_kernels() -> ElementKernels:
     """The fast engine's per-element steps (the quadrature: :func:`.edges.edge_impulses`)."""
     from acoustisim.propagation.fast.edges import edge_impulses
 
-    return ElementKernels(discretise_edges, edge_impulses, fast_backtrace, fast_path_visibility)
+    return ElementKernels(discretise_edges, edge_impulses, fast_backtrace, fast_path_visibility, specular_points)
 
 
 def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> list[SplitImpulses]:

@@ -129,13 +129,15 @@ class ElementKernels(NamedTuple):
     valid)`` (:func:`.image_source.backtrace` on ``prepared.mirrors``); ``path_visibility(context,
     prepared, vertices (n, v, 3), patches (n, v), faces (n, v)) -> (n,) bool``: whether every leg
     of each path is clear, a leg ignoring the patches at its ends (``faces``: the tank box face
-    each vertex lies on, -1 none, for screens).
+    each vertex lies on, -1 none, for screens); ``specular_points(curved_set, which, a, b) ->
+    SurfacePoints`` (:func:`.curved.specular_points`).
     """
 
     discretise_edges: Callable[..., EdgeElements]
     edge_impulses: Callable[..., EdgeImpulses]
     backtrace: Callable[..., tuple[NDArray[np.float64], NDArray[np.bool_]]]
     path_visibility: Callable[..., NDArray[np.bool_]]
+    specular_points: Callable[..., Any]
 
 
 def reference_backtrace(prepared: PreparedScene, images: NDArray[np.float64], sequences: NDArray[np.int64],
@@ -158,7 +160,8 @@ def reference_path_visibility(context: SolveContext, prepared: PreparedScene, ve
 
 def reference_kernels() -> ElementKernels:
     """The reference engine's per-element steps."""
-    return ElementKernels(discretise_edges, edge_impulses, reference_backtrace, reference_path_visibility)
+    return ElementKernels(discretise_edges, edge_impulses, reference_backtrace, reference_path_visibility,
+                          specular_points)
 
 
 class ImageSides(NamedTuple):
@@ -423,19 +426,21 @@ def split_impulses(context: SolveContext, config: SolverConfig, prepared: Prepar
 
 
 def curved_images(prepared: PreparedScene, reflector: NDArray[np.int64], edge_points: NDArray[np.float64],
-                  far: NDArray[np.float64], after: bool) -> tuple[NDArray[np.float64], Any]:
+                  far: NDArray[np.float64], after: bool, kernels: ElementKernels) -> tuple[NDArray[np.float64], Any]:
     """The image of ``far`` (the receiver after the edge, or the transmitter before it) across the
     tangent plane of its specular point on ``reflector`` from ``edge_points`` (each (n, 3)):
     X + |far - X| u, u the unit vector from the edge point to X; and the specular points
     (:class:`~acoustisim.propagation.curved.SurfacePoints`)."""
     a, b = (edge_points, far) if after else (far, edge_points)
-    found = specular_points(prepared.curved_set, reflector, a, b)
+    found = kernels.specular_points(prepared.curved_set, np.ascontiguousarray(reflector, dtype=np.int64),
+                                    np.ascontiguousarray(a), np.ascontiguousarray(b))
     towards = found.point - edge_points
     towards /= np.linalg.norm(towards, axis=1, keepdims=True)
     return found.point + np.linalg.norm(far - found.point, axis=1)[:, None] * towards, found
 
 
-def curved_pairs(context: SolveContext, prepared: PreparedScene, after: bool) -> ReflectedPairs:
+def curved_pairs(context: SolveContext, prepared: PreparedScene, after: bool, kernels: ElementKernels
+                 ) -> ReflectedPairs:
     """The (edge, reflector, receiver) pairs of one curved side that diffract, at a
     representative specular point (Method, curved reflectors), edge-major."""
     scene_edges = prepared.diffracting_edges
@@ -450,7 +455,7 @@ def curved_pairs(context: SolveContext, prepared: PreparedScene, after: bool) ->
     for fraction in REPRESENTATIVE_FRACTIONS:  # a few trial points per edge, vectorised over pairs
         todo = np.flatnonzero(np.isnan(image[:, 0]))
         point = edges.start_m[e[todo]] + fraction * (edges.end_m[e[todo]] - edges.start_m[e[todo]])
-        trial, found = curved_images(prepared, c[todo], point, far[todo], after)
+        trial, found = curved_images(prepared, c[todo], point, far[todo], after, kernels)
         image[todo[found.valid]] = trial[found.valid]
     live = np.flatnonzero(~np.isnan(image[:, 0]))
     e, c, r, image = e[live], c[live], r[live], image[live]
@@ -469,7 +474,7 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
     (Method, curved reflectors), or None when there are none."""
     scene_edges = prepared.diffracting_edges
     edges = scene_edges.edges
-    pairs = curved_pairs(context, prepared, after)
+    pairs = curved_pairs(context, prepared, after, kernels)
     if pairs.edge.size == 0:
         return None
     try:
@@ -483,7 +488,7 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
     receiver = pairs.receiver[elements.pair]
     centres = element_centres(scene_edges, elements, pairs)
     far = rx[receiver] if after else np.broadcast_to(tx, centres.shape)
-    image, found = curved_images(prepared, reflector, centres, far, after)
+    image, found = curved_images(prepared, reflector, centres, far, after, kernels)
     source, target = (np.broadcast_to(tx, image.shape), image) if after else (image, rx[receiver])
     ok, wedge = diffracting(scene_edges, edge, source, target)
     alive = np.flatnonzero(found.valid & ok)
