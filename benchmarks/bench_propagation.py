@@ -124,8 +124,9 @@ def _per_pose(prepared, repeats: int, fine: bool) -> dict[str, tuple[float, int]
 
 
 def _print_per_pose(prepared, repeats: int, fine: bool) -> None:
-    labels = dict(_FIGURES, **_NEWER_FIGURES, **{"edges fine": "edges only fine edges (1/16 period)",
-                                                 "both fine": "both (direct + specular + edges) fine edges (1/16 period)"})
+    fine_labels = {"edges fine": "edges only fine edges (1/16 period)",
+                   "both fine": "both (direct + specular + edges) fine edges (1/16 period)"}
+    labels = dict(_FIGURES, **_NEWER_FIGURES, **fine_labels)
     print(f"  CPU-time medians per pose over {repeats} (goal < 50 ms for the deterministic paths, issue 17):")
     for key, (cpu, n_rows) in _per_pose(prepared, repeats, fine).items():
         print(f"    {labels[key]}: {cpu * 1e3:.2f} ms, {n_rows} rows")

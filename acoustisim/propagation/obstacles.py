@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
+from acoustisim.geometry import CylinderPrimitive
 from acoustisim.propagation.raycast import RayCaster
 
 if TYPE_CHECKING:
@@ -88,13 +88,12 @@ class SmoothObstacles:
             surface.append(reflector.surface)
             centre.append(np.asarray(primitive.center_m, dtype=float))
             radius.append(float(primitive.radius_m))
-            if isinstance(primitive, SpherePrimitive):
+            if not isinstance(primitive, CylinderPrimitive):  # a sphere (prepare() keeps only the two)
                 axis.append(np.array([0.0, 0.0, 1.0]))
                 half.append(0.0)
                 sphere.append(True)
                 infinite.append(False)
                 continue
-            assert isinstance(primitive, CylinderPrimitive)  # prepare() keeps only these two
             a = np.asarray(primitive.axis, dtype=float)
             axis.append(a)
             half.append(0.5 * float(primitive.length_m))

@@ -60,14 +60,17 @@ Method
 Accuracy
 --------
 Kirchhoff's approximation: the obstacle is opaque, its edges sharp, the field in its silhouette
-zero; rigid, pressure-release and elastic cylinders differ from it (and from each other) by up
-to about 1 dB in the partial shadow of a 25 mm post at 1.5 m, 300-500 kHz (Fresnel numbers
-0.1-0.25), against the exact modal series (``tests/physics/test_shadows.py``); deep in the
+zero. Against the exact modal series of a 25 mm cylinder, the field 1.5 m behind it in its
+partial shadow (300-700 kHz, Fresnel numbers 0.08-0.2; ``tests/physics/test_shadows.py``), the
+factor lies between the rigid and the pressure-release cylinders' (within 0.013 dB: it averages
+the two boundary conditions, which differ by up to 1.4 dB) and within 1.2 dB of an elastic PVC
+post's; against the exact half-plane, a wide post's shadow boundary within 0.08 dB; deep in the
 shadow of a large obstacle (Fresnel number well above 1) it is an estimate only. The Fresnel
 form (1) against the exact-distance Kirchhoff integral of a post
-(``tests/support/diffraction_references.py``): 0.02 dB, 0.002 rad at the thesis tank's
-geometries. Reach: an obstacle farther than :data:`FRESNEL_REACH` Fresnel units leaves the
-row's main arrival unchanged; what is left out is its edge wave, a separate arrival at least
+(``tests/support/diffraction_references.py``): 0.012 dB, 0.002 rad at the thesis tank's
+geometries; the contour quadrature of finite silhouettes against closed forms (Poisson's spot
+behind a disc) and brute-force integrals: 1e-7. Reach: an obstacle farther than
+:data:`FRESNEL_REACH` Fresnel units leaves the row's main arrival unchanged; what is left out is its edge wave, a separate arrival at least
 FRESNEL_REACH^2 / (4 f0) (4.5 us) later, about 22 dB below the row. Not modelled: shadows of
 edge-diffracted and diffuse rows (their legs are blocked outright), of the direct path by an
 obstacle (the transducers are on one head), and shadows cast by non-convex or faceted objects.
@@ -75,7 +78,6 @@ obstacle (the transducers are on one head), and shadows cast by non-convex or fa
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -499,7 +501,7 @@ def shadow_rows(rows: NDArray[Any], context: SolveContext, obstacles: SmoothObst
     return out, tuple(responses)
 
 
-__all__ = ("ApertureTerms", "FRESNEL_REACH", "GAUSS_NODES", "Legs", "MIN_SCALE", "PANEL_PHASE_RAD", "TAIL_S",
-           "TINY_RHO2",
-           "ShadowResponse", "ContourNodes", "SAMPLES", "aperture_terms", "blocked_integral", "cap_contours", "cap_integral", "cap_pieces", "fresnel_integral",
-           "fresnel_scale", "perpendicular_unit", "row_legs", "shadow_factor", "shadow_rows")
+__all__ = ("ApertureTerms", "ContourNodes", "FRESNEL_REACH", "GAUSS_NODES", "Legs", "MIN_SCALE", "PANEL_PHASE_RAD",
+           "SAMPLES", "ShadowResponse", "TAIL_S", "TINY_RHO2", "aperture_terms", "blocked_integral", "cap_contours",
+           "cap_integral", "cap_pieces", "fresnel_integral", "fresnel_scale", "perpendicular_unit", "row_legs",
+           "shadow_factor", "shadow_rows")

@@ -90,7 +90,8 @@ def test_half_plane_on_a_rigid_floor_against_the_exact_solution(backend, knife_o
     image = transmitter * np.array([1.0, 1.0, -1.0])
     rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=2),
                                           prepared)
-    direct = np.concatenate([on_the_edge_via_floor(rows, prepared, edge, 0), on_the_edge_via_floor(rows, prepared, edge, 2)])
+    direct = np.concatenate([on_the_edge_via_floor(rows, prepared, edge, 0),
+                             on_the_edge_via_floor(rows, prepared, edge, 2)])
     once = on_the_edge_via_floor(rows, prepared, edge, 1)
     assert set(once["order"]) == {2} and set(direct["order"]) == {1, 3}
     c = prepared.scene.medium.sound_speed

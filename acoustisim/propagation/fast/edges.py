@@ -164,21 +164,25 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     every = np.concatenate([keep] + [k + impulse_offset[j + 1] for j, k in enumerate(kept)])
     ordered = solver_order(every, point_pair, path_length, pair_receiver, context.sound_speed_m_s,
                            context.receivers_m.shape[0])
+    rows = np.empty(ordered.size, dtype=PATH_DTYPE)
+    lines, targets = EdgeLines.of(scene_edges), LegTargets.of(context)
+    if not reflected:  # first order only: the rows in the solver's order, written in turn
+        fill_rows(rows, ordered, impulses, pairs.edge, pairs.receiver, lines, targets, int(context.first_path_id),
+                  np.arange(ordered.size))
+        return rows
     destination = np.empty(impulse_offset[-1], dtype=np.int64)
     destination[ordered] = np.arange(ordered.size)
-    rows = np.empty(ordered.size, dtype=PATH_DTYPE)
     # each part's rows written in increasing destination (sequential writes)
     mine = keep[np.argsort(destination[keep], kind="stable")]
-    used = fill_rows(rows, mine, impulses, pairs.edge, pairs.receiver, EdgeLines.of(scene_edges),
-                     LegTargets.of(context), int(context.first_path_id), destination[mine])
-    if reflected:
-        path_index = pair_path_index(reflected, kept, scene_edges.edges.chain)
-        next_id = int(context.first_path_id) + used
-        for j, (part, k) in enumerate(zip(reflected, kept)):  # a loop over the few splits
-            where = destination[k + impulse_offset[j + 1]]
-            order = np.argsort(where, kind="stable")
-            fill_reflected_rows(rows, where[order], k[order],
-                                row_inputs(context, prepared, part, next_id + path_index[j]), EDGE_KIND)
+    used = fill_rows(rows, mine, impulses, pairs.edge, pairs.receiver, lines, targets, int(context.first_path_id),
+                     destination[mine])
+    path_index = pair_path_index(reflected, kept, scene_edges.edges.chain)
+    next_id = int(context.first_path_id) + used
+    for j, (part, k) in enumerate(zip(reflected, kept)):  # a loop over the few splits
+        where = destination[k + impulse_offset[j + 1]]
+        order = np.argsort(where, kind="stable")
+        fill_reflected_rows(rows, where[order], k[order], row_inputs(context, prepared, part, next_id + path_index[j]),
+                            EDGE_KIND)
     return rows
 
 

@@ -403,8 +403,9 @@ def split_impulses(context: SolveContext, config: SolverConfig, prepared: Prepar
     none = np.full((alive.size, 1), -1, dtype=np.int64)
     faces = boundary_faces(prepared)
     visible = np.zeros(elements.pair.size, dtype=bool)
+    vertices = path_vertices(context, pairs.receiver[pair], before_points[alive], probes, after_points[alive])
     visible[alive] = kernels.path_visibility(
-        context, prepared, path_vertices(context, pairs.receiver[pair], before_points[alive], probes, after_points[alive]),
+        context, prepared, vertices,
         np.concatenate([none, mirrors.patch[sequence_b], none, mirrors.patch[sequence_a], none], axis=1),
         np.concatenate([none, faces[sequence_b], none, faces[sequence_a], none], axis=1))
     keep = np.flatnonzero(visible)
@@ -420,7 +421,8 @@ def split_impulses(context: SolveContext, config: SolverConfig, prepared: Prepar
     impulses = kernels.edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
     element = np.repeat(np.arange(elements.pair.size), impulses.gain.size // elements.pair.size)
     impulses, phase = weighted(impulses, element, product)
-    surfaces = np.concatenate([mirrors.surface[sides.before[pairs.before]], scene_edges.edges.surface[pairs.edge][:, None],
+    surfaces = np.concatenate([mirrors.surface[sides.before[pairs.before]],
+                               scene_edges.edges.surface[pairs.edge][:, None],
                                mirrors.surface[sides.after[pairs.after]]], axis=1)
     return SplitImpulses(split, pairs, surfaces, impulses, phase, element, before_points, after_points)
 
