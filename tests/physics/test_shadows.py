@@ -279,3 +279,45 @@ def test_shadow_responses_hold_their_echo_within_their_span(thesis_tank) -> None
         worst = max(worst, 20 * np.log10(np.abs(echo[outside]).max() / np.abs(echo).max()))
     assert len(paths.responses) > 100
     assert worst < -80.0, worst
+
+
+def test_legs_through_a_sphere_are_kept_at_their_shadowed_level(backend) -> None:
+    # A 15 cm steel ball in the tank, the sonar looking past it: with shadows the specular
+    # chains whose legs cross the ball (the hard cut drops them) are kept, weaker than without
+    # the ball by their shadow factor: a disc's, at most the Poisson spot's 0 dB (a leg through
+    # the centre), here from -5 to -51 dB (legs crossing it twice; Fresnel numbers up to 10,
+    # where the Kirchhoff factor is an estimate), on average below -6 dB; the
+    # chains the hard cut keeps keep their gains but for the factor near the ball's rim
+    # (within +/- 6 dB, the bright fringe included), and those farther from it than the reach
+    # from every leg are not touched at all.
+    from acoustisim.geometry import SpherePrimitive
+    from acoustisim.materials import get_material
+    from acoustisim.scene import SceneObject
+    import trimesh
+
+    centre, radius = np.array([3.4, 1.4, 0.45]), 0.15
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    mesh.apply_translation(centre)
+    ball = SceneObject("ball", "sphere", get_material("steel"), mesh, SpherePrimitive(tuple(centre), radius))
+    sonar = default_sonar().with_pose(position_m=(2.3, 1.1, 0.37), yaw_deg=20.0, pitch_deg=3.0)
+    config = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None, backend=backend)
+    alone = solve(tank_with(), sonar, config)
+    with_ball = solve(tank_with(ball), sonar, config)
+    hard = solve(tank_with(ball), sonar, SolverConfig(**{**config.__dict__, "shadows": False}))
+
+    def by_key(paths):
+        return {(int(r["channel"]), tuple(r["object_ids"]), round(float(r["delay_s"]), 12)): r for r in paths.rows}
+
+    plain, shadowed, cut = by_key(alone), by_key(with_ball), by_key(hard)
+    through = [key for key in plain if key in shadowed and key not in cut]
+    levels = np.array([20 * np.log10(abs(shadowed[key]["geometric_gain"] / plain[key]["geometric_gain"]))
+                       for key in through])
+    assert len(through) > 10 and all(shadowed[key]["response_id"] >= 0 for key in through)
+    assert np.all(levels < 0.5) and np.all(np.isfinite(levels)) and np.mean(levels) < -6.0
+    kept = [key for key in cut if key in plain]
+    untouched = [key for key in kept if shadowed[key]["response_id"] < 0]
+    assert len(untouched) > 100
+    assert all(shadowed[key]["geometric_gain"] == plain[key]["geometric_gain"] for key in untouched)
+    near = [key for key in kept if shadowed[key]["response_id"] >= 0]
+    assert all(abs(20 * np.log10(abs(shadowed[key]["geometric_gain"] / plain[key]["geometric_gain"]))) < 6.0
+               for key in near)
