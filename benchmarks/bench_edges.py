@@ -6,6 +6,10 @@ mechanism alone (graded edges, keep-all), of the fast engine's edge rows
 (:func:`acoustisim.propagation.fast.edges.edge_rows`) and of the reference engine's
 (:func:`acoustisim.propagation.reference.edges.edge_rows`).
 
+Then the same with one reflection combined with each edge (``SolverConfig(edge_reflections=1)``:
+edge -> mirror or curved surface, and the reverse): the fast and the reference edge rows' CPU
+medians and their ratio, and the row count.
+
 With ``--baseline DIR``, the first two figures also for the source tree in DIR (for instance
 ``/work/wt/baseline``: its ``acoustisim`` and ``scenes`` on ``PYTHONPATH``; a tree from before
 the two engines, whose edge rows are ``edges.edge_paths(..., sort_rows=True)``), measured in
@@ -79,6 +83,30 @@ def measure(repeats: int, reference: bool) -> dict[str, float]:
     return figures
 
 
+def measure_reflections(repeats: int) -> dict[str, float]:
+    """CPU medians (ms) of the fast and the reference edge rows with ``edge_reflections=1`` at the
+    thesis tank's default pose (interleaved), and their row count."""
+    from acoustisim.propagation import SolverConfig, prepare
+    from acoustisim.propagation.context import SolveContext
+    from acoustisim.propagation.fast.edges import edge_rows as fast_edge_rows
+    from acoustisim.propagation.reference.edges import edge_rows as reference_edge_rows
+    from scenes.builtin import builtin_scene
+
+    prepared = prepare(builtin_scene("thesis-tank"))
+    config = SolverConfig(max_order=3, mechanisms=("edge",), amplitude_floor_db=None, edge_reflections=1)
+    context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
+    cases = {"fast": lambda: fast_edge_rows(context, config, prepared),
+             "reference": lambda: reference_edge_rows(context, config, prepared)}
+    figures = {"rows": float(len(cases["fast"]()))}
+    samples: dict[str, list[float]] = {name: [] for name in cases}
+    for _ in range(max(3, repeats // 4)):
+        for name, function in cases.items():
+            samples[name].append(_cpu_seconds(function))
+    for name, values in samples.items():
+        figures[name] = float(np.median(values)) * 1e3
+    return figures
+
+
 def screened_legs() -> tuple[int, int]:
     """(legs decided by the fast engine's screen, legs left to Embree) at the default pose."""
     from acoustisim.propagation import SolverConfig, prepare
@@ -124,6 +152,10 @@ def main() -> None:
     print(f"  CPU medians over {args.repeats} ({int(figures['rows'])} rows): solve edges only "
           f"{figures['solve_edges_only']:.2f} ms; fast edge rows {figures['fast_edge_rows']:.2f} ms; reference "
           f"edge rows {figures['reference_edge_rows']:.2f} ms")
+    reflections = measure_reflections(args.repeats)
+    print(f"  with edge_reflections=1 ({int(reflections['rows'])} rows), CPU medians over "
+          f"{max(3, args.repeats // 4)}: fast edge rows {reflections['fast']:.1f} ms, reference edge rows "
+          f"{reflections['reference']:.1f} ms; reference / fast = {reflections['reference'] / reflections['fast']:.1f}")
     if args.baseline is None:
         return
     _child(args.baseline, 1)  # compile the baseline tree's numba caches

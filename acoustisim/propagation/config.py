@@ -14,6 +14,9 @@ MAX_CURVED_PER_PATH = 2
 MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge", "diffuse")
 """Every mechanism name :func:`acoustisim.propagation.solve` knows."""
 
+MAX_EDGE_REFLECTIONS = 2
+"""Most reflections combined with one edge diffraction (an edge path of order 3)."""
+
 BACKENDS: tuple[str, ...] = ("fast", "reference")
 """The engines (:mod:`acoustisim.propagation.engine`): "fast" (compiled kernels, the default) and
 "reference" (one plain-numpy module per mechanism; the same rows, slower)."""
@@ -48,6 +51,21 @@ class SolverConfig:
         onset and ends and grow away from them
         (:data:`acoustisim.propagation.reference.edges.COARSENING_LEVELS`); False: every
         element is one delay step (the fine reference discretisation).
+    edge_reflections : int
+        Most reflections combined with one edge diffraction (0 to
+        :data:`MAX_EDGE_REFLECTIONS`): 0 (default), first-order edge diffraction only; 1, also
+        the paths edge -> reflection and reflection -> edge (kind ``edge``, order 2; planar
+        mirrors by the image method, curved surfaces at their specular point from each edge
+        element: the edges heard via the floor and the surface); 2, also two planar reflections
+        before, after or around the edge (order 3).
+        :mod:`acoustisim.propagation.reference.edge_reflections`. Each such path is a line
+        integral of about as many rows as a first-order edge's: on the thesis tank, 1 multiplies
+        the edge rows by about 14 (see ``benchmarks/bench_propagation.py``).
+    shadows : bool
+        True (default): a specular leg passing near or blocked by a smooth convex obstacle
+        (sphere, cylinder) is weighted by the field diffracted around it (a Kirchhoff-Fresnel
+        factor per frequency, :mod:`acoustisim.propagation.shadows`) instead of being kept
+        whole or dropped; False: such legs are cut by the obstacle's mesh (a hard shadow).
     amplitude_floor_db : float or None
         Arrivals weaker than this (dB, <= 0) relative to the strongest non-direct arrival are
         dropped; None keeps every path.
@@ -90,6 +108,8 @@ class SolverConfig:
     diffuse_bounces: int = 1
     edge_segment_m: float = 5e-4
     edge_adaptive: bool = True
+    edge_reflections: int = 0
+    shadows: bool = True
     amplitude_floor_db: float | None = -80.0
     amplitude_floor_band_hz: tuple[float, float] | None = None
     seed: int = 0
@@ -135,6 +155,11 @@ class SolverConfig:
             raise InputError(f"solver.edge_segment_m = {segment!r}: must be a finite number > 0")
         if not isinstance(self.edge_adaptive, bool):
             raise InputError(f"solver.edge_adaptive = {self.edge_adaptive!r}: must be true or false")
+        integer("edge_reflections", 0)
+        if self.edge_reflections > MAX_EDGE_REFLECTIONS:
+            raise InputError(f"solver.edge_reflections = {self.edge_reflections!r}: at most {MAX_EDGE_REFLECTIONS}")
+        if not isinstance(self.shadows, bool):
+            raise InputError(f"solver.shadows = {self.shadows!r}: must be true or false")
         floor = self.amplitude_floor_db
         if floor is not None and (
             isinstance(floor, bool) or not isinstance(floor, (int, float)) or not (math.isfinite(floor) and floor <= 0)
@@ -165,4 +190,4 @@ class SolverConfig:
             raise InputError(f"solver.elastic_echoes = {self.elastic_echoes!r}: must be true or false")
 
 
-__all__ = ["BACKENDS", "MAX_CURVED_PER_PATH", "MECHANISMS", "SolverConfig", "VISIBILITY_MODES"]
+__all__ = ["BACKENDS", "MAX_CURVED_PER_PATH", "MAX_EDGE_REFLECTIONS", "MECHANISMS", "SolverConfig", "VISIBILITY_MODES"]

@@ -48,7 +48,8 @@ class Engine(Protocol):
         ``max_curved_per_path`` of them curved."""
 
     def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-        """First-order edge diffraction (discretised BTM line integrals) of every sharp edge."""
+        """Edge diffraction (discretised BTM line integrals) of every sharp edge, alone and
+        combined with up to ``config.edge_reflections`` reflections."""
 
     def diffuse_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
         """Lambert diffuse reverberation rows (Monte Carlo, counter-based random numbers)."""

@@ -25,6 +25,7 @@ from acoustisim.propagation.smooth_mesh import SmoothMesh
 
 if TYPE_CHECKING:
     from acoustisim.propagation.edge_extraction import DiffractingEdges, SharpEdges
+    from acoustisim.propagation.obstacles import SmoothObstacles
 from acoustisim.scene import Scene, SceneObject
 
 MIN_FACE_AREA_FRACTION = 1e-14
@@ -113,6 +114,14 @@ class PreparedScene:
         from acoustisim.propagation.edge_extraction import DiffractingEdges
 
         return DiffractingEdges.build(self.sharp_edges, self.scene)
+
+    @cached_property
+    def smooth_obstacles(self) -> "SmoothObstacles":
+        """The smooth convex obstacles (spheres, cylinders) that cast diffracted shadows, and
+        the ray caster without them, built once per prepared scene on first use."""
+        from acoustisim.propagation.obstacles import SmoothObstacles
+
+        return SmoothObstacles.build(self)
 
 
 def check_mesh(obj: SceneObject) -> None:

@@ -237,6 +237,41 @@ class RayCaster:
             object_boxes=object_boxes(vertices, faces, surface_index, objects),
         )
 
+    def without_surfaces(self, surfaces: ArrayLike) -> "RayCaster":
+        """A ray caster of the same scene without the triangles of ``surfaces``.
+
+        Its triangles keep their metadata (surface index, patch label, normal, plane offset)
+        and its patch labels stay the global ones, so that exclusion lists built for this ray
+        caster mean the same here; only the Embree scene and the per-triangle arrays lose the
+        triangles of ``surfaces`` (their objects are then never hit). Its ``convex_planes`` are
+        none (every query a screen would decide goes to Embree), its ``tank_box`` and
+        ``object_boxes`` those of the whole scene.
+
+        Parameters
+        ----------
+        surfaces : array_like of int
+            Indices into ``surface_names`` to leave out.
+        """
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        keep = ~np.isin(self.surface_index, np.asarray(surfaces, dtype=np.int64))
+        faces = self.faces[keep]
+        vertices32 = self._buffers[0]
+        faces32 = np.ascontiguousarray(faces, dtype=np.int32)
+        embree = rtcore_scene.EmbreeScene()
+        if faces.shape[0]:
+            TriangleMesh(embree, vertices32, faces32)
+        embree.run(np.zeros((1, 3), dtype=np.float32), np.array([[1.0, 0.0, 0.0]], dtype=np.float32))
+        return RayCaster(
+            vertices=self.vertices, faces=faces, face_normals=self.face_normals[keep],
+            surface_index=self.surface_index[keep], patch_index=self.patch_index[keep],
+            patch_surface=self.patch_surface, surface_names=self.surface_names,
+            plane_offset=self.plane_offset[keep], _shift=self._shift, _embree=embree,
+            _buffers=(vertices32, faces32), convex_planes=ConvexPlanes.none(self.object_boxes.shape[0]),
+            tank_box=self.tank_box, object_boxes=self.object_boxes,
+        )
+
     @property
     def triangle_count(self) -> int:
         """Number of triangles in the Embree scene."""

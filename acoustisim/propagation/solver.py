@@ -4,12 +4,16 @@ The solve checks the pose (:func:`check_sonar`), builds the pose's :class:`Solve
 asks the engine ``config.backend`` names (:func:`~acoustisim.propagation.engine.engine_for`)
 for each mechanism named in ``config.mechanisms``, in the order of
 :data:`~acoustisim.propagation.config.MECHANISMS` (direct, specular, edge, diffuse), each
-starting its path ids at the next free one; the engine then assembles the rows (derived
-columns, order by channel and delay, amplitude floor judged across the pulse band). Then the
-engine-independent steps on the assembled rows: the coherent roughness of specular rows on rough
-surfaces (:func:`~acoustisim.propagation.roughness.apply_coherent_roughness`: their
-``roughness_m2`` and their loss at f0), and elastic echoes
-(:mod:`~acoustisim.propagation.elastic_echoes`, ``config.elastic_echoes``).
+starting its path ids at the next free one. With ``config.shadows`` the specular legs are tested
+against the scene without its smooth obstacles, whose diffracted shadows then weigh the direct
+and specular rows (:func:`~acoustisim.propagation.shadows.shadow_rows`, engine-independent:
+rows and transfer functions into ``Paths.responses``). The engine then assembles the rows
+(derived columns, order by channel and delay, amplitude floor judged across the pulse band).
+Last, the engine-independent steps on the assembled rows: the coherent roughness of specular
+rows on rough surfaces (:func:`~acoustisim.propagation.roughness.apply_coherent_roughness`:
+their ``roughness_m2`` and their loss at f0), and elastic echoes
+(:mod:`~acoustisim.propagation.elastic_echoes`, ``config.elastic_echoes``; a shadowed echo's
+transfer function multiplies its shadow's).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from acoustisim.propagation.engine import engine_for
 from acoustisim.propagation.paths import PATH_DTYPE, Paths
 from acoustisim.propagation.prepared import PreparedScene, prepare
 from acoustisim.propagation.roughness import apply_coherent_roughness
+from acoustisim.propagation.shadows import shadow_rows
 from acoustisim.scene import Scene
 from acoustisim.sonar import CHANNEL_NAMES, SonarHead
 
@@ -119,6 +124,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     check_sonar(prepared, sonar)
     context = SolveContext.build(prepared.scene, sonar, prepared.raycaster)
     engine = engine_for(config)
+    obstacles = prepared.smooth_obstacles if config.shadows else None
     parts: list[NDArray[Any]] = []
     next_id = 0
     for mechanism in MECHANISMS:  # in this order: it fixes the order of rows with equal delays
@@ -128,7 +134,8 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         if mechanism == "direct":
             rows = engine.direct_rows(mechanism_context)
         elif mechanism == "specular":
-            rows = engine.specular_rows(mechanism_context, prepared, config.max_order, config.max_curved_per_path)
+            legs_scene = prepared if obstacles is None else obstacles.specular_scene(prepared)
+            rows = engine.specular_rows(mechanism_context, legs_scene, config.max_order, config.max_curved_per_path)
         elif mechanism == "edge":
             rows = engine.edge_rows(mechanism_context, config, prepared)
         else:
@@ -137,16 +144,20 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         parts.append(rows)
         if rows.size:
             next_id = max(next_id, int(rows["path_id"].max()) + 1)
+    responses: list[Any] = []
+    if obstacles is not None:
+        for i, part in enumerate(parts):
+            parts[i], shadows = shadow_rows(part, context, obstacles, len(responses))
+            responses.extend(shadows)
     rows = engine.assemble_rows(parts, context, config)
     # coherent roughness: every specular reflection on a rough surface, exp(-S k^2) (both engines)
     apply_coherent_roughness(rows, prepared, context)
-    responses: tuple[Any, ...] = ()
     if config.elastic_echoes:  # echoes off elastic posts, spheres and pipes get their transfer functions
         from acoustisim.propagation.elastic_echoes import attach_elastic_echoes
 
-        rows, responses = attach_elastic_echoes(rows, responses, prepared, context)
+        rows, responses = attach_elastic_echoes(rows, tuple(responses), prepared, context)
     return Paths.adopt(rows, prepared.scene.surface_names, context.centre_frequency_hz, context.sound_speed_m_s,
-                       responses)
+                       tuple(responses))
 
 
 __all__ = ["check_sonar", "solve"]

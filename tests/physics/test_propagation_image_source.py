@@ -78,8 +78,11 @@ def test_sphere_blocks_exactly_the_image_paths_crossing_it(backend):
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=radius)
     mesh.apply_translation(centre)
     ball = SceneObject("ball", "sphere", get_material("steel"), mesh, SpherePrimitive(tuple(centre), radius))
-    empty = solve(_tank_scene(), config=replace(DETERMINISTIC, backend=backend))
-    blocked_scene = solve(_tank_scene((ball,)), config=replace(DETERMINISTIC, backend=backend))
+    # the hard cut of a leg by the sphere's mesh (shadows off; with them the leg is kept at the
+    # level diffracted around the sphere: tests/physics/test_shadows.py)
+    hard = replace(DETERMINISTIC, backend=backend, shadows=False)
+    empty = solve(_tank_scene(), config=hard)
+    blocked_scene = solve(_tank_scene((ball,)), config=hard)
     kept = {(int(r["channel"]), tuple(r["object_ids"])) for r in blocked_scene.rows if 6 not in r["object_ids"]}
     tx, rxs = SONAR.transmitter_position, SONAR.receiver_positions
     n_blocked = n_clear = 0

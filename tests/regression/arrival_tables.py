@@ -20,16 +20,36 @@ MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge")
 """The deterministic mechanisms (the diffuse tracer's rows are compared by energy elsewhere)."""
 
 
+VARIANTS: tuple[tuple[str, str, tuple[tuple[str, Any], ...]], ...] = (
+    ("thesis-tank-hard-shadows", "thesis-tank", (("shadows", False),)),
+)
+"""Stored tables of a built-in scene solved with other settings: (table, scene, SolverConfig
+options). ``thesis-tank-hard-shadows`` is the thesis tank with the smooth obstacles' shadows off,
+the table as it was before they existed: the knob off reproduces those rows."""
+
+
+def table_names() -> tuple[str, ...]:
+    """Every stored table: the built-in scenes', then the variants'."""
+    from scenes.builtin import builtin_scene_names
+
+    return builtin_scene_names() + tuple(name for name, _, _ in VARIANTS)
+
+
 def solve_arrivals(name: str, backend: str = "fast") -> NDArray[Any]:
-    """The arrivals (:meth:`Paths.arrivals`) of built-in scene ``name`` at its default pose, with
-    the default solver settings but for the mechanisms (:data:`MECHANISMS`) and without the
-    elastic-echo step (the tables hold the mechanisms' geometric rows; the elastic echoes'
-    amplitudes are checked against the exact series in ``tests/physics``)."""
+    """The arrivals (:meth:`Paths.arrivals`) of table ``name`` (a built-in scene, or a
+    :data:`VARIANTS` entry) at the scene's default pose, with the default solver settings but for
+    the mechanisms (:data:`MECHANISMS`), the variant's options, and without the elastic-echo
+    step (the tables hold the mechanisms' geometric rows; the elastic echoes' amplitudes are
+    checked against the exact series in ``tests/physics``)."""
     from acoustisim.propagation import SolverConfig, solve
     from scenes.builtin import builtin_scene
 
-    config = SolverConfig(mechanisms=MECHANISMS, backend=backend, elastic_echoes=False)
-    return solve(builtin_scene(name), config=config).arrivals()
+    scene, options = name, ()
+    for table, variant_scene, variant_options in VARIANTS:
+        if table == name:
+            scene, options = variant_scene, variant_options
+    config = SolverConfig(mechanisms=MECHANISMS, backend=backend, elastic_echoes=False, **dict(options))
+    return solve(builtin_scene(scene), config=config).arrivals()
 
 
 def stored_arrivals(name: str) -> NDArray[Any]:
@@ -40,10 +60,8 @@ def stored_arrivals(name: str) -> NDArray[Any]:
 
 def regenerate() -> None:
     """Rewrite every stored table from the fast engine."""
-    from scenes.builtin import builtin_scene_names
-
     DATA.mkdir(exist_ok=True)
-    for name in builtin_scene_names():
+    for name in table_names():
         np.savez_compressed(DATA / f"{name}.npz", arrivals=solve_arrivals(name))
         print(f"{name}: written")
 

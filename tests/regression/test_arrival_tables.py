@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from arrival_tables import solve_arrivals, stored_arrivals
-from scenes.builtin import builtin_scene_names
+from arrival_tables import solve_arrivals, stored_arrivals, table_names
 from support.parity import assert_rows_match
 
 REGRESSION_AMPLITUDE_RTOL = 1e-7
@@ -19,13 +18,13 @@ of an edge's elements (their sum is what an arrival's amplitude is) across numpy
 CPUs, far below any change of the physics worth a look."""
 
 
-@pytest.mark.parametrize("name", builtin_scene_names())
+@pytest.mark.parametrize("name", table_names())
 def test_fast_engine_reproduces_the_stored_arrivals(name: str) -> None:
     assert_rows_match(solve_arrivals(name, "fast"), stored_arrivals(name), amplitude_rtol=REGRESSION_AMPLITUDE_RTOL,
                       label=name)
 
 
-@pytest.mark.parametrize("name", [n for n in builtin_scene_names() if n != "thesis-tank"])
+@pytest.mark.parametrize("name", [n for n in table_names() if not n.startswith("thesis-tank")])
 def test_reference_engine_reproduces_the_stored_arrivals(name: str) -> None:
     assert_rows_match(solve_arrivals(name, "reference"), stored_arrivals(name),
                       amplitude_rtol=REGRESSION_AMPLITUDE_RTOL, label=name)

@@ -5,10 +5,13 @@ computes (the parity suite, ``tests/parity``, holds them to it); read the refere
 the physics. What this package adds is speed: numba kernels over rows, geometric screens that
 decide most occlusion queries without Embree, and buffers reused across a solve.
 
-Its specular, direct and assembly modules: :mod:`.direct`, :mod:`.specular` (orchestration)
-over :mod:`.mirror_kernels` (image sources), :mod:`.curved_kernels` (specular points on
-primitives, geometric-optics factors) and :mod:`.chain_kernels` (candidate chains, legs,
-duplicate keys, rows); :mod:`.columns`, :mod:`.floor` with :mod:`.floor_kernels`, and
+Its edge modules: :mod:`.edges` (orchestration and rows, first-order and combined with
+reflections), :mod:`.edge_elements`, :mod:`.edge_gains`, :mod:`.edge_visibility`,
+:mod:`.edge_order` and :mod:`.edge_reflections` (the per-element kernels of the reflected paths,
+a leg screen for legs touching the tank's boundaries). Its specular, direct and assembly
+modules: :mod:`.direct`, :mod:`.specular` (orchestration) over :mod:`.mirror_kernels` (image
+sources), :mod:`.curved_kernels` (specular points on primitives, geometric-optics factors) and
+:mod:`.chain_kernels` (candidate chains, legs, duplicate keys, rows); :mod:`.columns`, :mod:`.floor` with :mod:`.floor_kernels`, and
 :mod:`.assemble`. Kernels take typed bundles (NamedTuples), passed across the numba boundary
 as plain tuples (:mod:`.bundles`).
 """

@@ -28,11 +28,13 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.fast.edge_elements import discretise_edges
 from acoustisim.propagation.fast.edge_gains import element_gains, quadrature_points
 from acoustisim.propagation.fast.edge_order import solver_order
+from acoustisim.propagation.fast.edge_reflections import fill_reflected_rows, reflected_impulses, row_inputs
 from acoustisim.propagation.fast.edge_visibility import EdgeLines, LegTargets, element_visibility
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.reference.btm import PairConstants, pair_constants
 from acoustisim.propagation.reference.edge_elements import EdgeElements
+from acoustisim.propagation.reference.edge_reflections import pair_path_index
 from acoustisim.propagation.reference.edges import (
     ELEMENT_FLOOR,
     EdgeImpulses,
@@ -57,10 +59,11 @@ def edge_impulses(elements: EdgeElements, constants: PairConstants, adaptive: bo
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulses, pair_edge: NDArray[np.int64],
-              pair_receiver: NDArray[np.int64], lines: EdgeLines, targets: LegTargets, first_path_id: int) -> None:
-    """Write the rows of the impulses ``keep`` (shape (k,), in the rows' order) into ``rows``
-    (PATH_DTYPE, shape (k,), uninitialised): the reference's ``impulse_rows``, every field
-    written (the derived ones 0, the padding -1 and NaN)."""
+              pair_receiver: NDArray[np.int64], lines: EdgeLines, targets: LegTargets, first_path_id: int,
+              destination: NDArray[np.int64]) -> int:
+    """Write the rows of the impulses ``keep`` (shape (k,)) at ``rows[destination]`` (PATH_DTYPE,
+    uninitialised there): the reference's ``impulse_rows``, every field written (the derived
+    ones 0, the padding -1 and NaN). Returns the number of path ids used."""
     k = keep.size
     n_receivers = targets.receivers.shape[0]
     # path ids: the dense rank of each kept impulse's (chain, receiver) key
@@ -82,7 +85,7 @@ def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulse
         p = impulses.pair[i]
         e = pair_edge[p]
         ch = pair_receiver[p]
-        row = rows[r]
+        row = rows[destination[r]]
         row.path_id = first_path_id + rank[lines.chain[e] * n_receivers + ch]
         row.channel = ch
         row.kind = EDGE_KIND
@@ -116,12 +119,14 @@ def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulse
             row.points_m[j, 0] = np.nan
             row.points_m[j, 1] = np.nan
             row.points_m[j, 2] = np.nan
+    return count
 
 
 def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
     """The reference's :func:`~acoustisim.propagation.reference.edges.edge_rows`, in the order
     the assembly gives rows (channel, then delay ``path_length_m / c``, ties in the reference's
-    row order).
+    row order: first-order rows, then those combined with reflections,
+    :mod:`.edge_reflections`).
 
     Raises
     ------
@@ -130,24 +135,54 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     """
     scene_edges = prepared.diffracting_edges
     pairs = edge_pairs(context, scene_edges)
-    if pairs.edge.size == 0:
+    impulses = EdgeImpulses(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
+    if pairs.edge.size:
+        try:
+            elements = discretise_edges(pairs.geometry, discretisation(config, context))
+        except ValueError as error:
+            raise too_many_elements(config, error) from None
+        visible = element_visibility(context, prepared, elements, pairs)
+        if not np.all(visible):
+            elements = elements.select(visible)
+        impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
+    reflected = reflected_impulses(context, config, prepared)
+    strongest = max([float(np.max(np.abs(impulses.gain), initial=0.0))]
+                    + [float(np.max(np.abs(part.impulses.gain))) for part in reflected])
+    if strongest == 0.0:
         return empty_paths_array(0)
-    try:
-        elements = discretise_edges(pairs.geometry, discretisation(config, context))
-    except ValueError as error:
-        raise too_many_elements(config, error) from None
-    visible = element_visibility(context, prepared, elements, pairs)
-    if not np.all(visible):
-        elements = elements.select(visible)
-    impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
-    if impulses.gain.size == 0:
-        return empty_paths_array(0)
-    keep = np.flatnonzero(np.abs(impulses.gain) > ELEMENT_FLOOR * np.max(np.abs(impulses.gain)))
-    keep = solver_order(keep, impulses.pair, impulses.path_length_m, pairs.receiver, context.sound_speed_m_s,
-                        context.receivers_m.shape[0])
-    rows = np.empty(keep.size, dtype=PATH_DTYPE)
-    fill_rows(rows, keep, impulses, pairs.edge, pairs.receiver, EdgeLines.of(scene_edges), LegTargets.of(context),
-              int(context.first_path_id))
+    floor = ELEMENT_FLOOR * strongest
+    keep = np.flatnonzero(np.abs(impulses.gain) > floor)
+    kept = [np.flatnonzero(np.abs(part.impulses.gain) > floor) for part in reflected]
+    # one stable order by (channel, delay) over the first-order and the reflected impulses, in
+    # the reference's row order
+    pair_offset = np.cumsum([0, pairs.edge.size] + [part.pairs.edge.size for part in reflected])
+    impulse_offset = np.cumsum([0, impulses.gain.size] + [part.impulses.gain.size for part in reflected])
+    point_pair = np.concatenate([impulses.pair] + [part.impulses.pair + pair_offset[j + 1]
+                                                   for j, part in enumerate(reflected)])
+    path_length = np.concatenate([impulses.path_length_m] + [part.impulses.path_length_m for part in reflected])
+    pair_receiver = np.concatenate([pairs.receiver] + [part.pairs.receiver for part in reflected])
+    every = np.concatenate([keep] + [k + impulse_offset[j + 1] for j, k in enumerate(kept)])
+    ordered = solver_order(every, point_pair, path_length, pair_receiver, context.sound_speed_m_s,
+                           context.receivers_m.shape[0])
+    rows = np.empty(ordered.size, dtype=PATH_DTYPE)
+    lines, targets = EdgeLines.of(scene_edges), LegTargets.of(context)
+    if not reflected:  # first order only: the rows in the solver's order, written in turn
+        fill_rows(rows, ordered, impulses, pairs.edge, pairs.receiver, lines, targets, int(context.first_path_id),
+                  np.arange(ordered.size))
+        return rows
+    destination = np.empty(impulse_offset[-1], dtype=np.int64)
+    destination[ordered] = np.arange(ordered.size)
+    # each part's rows written in increasing destination (sequential writes)
+    mine = keep[np.argsort(destination[keep], kind="stable")]
+    used = fill_rows(rows, mine, impulses, pairs.edge, pairs.receiver, lines, targets, int(context.first_path_id),
+                     destination[mine])
+    path_index = pair_path_index(reflected, kept, scene_edges.edges.chain)
+    next_id = int(context.first_path_id) + used
+    for j, (part, k) in enumerate(zip(reflected, kept)):  # a loop over the few splits
+        where = destination[k + impulse_offset[j + 1]]
+        order = np.argsort(where, kind="stable")
+        fill_reflected_rows(rows, where[order], k[order], row_inputs(context, prepared, part, next_id + path_index[j]),
+                            EDGE_KIND)
     return rows
 
 

@@ -9,11 +9,16 @@ Modules, each opening with its Physics (equations and sources), Method and Accur
   spheres and cylinders, the geometric-optics amplitude), :mod:`.curved_pairs` and
   :mod:`.pair_chains` (paths reflected by two curved primitives: joint specular points,
   ray-tube amplitude, the candidate chains) and :mod:`.chains` (the candidate chains);
-* :mod:`.edges`: first-order edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge
-  formulas and the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`);
+* :mod:`.edges`: edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge formulas and
+  the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`), and with
+  :mod:`.edge_reflections` the edges combined with reflections (image method, curved
+  reflectors at each element's specular point);
 * :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
 * :mod:`.floor`: the amplitude floor;
 * :mod:`.columns`: the derived columns and the solve's assembled rows.
+
+The shadows of smooth obstacles (:mod:`acoustisim.propagation.shadows`) are one
+engine-independent step after the mechanisms.
 
 Occlusion is asked of Embree in batches (:class:`~acoustisim.propagation.raycast.RayCaster`);
 everything else is numpy. The fast engine (:mod:`acoustisim.propagation.fast`) computes the

@@ -257,7 +257,10 @@ def impulse_rows(context: SolveContext, scene_edges: DiffractingEdges, pairs: Ed
 
 
 def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-    """Edge-diffraction rows of one pose (see the module docstring), in (pair, element) order.
+    """Edge-diffraction rows of one pose (see the module docstring), in (pair, element) order,
+    then those of the edges combined with up to ``config.edge_reflections`` reflections
+    (:mod:`.edge_reflections`), their path ids after the first-order ones, the element floor
+    relative to the strongest impulse of both.
 
     Returns
     -------
@@ -269,20 +272,29 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     InputError
         If ``config.edge_segment_m`` would make more than :data:`MAX_ELEMENTS` elements.
     """
+    from acoustisim.propagation.reference.edge_reflections import reflected_impulses, reflected_rows
+
     scene_edges = prepared.diffracting_edges
     pairs = edge_pairs(context, scene_edges)
-    if pairs.edge.size == 0:
+    impulses = EdgeImpulses(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
+    if pairs.edge.size:
+        try:
+            elements = discretise_edges(pairs.geometry, discretisation(config, context))
+        except ValueError as error:
+            raise too_many_elements(config, error) from None
+        elements = elements.select(element_visibility(context, prepared, elements, pairs))
+        impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
+    reflected = reflected_impulses(context, config, prepared)
+    strongest = max([float(np.max(np.abs(impulses.gain), initial=0.0))]
+                    + [float(np.max(np.abs(part.impulses.gain))) for part in reflected])
+    if strongest == 0.0:
         return empty_paths_array(0)
-    try:
-        elements = discretise_edges(pairs.geometry, discretisation(config, context))
-    except ValueError as error:
-        raise too_many_elements(config, error) from None
-    elements = elements.select(element_visibility(context, prepared, elements, pairs))
-    impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
-    if impulses.gain.size == 0:
-        return empty_paths_array(0)
-    strong = np.abs(impulses.gain) > ELEMENT_FLOOR * np.max(np.abs(impulses.gain))
-    return impulse_rows(context, scene_edges, pairs, EdgeImpulses(*(column[strong] for column in impulses)))
+    strong = np.abs(impulses.gain) > ELEMENT_FLOOR * strongest
+    rows = impulse_rows(context, scene_edges, pairs, EdgeImpulses(*(column[strong] for column in impulses)))
+    if not reflected:
+        return rows
+    next_id = int(rows["path_id"].max()) + 1 if rows.size else context.first_path_id
+    return np.concatenate([rows, reflected_rows(context, prepared, reflected, ELEMENT_FLOOR * strongest, next_id)])
 
 
 __all__ = ("ANGLE_TOLERANCE_RAD", "CAP_GROWTH", "COARSENING_LEVELS", "DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR",
