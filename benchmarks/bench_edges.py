@@ -4,7 +4,7 @@ Prints, for the default pose: how many element visibility legs the fast engine's
 decides and how many it leaves to Embree; the CPU-time medians of ``solve`` with the edge
 mechanism alone (graded edges, keep-all), of the fast engine's edge rows
 (:func:`acoustisim.propagation.fast.edges.edge_rows`) and of the reference engine's
-(:func:`acoustisim.propagation.reference.edges.edge_rows`).
+(:func:`acoustisim.propagation.reference.edge_paths.edge_rows`).
 
 Then the same with one reflection combined with each edge (``SolverConfig(edge_reflections=1)``:
 edge -> mirror or curved surface, and the reverse): the fast and the reference edge rows' CPU
@@ -74,7 +74,7 @@ def measure(repeats: int, reference: bool) -> dict[str, float]:
         for name, function in cases.items():
             samples[name].append(_cpu_seconds(function))
     if reference:
-        from acoustisim.propagation.reference.edges import edge_rows
+        from acoustisim.propagation.reference.edge_paths import edge_rows
 
         samples["reference_edge_rows"] = [_cpu_seconds(lambda: edge_rows(context, config, prepared))
                                           for _ in range(max(3, repeats // 4))]
@@ -89,7 +89,7 @@ def measure_reflections(repeats: int) -> dict[str, float]:
     from acoustisim.propagation import SolverConfig, prepare
     from acoustisim.propagation.context import SolveContext
     from acoustisim.propagation.fast.edges import edge_rows as fast_edge_rows
-    from acoustisim.propagation.reference.edges import edge_rows as reference_edge_rows
+    from acoustisim.propagation.reference.edge_paths import edge_rows as reference_edge_rows
     from scenes.builtin import builtin_scene
 
     prepared = prepare(builtin_scene("thesis-tank"))

@@ -19,17 +19,15 @@ specular mechanism finds every chain the other surfaces leave open.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from acoustisim.geometry import CylinderPrimitive
+from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.propagation.raycast import RayCaster
-
-if TYPE_CHECKING:
-    from acoustisim.propagation.prepared import PreparedScene
+from acoustisim.scene import Boundary
 
 SPANNING_TOLERANCE_M = 1e-6
 """A cylinder's end lies in a tank boundary plane when its centre is within this of it (m)."""
@@ -77,15 +75,25 @@ class SmoothObstacles:
         return int(self.surface.size)
 
     @classmethod
-    def build(cls, prepared: "PreparedScene") -> "SmoothObstacles":
-        """The obstacles of a prepared scene: its curved reflectors (spheres and cylinders)."""
-        boundaries = prepared.scene.boundaries
+    def build(cls, boundaries: Sequence[Boundary],
+              reflectors: Sequence[tuple[int, SpherePrimitive | CylinderPrimitive]],
+              raycaster: RayCaster) -> "SmoothObstacles":
+        """The obstacles of a scene.
+
+        Parameters
+        ----------
+        boundaries : sequence of Boundary
+            The tank's boundary planes (for the cylinders spanning the tank).
+        reflectors : sequence of (int, SpherePrimitive or CylinderPrimitive)
+            Each curved reflector's surface index and primitive.
+        raycaster : RayCaster
+            The scene's ray caster.
+        """
         planes = [(np.asarray(b.plane.point_m, dtype=float), np.asarray(b.plane.normal, dtype=float))
                   for b in boundaries]
         surface, centre, axis, radius, half, sphere, infinite = [], [], [], [], [], [], []
-        for reflector in prepared.curved:  # a handful of objects
-            primitive = reflector.primitive
-            surface.append(reflector.surface)
+        for index, primitive in reflectors:  # a handful of objects
+            surface.append(index)
             centre.append(np.asarray(primitive.center_m, dtype=float))
             radius.append(float(primitive.radius_m))
             if not isinstance(primitive, CylinderPrimitive):  # a sphere (prepare() keeps only the two)
@@ -107,12 +115,7 @@ class SmoothObstacles:
         return cls(surfaces, np.asarray(centre, dtype=float).reshape(n, 3), np.asarray(axis, dtype=float).reshape(n, 3),
                    np.asarray(radius, dtype=float), np.asarray(half, dtype=float), np.asarray(sphere, dtype=bool),
                    np.asarray(infinite, dtype=bool),
-                   prepared.raycaster.without_surfaces(surfaces) if n else prepared.raycaster)
-
-    def specular_scene(self, prepared: "PreparedScene") -> "PreparedScene":
-        """``prepared`` with this ray caster: the scene in which the specular mechanism's legs
-        are tested when the obstacles cast diffracted shadows."""
-        return prepared if self.count == 0 else replace(prepared, raycaster=self.raycaster)
+                   raycaster.without_surfaces(surfaces) if n else raycaster)
 
 
 __all__ = ("PARALLEL_TOLERANCE", "SPANNING_TOLERANCE_M", "SmoothObstacles")

@@ -8,7 +8,7 @@ scene, so that many poses of one scene pay for this once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -121,7 +121,15 @@ class PreparedScene:
         the ray caster without them, built once per prepared scene on first use."""
         from acoustisim.propagation.obstacles import SmoothObstacles
 
-        return SmoothObstacles.build(self)
+        return SmoothObstacles.build(self.scene.boundaries, [(r.surface, r.primitive) for r in self.curved],
+                                     self.raycaster)
+
+    def without_smooth_obstacles(self) -> "PreparedScene":
+        """This scene with the ray caster of :attr:`smooth_obstacles` (the scene without the
+        obstacles' triangles): where the specular mechanism tests its legs when the obstacles
+        cast diffracted shadows rather than hard ones."""
+        obstacles = self.smooth_obstacles
+        return self if obstacles.count == 0 else replace(self, raycaster=obstacles.raycaster)
 
 
 def check_mesh(obj: SceneObject) -> None:

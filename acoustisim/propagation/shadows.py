@@ -44,7 +44,7 @@ edge waves from the silhouette's rim starting at their own delays rho^2 (1/d1 + 
 Method
 ------
 1. The specular mechanism tests its legs against the scene without the obstacles
-   (:meth:`~acoustisim.propagation.obstacles.SmoothObstacles.specular_scene`): a chain blocked
+   (:meth:`~acoustisim.propagation.prepared.PreparedScene.without_smooth_obstacles`): a chain blocked
    only by obstacles is kept, one blocked by anything else is dropped as before.
 2. :func:`row_legs` takes every leg of the direct and specular rows; :func:`aperture_terms`
    pairs each with every obstacle that lies between its ends (the leg's point nearest the

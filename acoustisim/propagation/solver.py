@@ -134,7 +134,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
         if mechanism == "direct":
             rows = engine.direct_rows(mechanism_context)
         elif mechanism == "specular":
-            legs_scene = prepared if obstacles is None else obstacles.specular_scene(prepared)
+            legs_scene = prepared if obstacles is None else prepared.without_smooth_obstacles()
             rows = engine.specular_rows(mechanism_context, legs_scene, config.max_order, config.max_curved_per_path)
         elif mechanism == "edge":
             rows = engine.edge_rows(mechanism_context, config, prepared)

@@ -17,12 +17,14 @@ from regression.arrival_tables import stored_arrivals
 
 
 def _paths(name: str) -> Paths:
-    """The stored arrival table (default solver, direct + specular + edge) as Paths."""
+    """The stored arrival table (default solver, direct + specular + edge) as Paths, each row a
+    plain impulse (the table stores no transfer functions: ``response_id`` is left at -1; the
+    delays, which are what the record length must hold, are the table's)."""
     scene = builtin_scene(name)
     stored = stored_arrivals(name)
     rows = empty_paths_array(stored.size)
     for field in stored.dtype.names:
-        if field in PATH_DTYPE.names:
+        if field in PATH_DTYPE.names and field != "response_id":
             rows[field] = stored[field]
     return Paths(rows, scene.surface_names, scene.sonar.centre_frequency_hz, float(scene.medium.sound_speed))
 

@@ -22,6 +22,7 @@ from acoustisim.propagation.fast import edge_gains as fast_gains
 from acoustisim.propagation.fast.edges import edge_rows as fast_edge_rows
 from acoustisim.propagation.reference import btm
 from acoustisim.propagation.reference import edge_elements as reference_elements
+from acoustisim.propagation.reference import edge_paths as reference_edge_paths
 from acoustisim.propagation.reference import edges as reference_edges
 from acoustisim.propagation.reference.edge_elements import Discretisation, PairGeometry
 
@@ -129,7 +130,7 @@ def test_thesis_tank_rows_are_the_reference_rows_in_the_assembly_order(prepared_
     for sonar in thesis_tank_poses(prepared, 2, seed=4):
         context = SolveContext.build(prepared.scene, sonar, prepared.raycaster, first_path_id=7)
         got = fast_edge_rows(context, config, prepared)
-        want = reference_edges.edge_rows(context, config, prepared)
+        want = reference_edge_paths.edge_rows(context, config, prepared)
         assert want.size > 10_000
         want = want[np.lexsort((want["path_length_m"] / context.sound_speed_m_s, want["channel"]))]
         assert got.shape == want.shape
@@ -148,7 +149,7 @@ def test_no_pairs_give_no_rows(builtin_scenes):
     prepared = prepare(builtin_scenes("free-sphere"))
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
     for rows in (fast_edge_rows(context, SolverConfig(), prepared),
-                 reference_edges.edge_rows(context, SolverConfig(), prepared)):
+                 reference_edge_paths.edge_rows(context, SolverConfig(), prepared)):
         assert rows.size == 0 and rows.dtype.names is not None
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from acoustisim.propagation import SolverConfig, prepare
 from acoustisim.propagation.context import SolveContext
-from acoustisim.propagation.reference.edges import edge_rows as reference_edge_rows
+from acoustisim.propagation.reference.edge_paths import edge_rows as reference_edge_rows
 from acoustisim.propagation.fast import FastEngine, assemble
 from acoustisim.propagation.fast.assemble import (SortKeys, assemble_rows, compact_records, is_sorted,
                                                   merge_destinations, permute_records, scatter_records)

@@ -26,6 +26,10 @@ from scenes.builders import post
 
 DETERMINISTIC = ("direct", "specular")
 
+ALONE = dict(mechanisms=DETERMINISTIC, shadows=False)
+"""The step alone: without the diffracted shadows, whose responses the elastic ones would
+multiply (that product: :func:`test_an_elastic_echo_in_a_shadow_multiplies_the_shadows_response`)."""
+
 
 def elastic_objects(paths) -> set[str]:
     labels = {paths.responses[i].label for i in paths.rows["response_id"][paths.rows["response_id"] >= 0]}
@@ -33,7 +37,7 @@ def elastic_objects(paths) -> set[str]:
 
 
 def test_echoes_off_the_posts_and_the_pipe_get_responses(thesis_tank, backend) -> None:
-    paths = solve(thesis_tank, config=SolverConfig(mechanisms=DETERMINISTIC, backend=backend))
+    paths = solve(thesis_tank, config=SolverConfig(**ALONE, backend=backend))
     rows = paths.rows
     has = rows["response_id"] >= 0
     assert elastic_objects(paths) == {"post-1", "post-2", "post-3", "pipe-1"}  # not the steel prism: no series
@@ -70,8 +74,8 @@ def test_both_engines_give_the_same_responses(thesis_tank) -> None:
 
 
 def test_switch_off_leaves_the_rows_as_the_mechanisms_made_them(thesis_tank, backend) -> None:
-    on = solve(thesis_tank, config=SolverConfig(mechanisms=DETERMINISTIC, backend=backend))
-    off = solve(thesis_tank, config=SolverConfig(mechanisms=DETERMINISTIC, backend=backend, elastic_echoes=False))
+    on = solve(thesis_tank, config=SolverConfig(**ALONE, backend=backend))
+    off = solve(thesis_tank, config=SolverConfig(**ALONE, backend=backend, elastic_echoes=False))
     assert off.responses == () and np.all(off.rows["response_id"] == -1)
     others = [n for n in off.rows.dtype.names if n not in ("response_id", "amplitude")]
     for name in others:
@@ -87,6 +91,47 @@ def test_switch_off_leaves_the_rows_as_the_mechanisms_made_them(thesis_tank, bac
     assert 0.0 < factor.min() < 0.9 < 1.1 < factor.max() < 10.0
     with pytest.raises(InputError, match="elastic_echoes"):
         SolverConfig(elastic_echoes=1)
+
+
+def row_keys(rows) -> list[tuple]:
+    """Each row's (channel, kind, surfaces, delay to the ps): what identifies a path across
+    solves whose row sets differ (without shadows the hard cut removes blocked rows)."""
+    return [(int(r["channel"]), int(r["kind"]), tuple(r["object_ids"][:r["order"]]), round(float(r["delay_s"]) * 1e12))
+            for r in rows]
+
+
+def test_an_elastic_echo_in_a_shadow_multiplies_the_shadows_response(thesis_tank) -> None:
+    # With both steps (the default), a row that both passes a smooth obstacle and reflects off
+    # an elastic body keeps one response: the elastic one, carrying the shadow's among its
+    # factors; its transfer function is the product of the shadow's alone and the elastic
+    # one's alone (the elastic step on the rows the hard cut leaves, where the row exists
+    # there), and its amplitude column the shadowed row's times |H(f0)| of the elastic part.
+    # Exact to rounding: 1e-10, the amplitude going through a few dozen roundings (the shadow's
+    # normalisation at f0 and its division here; 2e-12 measured).
+    both = solve(thesis_tank, config=SolverConfig(mechanisms=DETERMINISTIC))
+    shadow = solve(thesis_tank, config=SolverConfig(mechanisms=DETERMINISTIC, elastic_echoes=False))
+    elastic = solve(thesis_tank, config=SolverConfig(**ALONE))
+    assert row_keys(both.rows) == row_keys(shadow.rows)  # the elastic step adds and removes no row
+    alone = {key: i for i, key in enumerate(row_keys(elastic.rows))}
+    f = np.array([312e3, 500e3, 688e3])
+    c = both.sound_speed_m_s
+    wrapped = [i for i in np.flatnonzero(both.rows["response_id"] >= 0)
+               if getattr(both.responses[both.rows["response_id"][i]], "others", ())]
+    keys = row_keys(both.rows)
+    compared = 0
+    for i in wrapped:
+        assert shadow.rows["response_id"][i] >= 0
+        transfer = evaluate_transfers([both.responses[both.rows["response_id"][i]]], f, c)
+        shadow_part = evaluate_transfers([shadow.responses[shadow.rows["response_id"][i]]], f, c)
+        np.testing.assert_allclose(both.rows["amplitude"][i], shadow.rows["amplitude"][i]
+                                   * np.abs(transfer[0, 1] / shadow_part[0, 1]), rtol=1e-10)
+        j = alone.get(keys[i])
+        if j is None:  # blocked outright without shadows
+            continue
+        compared += 1
+        elastic_part = evaluate_transfers([elastic.responses[elastic.rows["response_id"][j]]], f, c)
+        np.testing.assert_allclose(transfer, shadow_part * elastic_part, rtol=1e-10)
+    assert len(wrapped) > 10 and compared > 5, (len(wrapped), compared)
 
 
 def test_unfolding_through_mirrors_is_the_image_method(thesis_tank) -> None:
@@ -137,7 +182,7 @@ def posts_of(scene, material):
 def test_limits_forced_through_the_step_synthesise_todays_echo(thesis_tank, material, body, tolerance) -> None:
     scene = posts_of(thesis_tank, material)
     prepared = prepare(scene)
-    config = SolverConfig(mechanisms=DETERMINISTIC, max_order=1, elastic_echoes=False)
+    config = SolverConfig(**ALONE, max_order=1, elastic_echoes=False)
     today = solve(prepared, config=config)
     assert today.responses == ()  # these bodies get no response of their own
     assert solve(prepared, config=replace(config, elastic_echoes=True)).responses == ()

@@ -18,7 +18,9 @@ from acoustisim.sonar import SonarHead
 from scenes.builders import cylinder, plate, post, sphere
 from support.ray_tubes import Cylinder, Plane, Sphere, ray_tube_pressure
 
-CONFIG = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None)
+CONFIG = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None, shadows=False)
+"""Geometric optics alone: without the diffracted shadows (a chain grazing an object would carry
+their factor, tests/physics/test_shadows.py)."""
 
 
 def _sonar(channels=((-0.065, 0.0, 0.0), (0.0, 0.0, 0.0), (0.065, 0.0, 0.0)), position=(0.0, 0.0, 0.0),

@@ -11,7 +11,7 @@ from acoustisim.propagation.fast import edge_gains as fast_gains
 from acoustisim.propagation.fast import edges as fast_edges
 from acoustisim.propagation.reference import btm as reference_btm
 from acoustisim.propagation.reference import edge_elements as reference_elements
-from acoustisim.propagation.reference import edges as reference_edges
+from acoustisim.propagation.reference import edge_paths as reference_edge_paths
 
 
 class EdgeEngine(NamedTuple):
@@ -31,5 +31,5 @@ def edge_engine(backend: str) -> EdgeEngine:
                           fast_edges.edge_rows)
     if backend == "reference":
         return EdgeEngine(reference_elements.discretise_edges, reference_btm.element_gains,
-                          reference_btm.quadrature_points, reference_edges.edge_rows)
+                          reference_btm.quadrature_points, reference_edge_paths.edge_rows)
     raise ValueError(f"unknown backend {backend!r}")

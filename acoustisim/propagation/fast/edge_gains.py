@@ -1,6 +1,8 @@
 """The quadrature of :mod:`acoustisim.propagation.reference.btm`, compiled.
 
-:func:`quadrature_points` and :func:`element_gains` return what their reference namesakes do:
+:func:`quadrature_points` and :func:`element_gains` return what their reference namesakes do
+(and :func:`edge_impulses`, the impulses of the elements, what
+:func:`acoustisim.propagation.reference.edges.edge_impulses` does):
 the same arithmetic in the same order, in two compiled loops over the elements around numpy's
 vectorised ``log1p``, ``sinh`` and ``arctan2`` (the loops compute their arguments, numpy
 evaluates them over whole arrays, the second loop sums the terms). The reference calls the
@@ -20,6 +22,7 @@ from numpy.typing import NDArray
 
 from acoustisim.propagation.reference.btm import GAUSS_W, GAUSS_X, PairConstants, QuadraturePoints
 from acoustisim.propagation.reference.edge_elements import EdgeElements
+from acoustisim.propagation.reference.edges import EdgeImpulses
 
 _RULE_X = np.array(GAUSS_X)
 _RULE_X.setflags(write=False)
@@ -161,4 +164,14 @@ def element_gains(elements: EdgeElements, constants: PairConstants) -> NDArray[n
     return gains[:, 0]
 
 
-__all__ = ("TermArguments", "element_gains", "quadrature_points", "term_arguments", "term_sums")
+
+def edge_impulses(elements: EdgeElements, constants: PairConstants, adaptive: bool) -> EdgeImpulses:
+    """The reference's :func:`~acoustisim.propagation.reference.edges.edge_impulses`."""
+    if adaptive:
+        points = quadrature_points(elements, constants)
+        return EdgeImpulses(np.repeat(elements.pair, points.gain.shape[1]), points.gain.reshape(-1),
+                            points.z_m.reshape(-1), points.path_length_m.reshape(-1))
+    return EdgeImpulses(elements.pair, element_gains(elements, constants),
+                        0.5 * (elements.z_start_m + elements.z_end_m), elements.path_length_m)
+
+__all__ = ("TermArguments", "edge_impulses", "element_gains", "quadrature_points", "term_arguments", "term_sums")

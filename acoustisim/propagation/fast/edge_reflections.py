@@ -33,6 +33,7 @@ from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.fast.curved_kernels import specular_points
 from acoustisim.propagation.fast.edge_elements import discretise_edges
+from acoustisim.propagation.fast.edge_gains import edge_impulses
 from acoustisim.propagation.fast.edge_visibility import (BLOCKED, CLEAR, MASK_BITS, OTHERS_BIT, UNDECIDED,
                                                          ScreenGeometry, scene_screen, screen_legs)
 from acoustisim.propagation.fast.mirror_kernels import backtrace_chains, mirror_arrays
@@ -165,9 +166,7 @@ def fast_path_visibility(context: SolveContext, prepared: PreparedScene, vertice
 
 
 def fast_kernels() -> ElementKernels:
-    """The fast engine's per-element steps (the quadrature: :func:`.edges.edge_impulses`)."""
-    from acoustisim.propagation.fast.edges import edge_impulses
-
+    """The fast engine's per-element steps (the quadrature: :func:`.edge_gains.edge_impulses`)."""
     return ElementKernels(discretise_edges, edge_impulses, fast_backtrace, fast_path_visibility, specular_points)
 
 

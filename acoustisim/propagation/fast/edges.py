@@ -1,6 +1,6 @@
 """The reference's edge-diffraction rows, computed with compiled kernels and a visibility screen.
 
-:func:`edge_rows` follows :func:`acoustisim.propagation.reference.edges.edge_rows` step for
+:func:`edge_rows` follows :func:`acoustisim.propagation.reference.edge_paths.edge_rows` step for
 step, sharing its per-pair set-up (a few hundred pairs: the pairs, their wedge coordinates and
 chain joints, the discretisation's parameters and the quadrature's per-pair constants) and
 replacing its per-element steps:
@@ -8,7 +8,7 @@ replacing its per-element steps:
 1. the discretisation: :mod:`.edge_elements`;
 2. the visibility: :mod:`.edge_visibility` decides nearly every leg without Embree and asks
    Embree about the rest in one batch;
-3. the quadrature: :mod:`.edge_gains`;
+3. the quadrature: :func:`.edge_gains.edge_impulses`;
 4. the rows: the element floor, then the kept impulses ordered as the assembly orders rows
    (:mod:`.edge_order`), so that the assembly need not move them, and written by one compiled
    loop (:func:`fill_rows`) into an uninitialised buffer (every field written once).
@@ -26,14 +26,13 @@ from numpy.typing import NDArray
 from acoustisim.propagation.config import SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.fast.edge_elements import discretise_edges
-from acoustisim.propagation.fast.edge_gains import element_gains, quadrature_points
+from acoustisim.propagation.fast.edge_gains import edge_impulses
 from acoustisim.propagation.fast.edge_order import solver_order
 from acoustisim.propagation.fast.edge_reflections import fill_reflected_rows, reflected_impulses, row_inputs
 from acoustisim.propagation.fast.edge_visibility import EdgeLines, LegTargets, element_visibility
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
-from acoustisim.propagation.reference.btm import PairConstants, pair_constants
-from acoustisim.propagation.reference.edge_elements import EdgeElements
+from acoustisim.propagation.reference.btm import pair_constants
 from acoustisim.propagation.reference.edge_reflections import pair_path_index
 from acoustisim.propagation.reference.edges import (
     ELEMENT_FLOOR,
@@ -45,16 +44,6 @@ from acoustisim.propagation.reference.edges import (
 
 EDGE_KIND = int(PathKind.EDGE)
 """``PathKind.EDGE`` as the compiled loop writes it."""
-
-
-def edge_impulses(elements: EdgeElements, constants: PairConstants, adaptive: bool) -> EdgeImpulses:
-    """The reference's :func:`~acoustisim.propagation.reference.edges.edge_impulses`."""
-    if adaptive:
-        points = quadrature_points(elements, constants)
-        return EdgeImpulses(np.repeat(elements.pair, points.gain.shape[1]), points.gain.reshape(-1),
-                            points.z_m.reshape(-1), points.path_length_m.reshape(-1))
-    return EdgeImpulses(elements.pair, element_gains(elements, constants),
-                        0.5 * (elements.z_start_m + elements.z_end_m), elements.path_length_m)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -123,7 +112,7 @@ def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulse
 
 
 def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-    """The reference's :func:`~acoustisim.propagation.reference.edges.edge_rows`, in the order
+    """The reference's :func:`~acoustisim.propagation.reference.edge_paths.edge_rows`, in the order
     the assembly gives rows (channel, then delay ``path_length_m / c``, ties in the reference's
     row order: first-order rows, then those combined with reflections,
     :mod:`.edge_reflections`).
@@ -186,4 +175,4 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     return rows
 
 
-__all__ = ("EDGE_KIND", "edge_impulses", "edge_rows", "fill_rows")
+__all__ = ("EDGE_KIND", "edge_rows", "fill_rows")

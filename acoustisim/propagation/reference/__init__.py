@@ -12,7 +12,8 @@ Modules, each opening with its Physics (equations and sources), Method and Accur
 * :mod:`.edges`: edge diffraction (Biot-Tolstoy-Medwin line integral; the wedge formulas and
   the quadrature in :mod:`.btm`, the discretisation in :mod:`.edge_elements`), and with
   :mod:`.edge_reflections` the edges combined with reflections (image method, curved
-  reflectors at each element's specular point);
+  reflectors at each element's specular point), the two joined under one floor by
+  :mod:`.edge_paths`;
 * :mod:`.diffuse`: Lambert diffuse reverberation (Monte Carlo, counter-based random numbers);
 * :mod:`.floor`: the amplitude floor;
 * :mod:`.columns`: the derived columns and the solve's assembled rows.
@@ -54,7 +55,7 @@ class ReferenceEngine:
         return specular_rows(context, prepared, max_order, max_curved_per_path)
 
     def edge_rows(self, context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-        from acoustisim.propagation.reference.edges import edge_rows
+        from acoustisim.propagation.reference.edge_paths import edge_rows
 
         return edge_rows(context, config, prepared)
 

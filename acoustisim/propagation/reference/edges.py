@@ -256,26 +256,17 @@ def impulse_rows(context: SolveContext, scene_edges: DiffractingEdges, pairs: Ed
     return rows
 
 
-def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> NDArray[Any]:
-    """Edge-diffraction rows of one pose (see the module docstring), in (pair, element) order,
-    then those of the edges combined with up to ``config.edge_reflections`` reflections
-    (:mod:`.edge_reflections`), their path ids after the first-order ones, the element floor
-    relative to the strongest impulse of both.
-
-    Returns
-    -------
-    structured ndarray of PATH_DTYPE, shape (n,)
-        The mechanism's columns; the derived ones are left to the assembly.
+def first_order_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene
+                         ) -> tuple[EdgePairs, EdgeImpulses]:
+    """Steps 1-3 of the module docstring: the (edge, receiver) pairs of one pose and the
+    impulses of their visible elements, before the element floor.
 
     Raises
     ------
     InputError
         If ``config.edge_segment_m`` would make more than :data:`MAX_ELEMENTS` elements.
     """
-    from acoustisim.propagation.reference.edge_reflections import reflected_impulses, reflected_rows
-
-    scene_edges = prepared.diffracting_edges
-    pairs = edge_pairs(context, scene_edges)
+    pairs = edge_pairs(context, prepared.diffracting_edges)
     impulses = EdgeImpulses(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
     if pairs.edge.size:
         try:
@@ -284,20 +275,11 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
             raise too_many_elements(config, error) from None
         elements = elements.select(element_visibility(context, prepared, elements, pairs))
         impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
-    reflected = reflected_impulses(context, config, prepared)
-    strongest = max([float(np.max(np.abs(impulses.gain), initial=0.0))]
-                    + [float(np.max(np.abs(part.impulses.gain))) for part in reflected])
-    if strongest == 0.0:
-        return empty_paths_array(0)
-    strong = np.abs(impulses.gain) > ELEMENT_FLOOR * strongest
-    rows = impulse_rows(context, scene_edges, pairs, EdgeImpulses(*(column[strong] for column in impulses)))
-    if not reflected:
-        return rows
-    next_id = int(rows["path_id"].max()) + 1 if rows.size else context.first_path_id
-    return np.concatenate([rows, reflected_rows(context, prepared, reflected, ELEMENT_FLOOR * strongest, next_id)])
+    return pairs, impulses
 
 
 __all__ = ("ANGLE_TOLERANCE_RAD", "CAP_GROWTH", "COARSENING_LEVELS", "DELAY_STEPS_PER_PERIOD", "ELEMENT_FLOOR",
            "EdgeImpulses", "EdgePairs", "GRADING", "MAX_ELEMENTS", "MIN_DISTANCE_M", "ONSET_NODES", "discretisation",
-           "edge_impulses", "edge_pairs", "edge_rows", "element_probes", "element_visibility", "impulse_rows",
+           "edge_impulses", "edge_pairs", "element_probes", "element_visibility", "first_order_impulses",
+           "impulse_rows",
            "open_ends", "too_many_elements")
