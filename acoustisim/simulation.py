@@ -273,7 +273,8 @@ def simulate(
         Already traced paths (skips the propagation solver).
     synthesiser : PingSynthesiser, optional
         A synthesiser planned earlier (``PingSynthesiser.create``) for the same sonar (any pose),
-        medium and chain: skips the planning (about 0.3 s) when simulating many poses.
+        medium and chain: skips the planning (the pulse's spectra and tables, the chain's
+        filters) when simulating many poses.
 
     Returns
     -------

@@ -131,9 +131,9 @@ def is_pressure_release(material: Material) -> bool:
     """Boundary condition of a wedge of this material.
 
     ``pressure-release`` materials (and ``fixed`` ones with a negative coefficient, such as an
-    air-filled pipe) are pressure-release wedges. Every other material, including the ``fluid``
-    ones (steel, PVC, concrete: |R| 0.4-0.94 at normal incidence), is treated as a *rigid*
-    wedge: the BTM solution exists for the two ideal boundary conditions only, and rigid is the
+    air-filled pipe) are pressure-release wedges. Every other material, including the solids
+    (steel, PVC, concrete, on the ``elastic`` or ``fluid`` reflection model: |R| 0.4-0.94 at
+    normal incidence), is treated as a *rigid* wedge: the BTM solution exists for the two ideal boundary conditions only, and rigid is the
     nearer one for a positive R.
     """
     if material.model == "pressure-release":
