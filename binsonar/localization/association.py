@@ -12,7 +12,10 @@ Gates (geometric consistency):
 
 Triples are accepted greedily by increasing normalised distance to the interval's middle, each
 echo used once; left/right pairs left over (no centre echo in their gate) are then accepted the
-same way by increasing |L_left - L_right|.
+same way by increasing |L_left - L_right|. On request (``centre_side_pairs``, when a cued
+search can look for the missing side: ``beam_cue``), the centre echoes left over are paired
+with side echoes left over, gated by |L_side - L_centre| <= |R_side - R_centre| (the triangle
+inequality), nearest first.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from binsonar.localization.array_geometry import ArrayGeometry
 from binsonar.localization.point import point_from_path_lengths
@@ -45,7 +48,7 @@ class Association:
 
 
 def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geometry: ArrayGeometry,
-              n_sigma: float = 4.0, min_range_m: float = 0.0) -> list[Association]:
+              n_sigma: float = 4.0, min_range_m: float = 0.0, centre_side_pairs: bool = False) -> list[Association]:
     """Group one ping's echoes into reflectors by geometric consistency.
 
     Parameters
@@ -61,16 +64,38 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
         Pairs whose point solution lies closer to the transmitter than this (m) are not
         reflectors: the transmitter's direct cross-talk to the side receivers and the ringing
         around it.
+    centre_side_pairs : bool
+        Also pair the centre echoes left over with one side's (the other side None).
 
     Returns
     -------
     list of Association
-        Sorted by the left path length.
+        Sorted by the first channel's path length.
     """
     ll, lc, lr = (np.asarray(v, dtype=float).reshape(-1) for v in lengths_m)
     sl, sc, sr = (np.asarray(v, dtype=float).reshape(-1) for v in sigma_m)
-    if ll.size == 0 or lr.size == 0:
-        return []
+    used_l: set[int] = set()
+    used_c: set[int] = set()
+    used_r: set[int] = set()
+    out: list[Association] = []
+    if ll.size and lr.size:
+        _associate_sides(ll, lc, lr, sl, sc, sr, geometry, n_sigma, min_range_m, (used_l, used_c, used_r), out)
+    if centre_side_pairs and lc.size:
+        _pair_centre(lc, sc, (ll, lr), (sl, sr), geometry, n_sigma, min_range_m, (used_l, used_c, used_r), out)
+
+    def first_length(x: Association) -> float:
+        return float(ll[x.left] if x.left is not None else lc[x.centre] if x.centre is not None else np.inf)
+
+    out.sort(key=first_length)
+    return out
+
+
+def _associate_sides(ll: NDArray[np.float64], lc: NDArray[np.float64], lr: NDArray[np.float64],
+                     sl: NDArray[np.float64], sc: NDArray[np.float64], sr: NDArray[np.float64],
+                     geometry: ArrayGeometry, n_sigma: float, min_range_m: float,
+                     used: tuple[set[int], set[int], set[int]], out: list[Association]) -> None:
+    """Triples, then left/right pairs (module docstring), appended to ``out``."""
+    used_l, used_c, used_r = used
     d = geometry.half_baseline_m
     direct = geometry.direct_distance_m()
     a, b = ll[:, None], lr[None, :]
@@ -87,11 +112,6 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
     with np.errstate(invalid="ignore", divide="ignore"):
         spread = d * d * np.cos(th) ** 2 / (4 * r)
     middle = mc_point + 0.5 * spread
-
-    used_l: set[int] = set()
-    used_c: set[int] = set()
-    used_r: set[int] = set()
-    out: list[Association] = []
     if lc.size:
         # The centre's noise plus the pair's (the pair's point solution carries the side noise).
         s_tot = np.hypot(sc[None, None, :], s_pair[:, :, None])  # no overflow for huge stds
@@ -118,5 +138,30 @@ def associate(lengths_m: Sequence[ArrayLike], sigma_m: Sequence[ArrayLike], geom
             continue
         used_l.add(int(i)), used_r.add(int(j))
         out.append(Association(int(i), None, int(j), float("inf")))
-    out.sort(key=lambda x: ll[x.left] if x.left is not None else np.inf)
-    return out
+
+
+def _pair_centre(lc: NDArray[np.float64], sc: NDArray[np.float64], sides: tuple[NDArray[np.float64], NDArray[np.float64]],
+                 side_sigmas: tuple[NDArray[np.float64], NDArray[np.float64]], geometry: ArrayGeometry, n_sigma: float,
+                 min_range_m: float, used: tuple[set[int], set[int], set[int]], out: list[Association]) -> None:
+    """Centre echoes left over paired with one side's left over, nearest in path length first."""
+    used_l, used_c, used_r = used
+    direct = geometry.direct_distance_m()
+    candidates = []  # (cost, side channel, side index, centre index)
+    for side, (lengths, sigmas, taken) in ((0, (sides[0], side_sigmas[0], used_l)), (2, (sides[1], side_sigmas[1], used_r))):
+        if not lengths.size:
+            continue
+        spacing = float(np.linalg.norm(geometry.receivers_m[side] - geometry.receivers_m[1]))
+        difference = lengths[:, None] - lc[None, :]
+        gate = spacing + n_sigma * np.hypot(sigmas[:, None], sc[None, :])
+        with np.errstate(invalid="ignore"):
+            ok = (np.isfinite(difference) & (np.abs(difference) <= gate) & (lengths[:, None] > direct[side])
+                  & (0.5 * lc[None, :] > max(float(min_range_m), 0.0)))
+        for i, k in zip(*np.nonzero(ok)):
+            if int(i) not in taken and int(k) not in used_c:
+                candidates.append((abs(float(difference[i, k])), side, int(i), int(k)))
+    for _, side, i, k in sorted(candidates):
+        taken = used_l if side == 0 else used_r
+        if i in taken or k in used_c:
+            continue
+        taken.add(i), used_c.add(k)
+        out.append(Association(i if side == 0 else None, k, i if side == 2 else None, float("inf")))
