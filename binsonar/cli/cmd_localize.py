@@ -1,4 +1,4 @@
-"""``binsonar localize PING.h5 [--method DETECTOR] [--sound-speed C] [--no-beam] [--json]``: targets per ping.
+"""``binsonar localize PING.h5 [--method DETECTOR] [--pfa X] [--sound-speed C] [--no-beam] [--json]``: targets per ping.
 
 Beam-aware by default: when the recording's array description gives its transducers as pistons,
 each target's echoes are re-timed with the echo the beam makes and their stds follow that
@@ -49,6 +49,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--tof-floor-ns", type=float, default=50.0, dest="tof_floor_ns",
                         help="systematic TOF uncertainty added in quadrature to each plain-timed echo's std "
                              "(ns, default 50)")
+    parser.add_argument("--pfa", type=float, default=None,
+                        help="the detector's false-alarm probability (default the method's, 1e-6 for ca-cfar); "
+                             "lower values find weak echoes next to strong ones, and the association's geometric "
+                             "gates and the model tests reject most of the false alarms")
     parser.add_argument("--no-beam", action="store_true", dest="no_beam",
                         help="keep the plain matched filter's times (default: re-time each target's echoes "
                              "with the beams the array description gives)")
@@ -78,8 +82,14 @@ def run(args: argparse.Namespace) -> int:
     if args.tof_floor_ns > 1e6:
         raise RecordingError(f"--tof-floor-ns: must be at most 1e6 ns, got {args.tof_floor_ns!r}")
     config = LocalizationConfig(fuse=not args.no_fuse, tof_floor_s=args.tof_floor_ns * 1e-9, beam=not args.no_beam)
+    options = {}
+    if args.pfa is not None:
+        if not (math.isfinite(args.pfa) and 0.0 < args.pfa < 0.5):
+            raise RecordingError(f"--pfa: must be within (0, 0.5), got {args.pfa!r}")
+        options["pfa"] = args.pfa
     with open_source(args.recording, args.array) as source:
-        result = localize_source(source, method=args.method, sound_speed_m_s=args.sound_speed, config=config)
+        result = localize_source(source, method=args.method, sound_speed_m_s=args.sound_speed, config=config,
+                                 **options)
     if args.json:
         print(json.dumps(result.to_dict()))
         return 0

@@ -156,36 +156,34 @@ class NoiseSpectrum:
         """Median-averaged periodogram (Welch: Hann, half overlap) of each channel (rows (3, n), V).
 
         Segments within ``busy_half_width_s`` of a time in ``busy_s[channel]`` (s after the
-        trigger: the detected echoes) are left out, unless fewer than ``NOISE_SEGMENTS_MIN``
-        would remain; the median is robust to what else the record holds (the main bang,
-        echoes not detected) in fewer than half the segments. The median of n exponential
+        trigger: the detected echoes) are left out; the segments are the longest power of two
+        up to ``NOISE_SEGMENT`` (down to 64 samples) that leaves ``NOISE_SEGMENTS_MIN`` of them.
+        The median is robust to what else the record holds (the main bang, echoes not
+        detected) in fewer than half the segments. The median of n exponential
         variables is divided by its expectation over their mean, 1 - 1/2 + 1/3 - ... + 1/n for
         odd n, n - 1 terms for even n (as ``scipy.signal.welch``).
         """
         x = np.asarray(rows, dtype=float)
         fs = float(sample_rate_hz)
         n = x.shape[-1]
+        busy = [np.asarray(busy_s[ch] if ch < len(busy_s) else (), dtype=float).ravel() for ch in range(x.shape[0])]
         segment = NOISE_SEGMENT
-        while segment > 64 and (2 * n) // segment - 1 < NOISE_SEGMENTS_MIN:
+        while True:
+            segment_now = max(8, min(segment, n - n % 2))
+            keep = _quiet_segments(n, segment_now, fs, t0_s, busy, busy_half_width_s)
+            if segment <= 64 or min(k.sum() for k in keep) >= NOISE_SEGMENTS_MIN:
+                break
             segment //= 2
-        segment = max(8, min(segment, n - n % 2))
+        segment = segment_now
         hop = segment // 2
         window = np.hanning(segment + 2)[1:-1]  # the symmetric Hann without its zero ends
         frames = np.lib.stride_tricks.sliding_window_view(x, segment, axis=-1)[:, ::hop, :]  # (3, m, segment)
-        centres = t0_s + (np.arange(frames.shape[1]) * hop + 0.5 * segment) / fs
         spectra = np.fft.rfft((frames - frames.mean(axis=-1, keepdims=True)) * window, axis=-1)
         periodograms = np.abs(spectra) ** 2 / (fs * float(np.sum(window ** 2)))
         periodograms[..., 1:(segment + 1) // 2] *= 2.0  # one-sided
-        reach = busy_half_width_s + 0.5 * segment / fs
         density = np.empty((x.shape[0], periodograms.shape[-1]))
         for ch in range(x.shape[0]):  # three channels, each with its own echoes
-            busy = np.asarray(busy_s[ch] if ch < len(busy_s) else (), dtype=float).ravel()
-            keep = np.ones(centres.size, dtype=bool)
-            if busy.size:
-                keep = np.min(np.abs(centres[:, np.newaxis] - busy[np.newaxis, :]), axis=1) > reach
-            if keep.sum() < NOISE_SEGMENTS_MIN:
-                keep[:] = True
-            chosen = periodograms[ch, keep]
+            chosen = periodograms[ch, keep[ch]] if keep[ch].sum() >= 3 else periodograms[ch]
             count = chosen.shape[0]
             terms = np.arange(1, count + 1 - (1 - count % 2))  # odd: count; even: count - 1 (as scipy)
             bias = float(np.sum((-1.0) ** (terms + 1) / terms))
@@ -196,6 +194,23 @@ class NoiseSpectrum:
         """E|N_k|^2 (3, k) at ``frequency_hz`` (k,) for rfft segments of ``n_fft`` samples."""
         density = np.stack([np.interp(frequency_hz, self.frequency_hz, row) for row in self.density])
         return 0.5 * n_fft * self.sample_rate_hz * density
+
+
+def _quiet_segments(n: int, segment: int, fs: float, t0_s: float, busy: Sequence[NDArray[np.float64]],
+                    half_width_s: float) -> list[NDArray[np.bool_]]:
+    """Per channel, which half-overlapping ``segment``-sample segments of an n-sample record lie
+    further than ``half_width_s`` from every time in ``busy[channel]`` (s)."""
+    hop = segment // 2
+    count = (n - segment) // hop + 1
+    centres = t0_s + (np.arange(count) * hop + 0.5 * segment) / fs
+    reach = half_width_s + 0.5 * segment / fs
+    out = []
+    for times in busy:
+        if times.size:
+            out.append(np.min(np.abs(centres[:, np.newaxis] - times[np.newaxis, :]), axis=1) > reach)
+        else:
+            out.append(np.ones(count, dtype=bool))
+    return out
 
 
 @dataclass(frozen=True, eq=False)
