@@ -35,9 +35,12 @@ def test_posts_and_edges_are_unbiased_with_honest_stds(tmp_path: Path) -> None:
         # tolerance plus 3 standard errors of the mean over 200 pings ...
         assert abs(p["range_bias_m"]) < 50e-6 + 3 * p["range_bias_se_m"]
         assert abs(p["bearing_bias_deg"]) < 0.02 + 3 * p["bearing_bias_se_deg"]
-        # ... and var(error / reported std) is 1 within 0.35 (its sampling std is sqrt(2/200) = 0.1).
-        assert p["range_normalised_variance"] == pytest.approx(1.0, abs=0.35)
-        assert p["bearing_normalised_variance"] == pytest.approx(1.0, abs=0.35)
+        # ... and var(error / reported std) is 1 within 0.45: its sampling std is sqrt(2/200) = 0.1,
+        # and the full run (500 pings) finds up to 1.2 at this range (the pings timed with the other
+        # echo model and the few classified cylinder add to the scatter); a std off by 1.5x would
+        # give 0.44 or 2.25.
+        assert p["range_normalised_variance"] == pytest.approx(1.0, abs=0.45)
+        assert p["bearing_normalised_variance"] == pytest.approx(1.0, abs=0.45)
         # Ten fused groups of 20 pings, each within 0.2 mm and 0.05 deg (about 4 of their stds).
         assert p["fused_groups"] == N_PINGS // 20
         assert p["fused_range_max_abs_error_m"] < 0.2e-3 and p["fused_bearing_max_abs_error_deg"] < 0.05
