@@ -49,7 +49,6 @@ multiples return at 0.5 m steps of range, and 1.5 m would put one on the apex)."
 
 def empty_tank(objects: tuple[Any, ...], sonar: Any = None) -> Any:
     """The thesis tank with only ``objects`` (and the default sonar, or ``sonar``)."""
-    from acoustisim.scene import Scene
     from scenes.builtin import builtin_scene
 
     tank = builtin_scene("thesis-tank")

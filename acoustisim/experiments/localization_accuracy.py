@@ -315,7 +315,7 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     report.add_section(__doc__.split("\n\n", 1)[1].split("The command line")[0].strip())
     header = ["target", "range (m)", "bearing (deg)", "detected", "compared", "range bias (um)", "+/- (um)",
               "bearing bias (mdeg)", "+/- (mdeg)", "range var(e/sd)", "bearing var(e/sd)", "range sd (um)",
-              "bearing sd (mdeg)", f"fused max |range err| (um)", "fused max |bearing err| (mdeg)", "classes",
+              "bearing sd (mdeg)", "fused max |range err| (um)", "fused max |bearing err| (mdeg)", "classes",
               "echo models"]
     rows = []
     for s in positions:

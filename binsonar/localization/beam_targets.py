@@ -21,11 +21,14 @@ null the echo is weaker and narrower in band than the on-axis template, and its 
 accordingly. The general form also holds in coloured noise, for the unwhitened filter used.
 
 Which expected echo: a post, a cylinder or a wall reflects specularly, its echo is the point
-model's (the directivities at the specular point's angles; the specular points of the three
-channels on a cylinder of radius a at range r lie within a d / (2 r) of each other, their
-angles within a d / (2 r^2) rad of the hypothesised point's: 1e-4 deg for a 25 mm post at 1 m,
-a sub-picosecond change of the TOF); a sharp vertical edge diffracts, its echo is the line
-integral's (``BeamModelConfig(target="vertical-edge")``). The two differ by a spectral tilt
+model's, the directivities at the specular point's angles. On a cylinder of radius a at range
+r the three channels' specular points lie within a d / (2 r) of each other, so their angles
+differ from the hypothesised point's by about a d / (2 r^2) (0.05 deg for a 25 mm post at 1 m);
+the echo and A then differ by a real, positive factor except in the thin band of frequencies
+between the two angles' nulls, which leaves the envelope peak in place (noise-free, on the
+simulator's 5 mm post at 0.3 m and 10 deg, the refined TOFs are within 0.03 ns of the specular
+arrivals). A sharp vertical edge diffracts: its echo is the line integral's
+(``BeamModelConfig(target="vertical-edge")``). The two differ by a spectral tilt
 (f^-1/2) and the beam's weighting along the edge; timing an edge with the point model is
 biased by up to 40 ns on a channel at 0.3 m (measured on the simulator's noise-free edge),
 timing a post with the edge model likewise. ``refine_target`` refines with one model; the
@@ -35,7 +38,8 @@ shapes) where the geometry cannot tell (``localize_ping``).
 Method
 ------
 1. A channel without an echo is searched where the other two predict it (``beam_cue``).
-2. ``refine_tofs`` (locate, model, correlate, iterate) with the model's ``BeamModelConfig``.
+2. ``refine_tofs`` (locate, model, correlate, iterate) with the model's ``BeamModelConfig``, its
+   first search narrowed so that it cannot reach another detected echo (``search_half_width_s``).
 3. At the refined TOFs, the expected echo A of the final position and each channel's segment
    spectrum X give |z| (one short FFT per channel), and ``NoiseSpectrum`` the P_k of the
    channel: the median-averaged periodogram of the record within ``NOISE_HALF_WINDOW_S`` of the
@@ -48,12 +52,14 @@ Method
 
 Accuracy
 --------
-Noise-free, the refined TOF of the simulator's post and edge echoes is within 1.5 ns of the
-geometric TOF from 0.3 to 2.5 m and +/-10 deg (the edge with a constant wedge factor;
-``beam_model`` gives the wedge-angle refinement for closer ranges). The variance is the
-high-SNR limit: below about 15 dB of 2E/N0 the envelope maximum's error exceeds it. The noise
-spectrum's resolution is the sample rate over its segment length (``NOISE_SEGMENT``, at least
-``NOISE_SEGMENTS_MIN`` segments per record): smooth noise spectra only.
+Noise-free, the refined TOFs of the simulator's free-field post (5 mm) and 60-degree edge are
+within 1.5 ns of their geometric TOFs at 0.3, 1.0 and 2.5 m, 0 and 10 deg (the edge with a
+constant wedge factor; ``beam_model`` gives the wedge-angle weighting for closer ranges). The
+variance is the high-SNR limit, validated at 2E/N0 = 30 dB (the experiment
+``localization-accuracy``); at low SNR the envelope maximum leaves it (the threshold effect).
+The noise spectrum's resolution is the sample rate over its segment length (``NOISE_SEGMENT``
+down to 64 samples, so that ``NOISE_SEGMENTS_MIN`` segments stay clear of the echoes): smooth
+noise spectra only.
 """
 
 from __future__ import annotations
@@ -65,7 +71,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from binsonar.localization.beam_model import BeamModelConfig, PistonTransducers, expected_response
+from binsonar.localization.beam_model import PistonTransducers, expected_response
 from binsonar.localization.beam_refine import BeamRefinementConfig, CorrelationGrid, refine_tofs
 from binsonar.recording import RecordingError, Template
 
@@ -124,12 +130,6 @@ class BeamSetup:
         if model not in ECHO_MODELS:
             raise RecordingError(f"beam refinement: model must be one of {', '.join(ECHO_MODELS)}, got {model!r}")
         return replace(self.config, model=replace(self.config.model, target=model))
-
-    def grid(self, model: str) -> CorrelationGrid:
-        """The correlation's frequency grid for ``model`` (the one ``refine_tofs`` builds)."""
-        config = self.model_config(model)
-        return CorrelationGrid.create(self.template, self.transducers, config.model, self.sound_speed_m_s,
-                                      config.search_half_width_s)
 
 
 @dataclass(frozen=True, eq=False)
@@ -324,6 +324,23 @@ def segment_spectra(rows: NDArray[np.float64], t0_s: float, fs: float, starts_s:
     return sfft.rfft(segment, axis=-1)[:, bins] * np.exp(-2j * np.pi * np.outer(start, bins * fs / n_fft))
 
 
+def search_half_width_s(tof_s: NDArray[np.float64], busy_s: Sequence[NDArray[np.float64]],
+                        config: BeamRefinementConfig) -> float:
+    """The first pass's half-window (s): ``config.search_half_width_s``, narrowed to half the gap
+    between a channel's TOF and the nearest other echo detected on that channel (never below
+    ``config.track_half_width_s``), so that the search stays on its own echo and does not move
+    onto a neighbour's: two reflectors at one range are separated on the side channels by
+    2 d (sin theta_1 - sin theta_2) / c, 6 us for 4 deg."""
+    half = float(config.search_half_width_s)
+    for ch, t in enumerate(np.asarray(tof_s, dtype=float)):
+        others = np.asarray(busy_s[ch] if ch < len(busy_s) else (), dtype=float)
+        gaps = np.abs(others - t) if math.isfinite(t) else np.empty(0)
+        gaps = gaps[gaps > 1e-9]  # the echo itself
+        if gaps.size:
+            half = min(half, max(0.5 * float(gaps.min()), float(config.track_half_width_s)))
+    return half
+
+
 def refine_target(echoes: Sequence[Any], setup: BeamSetup, noise: PingNoise,
                   model: str = "point") -> RefinedTarget | None:
     """One target's three echoes timed with ``model``'s expected echo, with their stds (module docstring).
@@ -363,11 +380,12 @@ def refine_target(echoes: Sequence[Any], setup: BeamSetup, noise: PingNoise,
     if triple[0] is None or triple[2] is None:
         return None
     tof = np.array([np.nan if e is None else float(e.tof_s) for e in triple])
+    config = replace(config, search_half_width_s=search_half_width_s(tof, noise.busy_s, config))
     refined = refine_tofs(x, tof, config=config, **common)
     if not (np.all(np.isfinite(refined.position_m)) and np.all(np.isfinite(refined.tof_s[np.isfinite(tof)]))):
         return None
     geometry = ArrayGeometry.from_channel_positions(setup.channel_positions_m, setup.transducers.transmitter_channel)
-    grid = setup.grid(model)
+    grid = CorrelationGrid.create(setup.template, setup.transducers, config.model, c, config.search_half_width_s)
     response, _ = expected_response(grid.frequency_hz, refined.position_m, geometry.transmitter_m,
                                     geometry.receivers_m, setup.transducers, c, grid.model)
     expected = grid.template_spectrum * response  # (3, k)
@@ -388,5 +406,6 @@ def refine_target(echoes: Sequence[Any], setup: BeamSetup, noise: PingNoise,
     return RefinedTarget(out, model, refined.position_m, output_snr)  # type: ignore[arg-type]
 
 
-__all__ = ("BeamSetup", "ECHO_MODELS", "NoiseSpectrum", "PingNoise", "RefinedTarget", "refine_target", "segment_spectra",
+__all__ = ("BeamSetup", "ECHO_MODELS", "NoiseSpectrum", "PingNoise", "RefinedTarget", "refine_target",
+           "search_half_width_s", "segment_spectra",
            "tof_variance_s2")
