@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from binsonar.detection.echo import DetectionResult, Echo
 from binsonar.localization.array_geometry import ArrayGeometry
-from binsonar.localization.association import associate
+from binsonar.localization.association import associate, trailing_echoes
 from binsonar.localization.beam_refine import BeamRefinementConfig
 from binsonar.localization.beam_targets import ECHO_MODELS, BeamSetup, PingNoise, RefinedTarget, refine_target
 from binsonar.localization.classify import POINT, UNKNOWN
@@ -96,6 +96,16 @@ class LocalizationConfig:
         "auto": the point model's echo for every target, and where the fits say point (or
         cannot tell) also the vertical edge's, keeping the one with the larger output SNR;
         otherwise that model for every target.
+    ringing_span_s : float
+        Echoes arriving up to this long (s) after an earlier echo on the same channel that is at
+        most ``ringing_margin_db`` weaker are grouped after the others (``association``: a
+        body's elastic and internal echoes must not claim its specular echo). The default,
+        100 us (148 mm of path), covers the compressional echo through the diameter of the
+        tank's 25 mm PVC and concrete posts (about 42 us behind the specular echo) and their
+        creeping waves ((2 + pi) a of path, 87 us), and stays shorter than the 180 mm of path
+        between the edge prism's apex and its corners. 0: one stage, in gate order only.
+    ringing_margin_db : float
+        How much weaker (dB) the earlier echo may be.
     """
 
     estimation: EstimationConfig = field(default_factory=EstimationConfig)
@@ -110,14 +120,18 @@ class LocalizationConfig:
     beam_tof_floor_s: float = 0.0
     beam_association_floor_s: float = 1e-6
     echo_model: str = "auto"
+    ringing_span_s: float = 100e-6
+    ringing_margin_db: float = 6.0
 
     def __post_init__(self) -> None:
-        for name in ("tof_floor_s", "beam_tof_floor_s", "beam_association_floor_s"):
+        for name in ("tof_floor_s", "beam_tof_floor_s", "beam_association_floor_s", "ringing_span_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 <= value <= 1e-3):
                 raise LocalizationError(f"{name} must be within 0-1e-3 s, got {value!r}")
         if not (math.isfinite(self.min_range_m) and self.min_range_m >= 0):
             raise LocalizationError(f"min_range_m must be >= 0, got {self.min_range_m!r}")
+        if not (isinstance(self.ringing_margin_db, (int, float)) and math.isfinite(self.ringing_margin_db)):
+            raise LocalizationError(f"ringing_margin_db must be a finite number (dB), got {self.ringing_margin_db!r}")
         if not self.gate_n_sigma > 0:
             raise LocalizationError(f"gate_n_sigma must be > 0, got {self.gate_n_sigma!r}")
         if not isinstance(self.beam, bool):
@@ -306,8 +320,10 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
         gate_sigmas = [np.hypot(s, c * cfg.beam_association_floor_s) for s in sigmas]
     else:
         gate_sigmas = sigmas
+    trailing = [trailing_echoes(lengths[ch], [e.amplitude for e in echoes[ch]], c * cfg.ringing_span_s,
+                                cfg.ringing_margin_db) for ch in range(3)]
     groups = associate(lengths, gate_sigmas, geometry, cfg.gate_n_sigma, cfg.min_range_m,
-                       centre_side_pairs=beam is not None)
+                       centre_side_pairs=beam is not None, trailing=trailing)
     # Groups with more detected echoes first: a group that the refinement (or the cued search)
     # brings onto another's echoes is the same reflector, and the first one is kept.
     groups = sorted(groups, key=lambda g: sum(i is None for i in (g.left, g.centre, g.right)))
