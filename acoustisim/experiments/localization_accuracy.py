@@ -22,9 +22,11 @@ bearing errors and their reported stds; the pings' targets are also fused in gro
 Figures per position: the bias (mean error) with its standard error, the variance of the
 normalised errors (error / reported std; 1 for an honest std, with a sampling std of
 sqrt(2 / n) over n pings), the classes and expected-echo models chosen, the detection rate, and
-the fused groups' errors. The command line: ``acoustisim experiment localization-accuracy``
-(``--kinds``, ``--ranges``, ``--bearings``, ``--snr-db``, ``--fuse-pings``; ``--trials`` is the
-number of pings per position).
+the fused groups' errors; the ratio of the errors' scatter to the reported std (RMS over the
+pings), 1 for an honest std. ``--no-beam`` runs the same pings through the plain matched filter's
+times (``LocalizationConfig(beam=False)``), the "before" of issue 19. The command line:
+``acoustisim experiment localization-accuracy`` (``--kinds``, ``--ranges``, ``--bearings``,
+``--snr-db``, ``--fuse-pings``, ``--no-beam``; ``--trials`` is the number of pings per position).
 """
 
 from __future__ import annotations
@@ -82,7 +84,7 @@ apart, as a misclassification."""
 
 
 def add_arguments(parser: Any) -> None:
-    """``--kinds``, ``--ranges`` (m), ``--bearings`` (deg), ``--snr-db``, ``--fuse-pings``."""
+    """``--kinds``, ``--ranges`` (m), ``--bearings`` (deg), ``--snr-db``, ``--fuse-pings``, ``--no-beam``."""
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=None, help="targets (default: post edge)")
     parser.add_argument("--ranges", nargs="+", type=float, default=None,
                         help=f"ranges (m, default {' '.join(f'{r:g}' for r in DEFAULT_RANGES_M)})")
@@ -91,6 +93,8 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument("--snr-db", type=float, default=None, dest="snr_db", help="2E/N0 per channel (dB, default 30)")
     parser.add_argument("--fuse-pings", type=int, default=None, dest="fuse_pings",
                         help="pings per fused group (default 20)")
+    parser.add_argument("--no-beam", action="store_true", default=None, dest="no_beam",
+                        help="the plain matched filter's times (binsonar localize --no-beam), for comparison")
 
 
 def target_scene(kind: str, range_m: float, bearing_deg: float) -> tuple[Any, Any, Any]:
@@ -190,7 +194,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     chain = receiver_chain(scene, sonar, paths, start_s)
     synthesiser = PingSynthesiser.create(sonar, scene.medium, chain)
     solve_cpu_s = time.process_time() - t0
-    config = LocalizationConfig(fuse=False)
+    config = LocalizationConfig(fuse=False, beam=bool(p.get("beam", True)))
     pose = np.array([*sonar.position_m, sonar.yaw_deg, sonar.pitch_deg, sonar.roll_deg])
     columns: dict[str, list[Any]] = {k: [] for k in ("range_error_m", "bearing_error_deg", "range_std_m",
                                                      "bearing_std_deg", "cls", "status", "echo_model")}
@@ -260,6 +264,8 @@ def summarise(raw: dict[str, Any]) -> dict[str, Any]:
         out[f"{name}_scatter_{unit}"] = float(np.std(error, ddof=1)) if n > 1 else math.nan
         out[f"{name}_reported_std_{unit}"] = float(np.sqrt(np.mean(std ** 2))) if n else math.nan
         out[f"{name}_normalised_variance"] = float(np.var(error / std, ddof=1)) if n > 1 else math.nan
+        out[f"{name}_scatter_to_reported"] = (out[f"{name}_scatter_{unit}"] / out[f"{name}_reported_std_{unit}"]
+                                              if n > 1 else math.nan)
         fused = np.asarray([f[f"{name}_error_{unit}"] for f in raw["fused"]], dtype=float)
         out[f"fused_{name}_max_abs_error_{unit}"] = float(np.max(np.abs(fused))) if fused.size else math.nan
         out[f"fused_{name}_mean_error_{unit}"] = float(np.mean(fused)) if fused.size else math.nan
@@ -293,13 +299,15 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     snr_db = float(config.option("snr_db", 30.0))
     group = int(config.option("fuse_pings", 20))
     n_pings = config.trials_or(DEFAULT_PINGS)
+    beam = not bool(config.option("no_beam", False))
     if not all(0.2 <= r <= 5.0 for r in ranges) or not all(-20.0 <= b <= 20.0 for b in bearings):
         raise InputError(f"localization accuracy: ranges must be within 0.2-5 m and bearings within +/-20 deg, got "
                          f"{list(ranges)}, {list(bearings)}")
     if not (2 <= n_pings <= 100_000 and 1 <= group <= n_pings and 5.0 <= snr_db <= 80.0):
         raise InputError(f"localization accuracy: need 2 <= pings <= 100000, 1 <= fuse pings <= pings and "
                          f"5 <= snr_db <= 80, got {n_pings}, {group}, {snr_db}")
-    params = [{"kind": k, "range_m": r, "bearing_deg": b, "n_pings": n_pings, "snr_db": snr_db, "fuse_pings": group}
+    params = [{"kind": k, "range_m": r, "bearing_deg": b, "n_pings": n_pings, "snr_db": snr_db, "fuse_pings": group,
+               "beam": beam}
               for k in kinds for r in ranges for b in bearings]
     wall = time.perf_counter()
     raw = run_trials(measure_position, make_trials(config.seed, params), workers=config.workers,
@@ -309,24 +317,26 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     report = ExperimentReport(NAME, config.out_dir)
     passed = {k: sum(p["within_tolerance"][k] for p in positions) for k in ("bias", "variance", "fused", "detected")}
     report.results.update({"positions": positions, "raw": raw, "n_pings": n_pings, "snr_db": snr_db,
-                           "fuse_pings": group, "wall_s": wall_s, "passed": passed,
+                           "fuse_pings": group, "beam": beam, "wall_s": wall_s, "passed": passed,
                            "tolerances": {"bias": BIAS_TOLERANCE, "fused": FUSED_TOLERANCE,
                                           "normalised_variance": VARIANCE_TOLERANCE}})
     report.add_section(__doc__.split("\n\n", 1)[1].split("The command line")[0].strip())
     header = ["target", "range (m)", "bearing (deg)", "detected", "compared", "range bias (um)", "+/- (um)",
               "bearing bias (mdeg)", "+/- (mdeg)", "range var(e/sd)", "bearing var(e/sd)", "range sd (um)",
-              "bearing sd (mdeg)", "fused max |range err| (um)", "fused max |bearing err| (mdeg)", "classes",
-              "echo models"]
+              "bearing sd (mdeg)", "range sd / reported", "bearing sd / reported", "fused max |range err| (um)",
+              "fused max |bearing err| (mdeg)", "classes", "echo models"]
     rows = []
     for s in positions:
         rows.append([s["kind"], s["range_m"], s["bearing_deg"], f"{s['detected']}/{s['n_pings']}", s["compared"],
                      s["range_bias_m"] * 1e6, 2 * s["range_bias_se_m"] * 1e6, s["bearing_bias_deg"] * 1e3,
                      2 * s["bearing_bias_se_deg"] * 1e3, s["range_normalised_variance"],
                      s["bearing_normalised_variance"], s["range_scatter_m"] * 1e6, s["bearing_scatter_deg"] * 1e3,
+                     s["range_scatter_to_reported"], s["bearing_scatter_to_reported"],
                      s["fused_range_max_abs_error_m"] * 1e6, s["fused_bearing_max_abs_error_deg"] * 1e3,
                      ", ".join(f"{k} {v}" for k, v in s["classes"].items()),
                      ", ".join(f"{k} {v}" for k, v in s["echo_models"].items())])
-    report.add_section(f"{n_pings} pings per position at 2E/N0 = {snr_db:g} dB; fused groups of {group} pings. "
+    report.add_section(f"{n_pings} pings per position at 2E/N0 = {snr_db:g} dB; fused groups of {group} pings; "
+                       f"{'beam-aware timing (the default)' if beam else 'plain matched-filter times (--no-beam)'}. "
                        "+/- is twice the bias's standard error. The statistics are over the pings classified "
                        f"{', '.join(COMPARABLE_CLASSES)} (\"compared\"; see \"classes\" for the others). Issue 19's criteria: |bias| within 50 um and 20 mdeg "
                        f"({passed['bias']} of {len(positions)} positions), var(e/sd) within 1 +/- 0.2 for range and "

@@ -30,9 +30,9 @@ The threshold detector is the seed's: a preset level and an offset calibrated on
 (``calibrate_threshold``).
 
 ``BEAM_MATCHED`` ("beam-matched") is the matched filter's echoes refined by binsonar's
-beam-aware TOF estimator (``binsonar.localization.beam_refine``): the harness hands binsonar the
-simulated head's piston diameter (``beam_transducers``: what a real user reads in the V318's
-datasheet; the recording format carries none) and the target class (``beam_config``: a vertical
+beam-aware TOF estimator (``binsonar.localization.beam_refine``) with the beams and the baseline
+the recording's array description gives (``recording_array``: the simulated head's pistons, as
+the simulator writes them into every recording) and the target class (``beam_config``: a vertical
 edge, a rigid 60-degree wedge facing the sonar). Its CPU time includes the matched filter's pass.
 
 The deterministic part: every repeat of a position has the same echo and only new noise, so
@@ -238,15 +238,16 @@ def nearest_echoes(result: Any, truth_tof_s: Any) -> tuple[Any, Any, Any]:
     return out[0], out[1], out[2]
 
 
-def beam_transducers(sonar: Any) -> Any:
-    """binsonar's description of the simulated head's pistons: three of ``sonar.transducer_diameter_m`` on the boresight.
+def recording_array(recording: Any) -> tuple[float, Any]:
+    """What binsonar learns from the recording about its head: half the left-right baseline (m,
+    from its channel positions) and the beams (``recording.array.transducers()``: the simulated
+    head's pistons, as the simulator describes them in every recording; None without a
+    description)."""
+    from binsonar.localization.array_geometry import ArrayGeometry
 
-    What a user of the real head would take from the V318's datasheet; the recording carries no
-    transducer description, so the harness hands it over.
-    """
-    from binsonar.localization.beam_model import PistonTransducers
-
-    return PistonTransducers.uniform(float(sonar.transducer_diameter_m), (0.0, 1.0, 0.0), 1)
+    half_baseline = ArrayGeometry.from_channel_positions(recording.channel_positions_m).half_baseline_m
+    array = getattr(recording, "array", None)
+    return half_baseline, (array.transducers() if array is not None else None)
 
 
 def beam_config() -> Any:
@@ -285,7 +286,7 @@ def noise_free_errors(recording: Any, clean: Any, detectors: tuple[str, ...], tr
     """Errors of each detector (except the threshold detector, whose threshold needs noise) on a noise-free record.
 
     ``BEAM_MATCHED`` refines the matched filter's echoes nearest the truth with ``transducers``
-    (``beam_transducers``).
+    (``recording_array``).
 
     Returns
     -------
@@ -598,8 +599,6 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     scene, sonar, truth, truth_tof, gate = position_setup(range_m, bearing_deg)
     c = float(scene.medium.sound_speed)
     start_s, stop_s = gate[0], gate[1] - TEMPLATE_S
-    half_baseline = float(sonar.separation_m)
-    transducers = beam_transducers(sonar)
     fresh = bool(p.get("fresh_reverberation", False)) and bool(p.get("reverberation", True))
     diffuse_seeds = ([int(v) for v in np.random.SeedSequence([trial.seed, 1]).generate_state(repeats, dtype=np.uint32)]
                      if fresh else [int(p.get("diffuse_seed", 0))])
@@ -636,6 +635,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
         sim_cpu_s += time.process_time() - cpu
         recording = gate_recording(sim.recording, *gate)
         if k == 0:
+            half_baseline, transducers = recording_array(sim.recording)
             noise_free: dict[str, Any] = {}
             masks = path_subsets(paths)
             for part in NOISE_FREE_PARTS:

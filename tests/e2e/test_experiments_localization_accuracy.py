@@ -49,3 +49,21 @@ def test_posts_and_edges_are_unbiased_with_honest_stds(tmp_path: Path) -> None:
     assert edge["echo_models"].get("vertical-edge", 0) > 0.8 * N_PINGS
     assert post["echo_models"].get("point", 0) > 0.6 * N_PINGS
     assert math.isfinite(payload["wall_s"])
+
+
+def test_no_beam_runs_the_same_pings_with_plain_times(tmp_path: Path) -> None:
+    # The "before" of issue 19's table: the same seed's pings through LocalizationConfig(beam=False).
+    module = experiment_module("localization-accuracy")
+    payloads = {}
+    for no_beam in (False, True):
+        config = ExperimentConfig(name="localization-accuracy", out_dir=tmp_path / str(no_beam), seed=5, trials=4,
+                                  workers=1, progress=False,
+                                  options={"kinds": ["post"], "ranges": [0.5], "bearings": [0.0], "fuse_pings": 2,
+                                           "no_beam": no_beam})
+        payloads[no_beam] = json.loads(Path(module.run(config).write()["results"]).read_text())
+    beam, plain = payloads[False], payloads[True]
+    assert beam["beam"] is True and plain["beam"] is False
+    assert beam["raw"][0]["beam"].startswith("pistons") and set(plain["raw"][0]["echo_model"]) == {""}
+    assert set(beam["raw"][0]["echo_model"]) <= {"point", "vertical-edge"}
+    # Each position reports the ratio of the errors' scatter to the reported std.
+    assert all(math.isfinite(p["range_scatter_to_reported"]) for p in beam["positions"] + plain["positions"])
