@@ -8,7 +8,9 @@ Steps (``run_demo``):
    digitiser with a trigger delay would, and hand binsonar the ``Recording`` only, as a file
    would give it (no truth): ``binsonar.localization.localize(recording, method=...,
    average=True)`` averages the pings (seed eq. 4.33), detects every echo and localises and
-   classifies the reflectors.
+   classifies the reflectors, timing each target's echoes with the beams the recording's array
+   description gives (the simulated head's 19 mm pistons, written by ``simulate``; nothing is
+   handed over besides the recording).
 3. Attribute every localised target's echoes to ground-truth arrivals (``labels``; an echo of an
    elastic object by its own ring: its unresolved internal arrivals, within a pulse length, are
    the echo, a resolved one is named, e.g. "post-1 (compressional through the diameter)"),
@@ -245,6 +247,7 @@ def run_demo(config: DemoConfig, out_dir: Path | str, *, figures: bool = True) -
         "sonar_position_m": list(sonar.position_m), "sonar_yaw_deg": sonar.yaw_deg,
         "noise": "the receiver chain's default noise (no --snr-db); binsonar averages the pings",
         "sound_speed_m_s": result.sound_speed_m_s,
+        "beam": result.beam,
     }
     demo = DemoResult(rows, extra, settings, timings, accepted=accepted)
     if figures:
@@ -313,10 +316,30 @@ def format_table(demo: DemoResult) -> str:
                   + "".join(f"; {e['label']} at {_num(e['range_m'], 1, '.4f')} m" for e in ringing)]
     lines += ["", f"{s['scene']}: {s['pings_averaged']} pings averaged by binsonar, method {s['method']}, "
                   f"default receiver noise, blanking {s['blanking_s'] * 1e6:.0f} us, seed {s['seed']}; "
+                  f"beam-aware timing: {s.get('beam', 'off')}; "
                   f"every localisable edge and post within 1 mm / 0.1 deg: {'yes' if demo.accepted else 'NO'}"]
     sds = [r["estimate"]["bearing_std_deg"] for r in demo.objects
            if r["estimate"] is not None and r["kind"] in ACCEPT_KINDS and math.isfinite(r["estimate"]["bearing_std_deg"])]
     if sds:
         lines.append(f"bearing sd of the edge and posts up to {max(sds):.3f} deg (Cramer-Rao bound at the estimated SNR "
                      f"after averaging): 0.1 deg is {0.1 / max(sds):.1f} sd; the sd falls as 1/sqrt(--pings)")
+    return "\n".join(lines)
+
+
+def readme_table(demo: DemoResult) -> str:
+    """The README's table of the demo's objects (markdown): truth and estimated class, range and
+    bearing with error and sd, or why an object is not localisable."""
+    lines = ["| object | class (truth / est.) | range (m) | error (mm) | sd (mm) | bearing (deg) | error (deg) | sd (deg) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in demo.objects:
+        e = r["estimate"]
+        if e is None:
+            why = ("not found" if r["localisable"] else
+                   "not localisable from this pose (no echo path to the "
+                   + " and ".join(CHANNEL_LABELS[c] for c in (0, 2) if c not in r["heard_by"]) + " receiver)")
+            lines.append(f"| {r['object']} | {r['class_truth']} / - | {r['truth_range_m']:.4f} | {why} | | | | |")
+            continue
+        lines.append(f"| {r['object']} | {r['class_truth']} / {e['class']} | {r['truth_range_m']:.4f} | "
+                     f"{_num(r['range_error_m'], 1e3)} | {_num(e['range_std_m'], 1e3)} | {r['truth_bearing_deg']:.3f} | "
+                     f"{_num(r['bearing_error_deg'])} | {_num(e['bearing_std_deg'])} |")
     return "\n".join(lines)

@@ -96,11 +96,16 @@ def _renumbered(result: "DetectionResult", first_ping: int) -> tuple[tuple[tuple
     )
 
 
+RangeStep = Callable[["DetectionResult", Recording, int], None]
+"""Called with each range's detections, its recording and its first ping's index (the averaged
+ping: the one averaged recording and 0), while the range's samples are in memory."""
+
+
 def detect_chunks(source: PingSource, method: str, *, average: bool | None = None, on_clipped: str = "flag",
-                  refine: Refinement | None = None, max_bytes: int = CHUNK_BYTES,
+                  refine: Refinement | None = None, max_bytes: int = CHUNK_BYTES, each: RangeStep | None = None,
                   **arguments: Any) -> tuple["DetectionResult", NDArray[np.float64] | None]:
     """``detect_source``'s detections, and every ping's pose ((n_pings, 6), or None when the
-    source has none)."""
+    source has none); ``each`` is called on every range (``RangeStep``)."""
     from binsonar.detection import Detector, detect
     from binsonar.detection.echo import DetectionResult
 
@@ -110,7 +115,11 @@ def detect_chunks(source: PingSource, method: str, *, average: bool | None = Non
         if source.header.stores_codes:
             arguments.setdefault("adc_step_v", source.header.volts_per_code)
         result = detect(averaged, method, average=average, on_clipped=on_clipped, **arguments)
-        return (result if refine is None else refine(result, averaged)), poses
+        if refine is not None:
+            result = refine(result, averaged)
+        if each is not None:
+            each(result, averaged, 0)
+        return result, poses
     detector = Detector()
     echoes: list[Any] = []
     clipped: list[Any] = []
@@ -128,6 +137,8 @@ def detect_chunks(source: PingSource, method: str, *, average: bool | None = Non
                                  f"({int(flags.sum())} clipped channel(s) in pings {start}-{start + chunk.n_pings - 1})")
         if refine is not None:
             result = refine(result, chunk)
+        if each is not None:
+            each(result, chunk, start)
         echoes.extend(_renumbered(result, start))
         clipped.extend(result.clipped)
         elapsed += result.elapsed_s
@@ -182,11 +193,16 @@ def _poses(source: PingSource, max_bytes: int) -> NDArray[np.float64] | None:
 
 def localize_source(source: PingSource, *, method: str = "ca-cfar", sound_speed_m_s: float | None = None,
                     config: "LocalizationConfig | None" = None, refine: Refinement | None = None,
-                    max_bytes: int = CHUNK_BYTES, **detect_options: Any) -> "LocalizationResult":
-    """``binsonar.localization.localize`` of every ping of ``source``, detected range by range.
+                    max_bytes: int = CHUNK_BYTES, transducers: Any = None,
+                    **detect_options: Any) -> "LocalizationResult":
+    """``binsonar.localization.localize`` of every ping of ``source``, range of pings by range of pings.
 
     The geometry is the source's channel positions, the poses its ``/pose``, the sound speed its
-    own (else ``sound_speed_m_s``), the CRLB's bandwidth its template's.
+    own (else ``sound_speed_m_s``), the CRLB's bandwidth its template's. Each range's pings are
+    localised while their samples are in memory (``detect_chunks``' ``each``), so the beam-aware
+    refinement (``config.beam``, with the source's array description or ``transducers``) runs
+    on them; the targets are fused across all pings at the end. Methods that average the pings
+    localise the one averaged ping (whose pings must share one pose).
 
     Raises
     ------
@@ -194,27 +210,55 @@ def localize_source(source: PingSource, *, method: str = "ca-cfar", sound_speed_
         No sound speed, bad data, or a localisation error (one line naming the file).
     """
     from binsonar.bounds import rms_bandwidth_hz
-    from binsonar.localization.pipeline import localize
+    from binsonar.localization.array_geometry import ArrayGeometry
+    from binsonar.localization.pipeline import (
+        LocalizationConfig, LocalizationError, LocalizationResult, beam_setup, fuse_pings, localize_detections,
+        pose_array)
 
     header = source.header
+    where = source.source
+    cfg = config or LocalizationConfig()
     c = header.sound_speed_m_s
     c_source = "recording"
     if c is None:
         c, c_source = sound_speed_m_s, "argument"
     if c is None:
-        raise RecordingError(f"{source.source}: no sound speed (the recording has no /environment sound_speed_m_s): "
+        raise RecordingError(f"{where}: no sound speed (the recording has no /environment sound_speed_m_s): "
                              "pass sound_speed_m_s (--sound-speed)")
     if not (math.isfinite(c) and 1000.0 < c < 2000.0):
-        raise RecordingError(f"{source.source}: sound_speed_m_s out of range (1000-2000 m/s): {c!r}")
-    detections, poses = detect_chunks(source, method, refine=refine, max_bytes=max_bytes, **detect_options)
+        raise RecordingError(f"{where}: sound_speed_m_s out of range (1000-2000 m/s): {c!r}")
+    c = float(c)
+    try:
+        geometry = ArrayGeometry.from_channel_positions(header.channel_positions_m)
+    except ValueError as exc:
+        raise LocalizationError(f"{where}: {exc}") from None
     bandwidth = None
     if header.template is not None:
         bandwidth = rms_bandwidth_hz(header.template.samples, header.template.sample_rate_hz)
-    try:
-        result = localize(detections, sound_speed_m_s=float(c), channel_positions_m=header.channel_positions_m,
-                          pose=poses, rms_bandwidth_hz=bandwidth, config=config)
-    except RecordingError as exc:
-        message = str(exc)
-        raise RecordingError(message.replace("localize:", f"{source.source}:", 1)
-                             if message.startswith("localize:") else message) from None
-    return replace(result, sound_speed_source=c_source, source=header.source)
+    setup, beam = beam_setup(header, c, cfg, transducers)
+    per_ping: list[Any] = []
+    unassociated: list[int] = []
+    averaged = averages_pings(method, detect_options.get("average"))
+
+    def localize_range(result: "DetectionResult", chunk: Recording, first_ping: int) -> None:
+        poses = None if averaged else pose_array(chunk.pose, result.n_pings, where)
+        waveforms = None if setup is None else np.asarray(chunk.waveforms, dtype=float)
+        try:
+            targets, left_out = localize_detections(result, geometry, c, config=cfg, rms_bandwidth_hz=bandwidth,
+                                                    poses=poses, waveforms=waveforms, setup=setup,
+                                                    first_ping=first_ping)
+        except RecordingError as exc:
+            message = str(exc)
+            raise RecordingError(message.replace("localize:", f"{where}:", 1)
+                                 if message.startswith("localize:") else message) from None
+        per_ping.extend(targets)
+        unassociated.extend(left_out)
+
+    detections, poses = detect_chunks(source, method, refine=refine, max_bytes=max_bytes, each=localize_range,
+                                      **detect_options)
+    pose_arr = pose_array(poses, detections.n_pings, where)
+    if averaged and pose_arr is not None:  # the one averaged ping's targets in the tank frame
+        per_ping = [tuple(t.with_pose(pose_arr[0]) for t in per_ping[0])]
+    fused = fuse_pings(per_ping, geometry, cfg, pose_arr is not None)
+    return LocalizationResult(tuple(per_ping), fused, detections.method, c, c_source, geometry, tuple(unassociated),
+                              header.source, pose_arr, beam)

@@ -63,7 +63,7 @@ def measure_group(trial: Trial) -> dict[str, Any]:
     from acoustisim.experiments.gating import range_window_s
     from acoustisim.experiments.geometry import pose_for_target
     from acoustisim.experiments.edge_scene import EDGE_M, GATE_HALF_WIDTH_M, edge_tank_scene, solver_config
-    from acoustisim.experiments.sweep_detectors import estimate_point
+    from acoustisim.experiments.sweep_detectors import estimate_point, recording_array
     from acoustisim.experiments.truth import object_truth
     from acoustisim.simulation import simulate
     from binsonar.detection import detect
@@ -86,6 +86,7 @@ def measure_group(trial: Trial) -> dict[str, Any]:
     simulate_s = time.perf_counter() - t
     simulate_cpu_s = time.process_time() - cpu
     recording = sim.recording
+    half_baseline, _ = recording_array(recording)  # the baseline the recording describes
     out: dict[str, Any] = {"range_m": range_m, "bearing_deg": bearing_deg, "n_pings": n_pings,
                            "truth_range_m": truth.range_m, "truth_bearing_deg": truth.bearing_deg,
                            "simulate_s": simulate_s, "simulate_cpu_s": simulate_cpu_s,
@@ -104,7 +105,7 @@ def measure_group(trial: Trial) -> dict[str, Any]:
         elapsed = float(np.median(wall_runs))
         errors, bearing_errors = [], []
         for ping in range(result.n_pings):
-            r, b = estimate_point(result.first(ping), c, float(sonar.separation_m))
+            r, b = estimate_point(result.first(ping), c, half_baseline)
             errors.append(r - truth.range_m)
             bearing_errors.append(b - truth.bearing_deg)
         out["methods"][method] = {

@@ -52,7 +52,7 @@ def noise_free_errors(recording: Any, clean: Any, detectors: tuple[str, ...], tr
     """Errors of each detector (except the threshold detector, whose threshold needs noise) on a noise-free record.
 
     ``BEAM_MATCHED`` refines the matched filter's echoes nearest the truth with ``transducers``
-    (``sweep_detectors.beam_transducers``).
+    (``sweep_detectors.recording_array``).
 
     Parameters
     ----------

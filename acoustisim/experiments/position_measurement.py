@@ -33,7 +33,7 @@ from acoustisim.experiments.sweep_detectors import (
     DETECTORS,
     DetectorMeasurement,
     PointGeometry,
-    beam_transducers,
+    recording_array,
     measure_detectors,
 )
 
@@ -206,9 +206,7 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     settings = MeasurementSettings.from_trial(trial)
     position = position_setup(settings.range_m, settings.bearing_deg)
     scene, sonar, truth = position.scene, position.sonar, position.truth
-    c, half_baseline = position.sound_speed_m_s, float(sonar.separation_m)
-    geometry = PointGeometry(c, half_baseline, truth.range_m, truth.bearing_deg)
-    transducers = beam_transducers(sonar)
+    c = position.sound_speed_m_s
     solving, simulating = Stopwatch(), Stopwatch()
     paths, synthesiser = solving.time(lambda: (solve(scene, sonar, settings.solver_config(0)),
                                                PingSynthesiser.create(sonar, scene.medium)))
@@ -225,7 +223,9 @@ def measure_position(trial: Trial) -> dict[str, Any]:
             paths = solving.time(lambda: solve(scene, sonar, settings.solver_config(k)))
         sim = simulating.time(lambda: _simulate(position, paths, synthesiser, int(seeds[k]), settings.n_pings))
         recording = gate_recording(sim.recording, *position.gate)
-        if k == 0:  # the bias decomposition and the bound, from the first repeat
+        if k == 0:  # the head from the recording; the bias decomposition and the bound
+            half_baseline, transducers = recording_array(sim.recording)
+            geometry = PointGeometry(c, half_baseline, truth.range_m, truth.bearing_deg)
             records = noise_free_records(position, paths, synthesiser, sim.clean)
             out["noise_free"] = {part: bias(sim.recording, records[part]) for part in NOISE_FREE_PARTS}
             span = _gated_span(sim.recording, recording)

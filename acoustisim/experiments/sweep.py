@@ -62,9 +62,9 @@ BIAS_NOTE = (
 
 BEAM_NOTE = (
     "Beam-aware matched filter (`beam-matched`): the matched filter's echoes refined by binsonar's beam-aware TOF "
-    "estimator (`binsonar.localization.beam_refine`), which is told what a user of the real head knows: the pistons' "
-    "diameter (19 mm, the V318's datasheet; the recording carries none, so the harness hands "
-    "`sonar.transducer_diameter_m` over) and the target class (a vertical edge, a rigid 60-degree wedge facing the "
+    "estimator (`binsonar.localization.beam_refine`), which takes the pistons (19 mm, the V318's) and the baseline "
+    "from the recording's array description (`recording.array.transducers()`, written by the simulator into every "
+    "recording) and is told the target class (a vertical edge, a rigid 60-degree wedge facing the "
     "sonar). From a first localisation it builds per channel the echo the pistons receive from the edge (the "
     "template filtered per frequency by the beam-weighted Biot-Tolstoy-Medwin line integral along the edge, "
     "D_tx(f, theta_tx(z)) D_rx(f, theta_rx(z)) beta(z) / (m l) at delay tau(z)) and takes the maximum of the "

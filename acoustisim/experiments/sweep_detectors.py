@@ -6,9 +6,9 @@ and the seed's exact point solution (eqs. 4.30 and the corrected 4.31,
 (``binsonar.estimation.point_bound``).
 
 ``BEAM_MATCHED`` ("beam-matched") is the matched filter's echoes refined by binsonar's
-beam-aware TOF estimator (``binsonar.localization.beam_refine``): the harness hands binsonar the
-simulated head's piston diameter (``beam_transducers``: what a real user reads in the V318's
-datasheet; the recording format carries none) and the target class (``beam_config``: a vertical
+beam-aware TOF estimator (``binsonar.localization.beam_refine``) with the beams and the baseline
+the recording's array description gives (``recording_array``: the simulated head's pistons, as
+the simulator writes them into every recording) and the target class (``beam_config``: a vertical
 edge, a rigid 60-degree wedge facing the sonar). Its CPU time includes the matched filter's pass,
 which it shares with the "matched" row when both run.
 """
@@ -66,15 +66,16 @@ def nearest_echoes(result: Any, truth_tof_s: Any) -> tuple[Any, Any, Any]:
     return out[0], out[1], out[2]
 
 
-def beam_transducers(sonar: Any) -> Any:
-    """binsonar's description of the simulated head's pistons: three of ``sonar.transducer_diameter_m`` on the boresight.
+def recording_array(recording: Any) -> tuple[float, Any]:
+    """What binsonar learns from the recording about its head: half the left-right baseline (m,
+    from its channel positions) and the beams (``recording.array.transducers()``: the simulated
+    head's pistons, as the simulator describes them in every recording; None without a
+    description)."""
+    from binsonar.localization.array_geometry import ArrayGeometry
 
-    What a user of the real head would take from the V318's datasheet; the recording carries no
-    transducer description, so the harness hands it over.
-    """
-    from binsonar.localization.beam_model import PistonTransducers
-
-    return PistonTransducers.uniform(float(sonar.transducer_diameter_m), (0.0, 1.0, 0.0), 1)
+    half_baseline = ArrayGeometry.from_channel_positions(recording.channel_positions_m).half_baseline_m
+    array = getattr(recording, "array", None)
+    return half_baseline, (array.transducers() if array is not None else None)
 
 
 def beam_config() -> Any:
@@ -148,7 +149,7 @@ def measure_detectors(recording: Any, detectors: tuple[str, ...], geometry: Poin
         binsonar methods or ``BEAM_MATCHED``.
     geometry : PointGeometry
     transducers : PistonTransducers
-        For ``BEAM_MATCHED`` (``beam_transducers``).
+        For ``BEAM_MATCHED`` (``recording_array``).
     threshold_options : dict
         Options of the "threshold" detector (the sweep's calibrated level and amplitude), or {}.
     """

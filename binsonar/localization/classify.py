@@ -35,7 +35,7 @@ def fits_within_noise(fit: ModelFit | None, alpha: float) -> bool:
 
 
 def classify(point: ModelFit | None, circle: ModelFit | None, plane: ModelFit | None,
-             alpha: float = 0.01) -> tuple[str, str]:
+             alpha: float = 0.01, prefer: str | None = None) -> tuple[str, str]:
     """Class of a target from its model fits.
 
     Parameters
@@ -44,6 +44,10 @@ def classify(point: ModelFit | None, circle: ModelFit | None, plane: ModelFit | 
         The fits (None when not attempted).
     alpha : float
         Significance of the tests (probability of rejecting a true model).
+    prefer : {"point", "plane"}, optional
+        The class other evidence supports (the echo's shape: a sharp edge's diffraction is a
+        point, ``beam_targets``), taken when point and plane both fit; otherwise the smaller
+        chi2 decides.
 
     Returns
     -------
@@ -66,6 +70,9 @@ def classify(point: ModelFit | None, circle: ModelFit | None, plane: ModelFit | 
     if simple:
         best = min(simple, key=lambda k: simple[k].chi2)
         if len(simple) > 1:
+            if prefer in simple:
+                return str(prefer), (f"ambiguous: point and plane both fit (chi2 {_chi2s(point, circle, plane)}); "
+                                     f"{prefer} by the echo's shape")
             return best, f"ambiguous: point and plane both fit (chi2 {_chi2s(point, circle, plane)})"
         return best, f"{best} fits within noise (chi2 {_chi2s(point, circle, plane)})"
     return UNKNOWN, f"no model fits within noise (chi2 {_chi2s(point, circle, plane)})"

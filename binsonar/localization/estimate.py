@@ -71,6 +71,7 @@ def target_from_path_lengths(
     ping: int = 0,
     echoes: tuple[Echo | None, ...] = (None, None, None),
     config: EstimationConfig | None = None,
+    prefer: str | None = None,
 ) -> tg.Target:
     """Fit the point, circle and plane models to one reflector's path lengths and classify it.
 
@@ -85,6 +86,8 @@ def target_from_path_lengths(
     ping : int
     echoes : tuple of 3 (Echo or None)
     config : EstimationConfig, optional
+    prefer : {"point", "plane"}, optional
+        The class to take when point and plane both fit (``classify``).
 
     Returns
     -------
@@ -120,7 +123,7 @@ def target_from_path_lengths(
         circle = fit_circle(L, s, geometry)
         plane = fit_plane(L, s, geometry)
         fits += [circle, plane]
-    cls, reason = classify(point, circle, plane, cfg.alpha)
+    cls, reason = classify(point, circle, plane, cfg.alpha, prefer)
     messages = [reason]
     status = tg.STATUS_OK
     t = geometry.transmitter_m

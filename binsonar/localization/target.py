@@ -80,6 +80,9 @@ class Target:
         ``position_head_m`` in the tank frame when the pose is known.
     covariance_tank : ndarray, shape (3, 3), or None
         Its covariance (m^2).
+    echo_model : str
+        The expected echo the echoes were timed with: "point" or "vertical-edge" (beam-aware,
+        ``beam_targets``), "" for the plain matched filter's times.
     """
 
     ping: int
@@ -101,6 +104,7 @@ class Target:
     pose: NDArray[np.float64] | None = field(default=None, repr=False)
     position_tank_m: NDArray[np.float64] | None = field(default=None, repr=False)
     covariance_tank: NDArray[np.float64] | None = field(default=None, repr=False)
+    echo_model: str = ""
 
     def __post_init__(self) -> None:
         for name in ("position_head_m", "covariance", "path_lengths_m", "path_length_std_m"):
@@ -158,5 +162,7 @@ class Target:
             "path_lengths_m": vec(self.path_lengths_m),
             "path_length_std_m": vec(self.path_length_std_m),
             "tof_s": [None if e is None else float(e.tof_s) for e in self.echoes],
+            "tof_std_s": [None if e is None else num(float(e.tof_std_s)) for e in self.echoes],
+            "echo_model": self.echo_model or None,
         }
         return out

@@ -71,3 +71,18 @@ def test_recording_array_geometry_is_used(tmp_path, capsys):
     # d'^2 / (8 r) = 2 mm plus noise), and the side-only point is off.
     assert len(t) == 1 and t[0]["status"] == "no-centre-echo"
     assert abs(t[0]["position_head_m"][1] - 1.0) > 1e-3
+
+
+def test_localize_beam_switch_and_pfa(tmp_path, capsys):
+    # The synthetic recording has no array description: the times stay plain and the JSON says so.
+    path = _write(tmp_path)
+    assert main(["localize", str(path), "--json", "--pfa", "1e-4"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["beam_aware"] is False and out["beam"].startswith("off")
+    assert out["pings"][0]["targets"][0]["echo_model"] is None
+    assert main(["localize", str(path), "--no-beam"]) == 0
+    assert "beam-aware timing: off" in capsys.readouterr().out
+    for bad in (["--pfa", "0"], ["--pfa", "nan"], ["--tof-floor-ns", "1e9"]):
+        assert main(["localize", str(path), *bad]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and bad[0] in err

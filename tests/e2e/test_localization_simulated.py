@@ -29,10 +29,13 @@ def test_free_plane_is_a_plane_at_one_metre():
     assert len(res.targets[0]) == 1
     t = res.targets[0][0]
     assert t.cls == "plane"
-    # The wall is 1 m ahead on the boresight. Detector bias on this scene is ~30-70 um of path (see
-    # LocalizationConfig.tof_floor_s): 0.2 mm in range; bearing within 3 reported stds.
-    assert t.range_m == pytest.approx(1.0, abs=2e-4)
-    assert abs(t.bearing_deg) < 3 * t.bearing_std_deg + 1e-3
+    # The simulator writes the head's pistons into the recording: the echoes are timed with them
+    # (a wall reflects specularly: the point model's echo at its specular points).
+    assert res.beam_aware and t.echo_model == "point"
+    # The wall is 1 m ahead on the boresight: the range within 4 reported stds of it (about 15 um
+    # at 30 dB; the circle and the plane share the centre channel's path), the bearing within 4.
+    assert abs(t.range_m - 1.0) < 4 * t.range_std_m
+    assert abs(t.bearing_deg) < 4 * t.bearing_std_deg
 
 
 @pytest.mark.slow

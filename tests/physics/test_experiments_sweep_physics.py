@@ -118,7 +118,7 @@ def test_beam_aware_refinement_removes_the_beam_bias_of_the_simulated_edge(range
     # averaged pings.
     from acoustisim.experiments.gating import gate_recording
     from acoustisim.experiments.edge_scene import position_setup
-    from acoustisim.experiments.sweep_detectors import beam_matched_echoes, beam_transducers
+    from acoustisim.experiments.sweep_detectors import beam_matched_echoes, recording_array
     from acoustisim.propagation import solve
     from acoustisim.propagation.paths import PathKind, Paths
     from acoustisim.simulation import simulate
@@ -133,7 +133,9 @@ def test_beam_aware_refinement_removes_the_beam_bias_of_the_simulated_edge(range
     record = gate_recording(replace(sim.recording, waveforms=np.asarray(sim.clean)[np.newaxis]), *gate)
     matched = detect(record, "matched")
     plain = np.array([e.tof_s for e in matched.first(0)]) - truth
-    refined = beam_matched_echoes(record, matched.first(0), beam_transducers(sonar), float(scene.medium.sound_speed))
+    _, transducers = recording_array(record)  # the simulated head's pistons, from the recording
+    assert transducers.diameters_m == (sonar.transducer_diameter_m,) * 3
+    refined = beam_matched_echoes(record, matched.first(0), transducers, float(scene.medium.sound_speed))
     error = np.array([e.tof_s for e in refined]) - truth
     assert np.all(plain < -5e-9)
     assert np.max(np.abs(error)) < 1e-9

@@ -81,3 +81,23 @@ def test_huge_tof_stds_do_not_overflow():
     lengths, _ = _ping(np.array([[0.1, 1.2, 0.0]]), rng)
     groups = associate(lengths, [np.full(1, 1e200)] * 3, G)
     assert len(groups) == 1 and groups[0].centre is not None
+
+
+def test_centre_echo_with_one_side_is_paired_only_on_request():
+    # A weak target seen by the centre and right receivers only (the left near its null) next to
+    # a strong one seen by all three: with centre_side_pairs the centre echo left over is paired
+    # with the right echo left over (|L_right - L_centre| <= d by the triangle inequality), never
+    # with an echo beyond that.
+    rng = np.random.default_rng(3)
+    lengths, per = _ping(np.array([[0.1, 1.3, 0.0], [0.2, 1.39, 0.0]]), rng)
+    lengths[0] = np.array([per[1, 0]])          # the weak target (index 0) missing on the left
+    lengths[2] = np.sort(np.append(lengths[2], 1.0))  # and an unrelated right echo far from it
+    sigmas = [np.full(lengths[c].size, SIG) for c in range(3)]
+    plain = associate(lengths, sigmas, G)
+    assert [(g.left is None, g.centre is None, g.right is None) for g in plain] == [(False, False, False)]
+    paired = associate(lengths, sigmas, G, centre_side_pairs=True)
+    assert len(paired) == 2
+    weak = next(g for g in paired if g.left is None)
+    assert lengths[1][weak.centre] == pytest.approx(per[0, 1]) and lengths[2][weak.right] == pytest.approx(per[0, 2])
+    # The pairs come after the triple they must not take echoes from, sorted by path length.
+    assert [g.left is None for g in paired] == [True, False]
