@@ -25,16 +25,26 @@ and without the elastic-echo step (``SolverConfig.elastic_echoes``), interleaved
 The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``)
 is timed against the fast engine's in the same run.
 
+The default configuration (every mechanism on) is broken down, interleaved: the default
+deterministic solve; without the elastic-echo step; without the chains through two curved
+objects (``max_curved_per_path = 1``); without both; and without both on the scene with the
+``fluid`` reflection model (the like-for-like set-up below); with the goal of 50 ms CPU.
+
 The per-pose figures include ``specular_rows`` alone (the specular solve without the solver's
-direct rows, checks and assembly). ``--before-tree DIR`` (an older checkout's root, holding its
+direct rows, checks and assembly), and the deterministic paths with the amplitude floor on
+(``both floored``: the default -80 dB). ``--before-tree DIR`` (an older checkout's root, holding its
 ``acoustisim`` and ``scenes``, e.g. ``git archive b6e1281 acoustisim scenes | tar -x -C
 /tmp/before``) adds a same-run A/B of the per-pose figures: this script is run on that tree and
 on this one in alternating subprocesses (``--rounds`` each, ``PYTHONPATH`` set to the tree), and
-the medians over the rounds and their ratios are printed. ``--deterministic-only`` prints only
-the per-pose figures (what the A/B runs).
+the medians over the rounds and their ratios are printed, with whether the two trees' rows
+agree byte for byte in the fields both have. ``--like-for-like`` makes the per-pose figures
+(and the A/B) compute what an older tree computes (:mod:`same_work`): the chains through two
+curved objects and the elastic echoes off, the built-in solids on the ``fluid`` reflection
+model. ``--deterministic-only`` prints only the per-pose figures (what the A/B runs), the default
+configuration's breakdown and the reference engine's figure.
 
 Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]
-[--before-tree DIR [--rounds R]] [--deterministic-only]``
+[--before-tree DIR [--rounds R]] [--like-for-like] [--deterministic-only]``
 (``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine; the A/B adds about 10 s
 per round and tree).
 """
@@ -43,13 +53,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from same_work import (alternating_runs, common_fields_verdict, field_digests, fluid_reflection_scene, solver_config,
+                       tree_root)
 
 _FIGURES = {
     "specular_rows": "specular_rows alone (no solve overhead)",
@@ -57,6 +68,7 @@ _FIGURES = {
     "specular": "specular only (direct + specular)",
     "edges": "edges only graded edges",
     "both": "both (direct + specular + edges) graded edges",
+    "both floored": "both (direct + specular + edges), amplitude floor -80 dB",
 }
 """The per-pose CPU-time medians compared by ``--before-tree`` (key: label)."""
 
@@ -93,58 +105,85 @@ def _specular_rows_function(max_curved_per_path: int | None = None):
     raise ModuleNotFoundError("no specular_rows in this tree")
 
 
-def _per_pose(prepared, repeats: int, fine: bool) -> dict[str, tuple[float, int]]:
-    """CPU-time medians (s) and row counts per pose of the deterministic solves (``_FIGURES``;
-    with ``fine``, also the edge solves with the fine 1/16-period discretisation, the same-run
-    baseline of the graded one)."""
-    from acoustisim.propagation import SolverConfig, solve
+def _per_pose(prepared, repeats: int, fine: bool, like_for_like: bool = False
+              ) -> dict[str, tuple[float, int, dict[str, str]]]:
+    """CPU-time medians (s), row counts and the rows' :func:`~same_work.field_digests` per pose
+    of the deterministic solves (``_FIGURES``; with ``fine``, also the edge solves with the fine
+    1/16-period discretisation, the same-run baseline of the graded one); ``like_for_like``: the
+    new mechanisms off (:func:`~same_work.solver_config`)."""
+    from acoustisim.propagation import solve
     from acoustisim.propagation.context import SolveContext
 
-    specular_rows = _specular_rows_function()
+    # like for like: one curved reflection per path (an older tree knows no other: its own function)
+    specular_rows = (_specular_rows_function(1) if like_for_like else None) or _specular_rows_function()
     scene = prepared.scene
     context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
+    rows = specular_rows(context, prepared, 3)
     out = {"specular_rows": (_median_time(lambda: specular_rows(context, prepared, 3), repeats, time.process_time),
-                             len(specular_rows(context, prepared, 3)))}
+                             len(rows), field_digests(np.asarray(rows)))}
     one_curved = _specular_rows_function(1)
-    if one_curved is not None:
+    if one_curved is not None and not like_for_like:
+        rows = one_curved(context, prepared, 3)
         out["specular_rows one curved"] = (
-            _median_time(lambda: one_curved(context, prepared, 3), repeats, time.process_time),
-            len(one_curved(context, prepared, 3)))
-    cases = [("specular", ("direct", "specular"), True), ("edges", ("edge",), True),
-             ("both", ("direct", "specular", "edge"), True)]
+            _median_time(lambda: one_curved(context, prepared, 3), repeats, time.process_time), len(rows),
+            field_digests(np.asarray(rows)))
+    cases = [("specular", ("direct", "specular"), True, None), ("edges", ("edge",), True, None),
+             ("both", ("direct", "specular", "edge"), True, None),
+             ("both floored", ("direct", "specular", "edge"), True, -80.0)]
     if fine:
-        cases += [("edges fine", ("edge",), False), ("both fine", ("direct", "specular", "edge"), False)]
-    for key, mechanisms, adaptive in cases:
-        config = SolverConfig(max_order=3, mechanisms=mechanisms, amplitude_floor_db=None, edge_adaptive=adaptive)
-        n_rows = len(solve(prepared, config=config))
-        out[key] = (_median_time(lambda: solve(prepared, config=config), repeats, time.process_time), n_rows)
+        cases += [("edges fine", ("edge",), False, None), ("both fine", ("direct", "specular", "edge"), False, None)]
+    for key, mechanisms, adaptive, floor_db in cases:
+        config = solver_config(like_for_like, max_order=3, mechanisms=mechanisms, amplitude_floor_db=floor_db,
+                               edge_adaptive=adaptive)
+        rows = solve(prepared, config=config).rows
+        out[key] = (_median_time(lambda: solve(prepared, config=config), repeats, time.process_time), rows.size,
+                    field_digests(rows))
     return out
 
 
-def _print_per_pose(prepared, repeats: int, fine: bool) -> None:
+def _print_per_pose(prepared, repeats: int, fine: bool, like_for_like: bool) -> None:
     labels = dict(_FIGURES, **{"edges fine": "edges only fine edges (1/16 period)",
                                "both fine": "both (direct + specular + edges) fine edges (1/16 period)"})
-    print(f"  CPU-time medians per pose over {repeats} (goal < 20 ms for direct + specular + edges):")
-    for key, (cpu, n_rows) in _per_pose(prepared, repeats, fine).items():
+    setup = " like for like (new mechanisms off, fluid reflection)" if like_for_like else ""
+    print(f"  CPU-time medians per pose over {repeats}{setup} (goal < 20 ms for direct + specular + edges):")
+    for key, (cpu, n_rows, _) in _per_pose(prepared, repeats, fine, like_for_like).items():
         print(f"    {labels[key]}: {cpu * 1e3:.2f} ms, {n_rows} rows")
 
 
-def _elastic_step(prepared, repeats: int) -> None:
-    """CPU-time medians of the default deterministic solve (direct + specular + edges, floor on)
-    with and without the elastic-echo step, interleaved (goal: < 50 ms with it)."""
-    from acoustisim.propagation import SolverConfig, solve
+def _default_breakdown(prepared, repeats: int) -> None:
+    """CPU-time medians of the default deterministic solve (direct + specular + edges, floor on),
+    interleaved with it without the elastic-echo step, without the chains through two curved
+    objects, without both, and without both on the ``fluid`` reflection model (goal: < 50 ms)."""
+    from dataclasses import replace
 
-    configs = {on: SolverConfig(mechanisms=("direct", "specular", "edge"), elastic_echoes=on) for on in (True, False)}
-    samples: dict[bool, list[float]] = {True: [], False: []}
+    from acoustisim.propagation import SolverConfig, prepare, solve
+
+    default = SolverConfig(mechanisms=("direct", "specular", "edge"))
+    fluid = prepare(fluid_reflection_scene(prepared.scene))
+    cases = {
+        "all on (default)": (prepared, default),
+        "no elastic echoes": (prepared, replace(default, elastic_echoes=False)),
+        "no two-object chains": (prepared, replace(default, max_curved_per_path=1)),
+        "neither": (prepared, replace(default, elastic_echoes=False, max_curved_per_path=1)),
+        "neither, fluid reflection": (fluid, replace(default, elastic_echoes=False, max_curved_per_path=1)),
+    }
+    samples: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(repeats):
-        for on, config in configs.items():
+        for name, (scene, config) in cases.items():
             start = time.process_time()
-            solve(prepared, config=config)
-            samples[on].append(time.process_time() - start)
-    with_step, without = float(np.median(samples[True])), float(np.median(samples[False]))
-    print(f"  deterministic paths, default settings (floor -80 dB), CPU-time medians over {repeats}: "
-          f"{with_step * 1e3:.2f} ms with the elastic-echo step, {without * 1e3:.2f} ms without "
-          f"(the step {(with_step - without) * 1e3:.2f} ms; goal < 50 ms in all)")
+            solve(scene, config=config)
+            samples[name].append(time.process_time() - start)
+    cpu = {name: float(np.median(values)) for name, values in samples.items()}
+    rows = {name: len(solve(scene, config=config)) for name, (scene, config) in cases.items()}
+    print(f"  deterministic paths, default settings (floor -80 dB), CPU-time medians over {repeats}, interleaved "
+          "(goal < 50 ms with every mechanism on):")
+    for name, value in cpu.items():
+        print(f"    {name}: {value * 1e3:.2f} ms, {rows[name]} rows")
+    base = cpu["all on (default)"]
+    print(f"    the elastic-echo step {(base - cpu['no elastic echoes']) * 1e3:.2f} ms; the two-object chains "
+          f"{(base - cpu['no two-object chains']) * 1e3:.2f} ms; the elastic reflection model "
+          f"{(cpu['neither'] - cpu['neither, fluid reflection']) * 1e3:.2f} ms; total {base * 1e3:.2f} ms = "
+          f"{base / 0.050:.2f} of the 50 ms budget")
 
 
 def _reference_engine(prepared, repeats: int) -> None:
@@ -171,14 +210,10 @@ def _reference_engine(prepared, repeats: int) -> None:
 def _before_and_after(args) -> None:
     """The per-pose figures of ``args.before_tree`` and of this tree, in alternating subprocesses."""
     trees = {"before": str(Path(args.before_tree).resolve()), "now": str(Path(__file__).resolve().parents[1])}
-    runs: dict[str, list[dict[str, list]]] = {name: [] for name in trees}
-    for _ in range(args.rounds):
-        for name, root in trees.items():
-            env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
-            command = [sys.executable, __file__, "--json", "--repeats", str(args.repeats)]
-            result = subprocess.run(command, env=env, cwd=root, capture_output=True, text=True, check=True)
-            runs[name].append(json.loads(result.stdout.strip().splitlines()[-1]))
-    print(f"  A/B against {trees['before']}: per-pose CPU medians, median over {args.rounds} alternating "
+    arguments = ["--json", "--repeats", str(args.repeats)] + (["--like-for-like"] if args.like_for_like else [])
+    runs = alternating_runs(__file__, trees, arguments, args.rounds)
+    setup = ", like for like" if args.like_for_like else ""
+    print(f"  A/B against {trees['before']}{setup}: per-pose CPU medians, median over {args.rounds} alternating "
           f"subprocess rounds of {max(3, args.repeats)} repeats each:")
     for key, label in _FIGURES.items():
         if key not in runs["now"][0]:
@@ -189,8 +224,9 @@ def _before_and_after(args) -> None:
             continue
         before = float(np.median([run[key][0] for run in runs["before"]]))
         rows = (runs["before"][0][key][1], runs["now"][0][key][1])
-        print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, before / now = "
-              f"{before / now:.2f} (rows {rows[0]} / {rows[1]})")
+        print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, now / before = "
+              f"{now / before:.2f} (rows {rows[0]} / {rows[1]}; "
+              f"{common_fields_verdict(runs['before'][0][key][2], runs['now'][0][key][2])})")
 
 
 def _floor_and_columns(prepared, args) -> None:
@@ -277,8 +313,11 @@ def main() -> None:
                         help="an older checkout's root (acoustisim and scenes): same-run A/B of the per-pose figures")
     parser.add_argument("--rounds", type=int, default=3, help="alternating subprocess rounds of --before-tree")
     parser.add_argument("--deterministic-only", action="store_true", help="only the per-pose figures (and the A/B)")
+    parser.add_argument("--like-for-like", action="store_true",
+                        help="per-pose figures without the newer mechanisms, on the fluid reflection model")
     parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    sys.path.insert(0, str(tree_root(__file__)))
 
     import trimesh
 
@@ -292,12 +331,13 @@ def main() -> None:
     start = time.perf_counter()
     prepared = prepare(scene)
     prepare_s = time.perf_counter() - start
+    per_pose = prepare(fluid_reflection_scene(scene)) if args.like_for_like else prepared
     if args.json:  # one side of the --before-tree A/B: the per-pose figures, as JSON
-        print(json.dumps(_per_pose(prepared, max(3, args.repeats), fine=False)))
+        print(json.dumps(_per_pose(per_pose, max(3, args.repeats), fine=False, like_for_like=args.like_for_like)))
         return
     if args.deterministic_only:
-        _print_per_pose(prepared, max(3, args.repeats), fine=False)
-        _elastic_step(prepared, max(3, args.repeats))
+        _print_per_pose(per_pose, max(3, args.repeats), False, args.like_for_like)
+        _default_breakdown(prepared, max(3, args.repeats))
         _reference_engine(prepared, max(3, args.repeats // 3))
         if args.before_tree:
             _before_and_after(args)
@@ -320,8 +360,8 @@ def main() -> None:
           f"{len(paths)} paths; process CPU time median {cpu_specular * 1e3:.2f} ms (less sensitive to other load)")
     print(f"  baseline raw Embree occlusion of {n_legs} segments: median {t_raw * 1e3:.3f} ms "
           f"(solve / baseline = {t_specular / t_raw:.1f})")
-    _print_per_pose(prepared, max(3, args.repeats), fine=True)
-    _elastic_step(prepared, max(3, args.repeats))
+    _print_per_pose(per_pose, max(3, args.repeats), True, args.like_for_like)
+    _default_breakdown(prepared, max(3, args.repeats))
     _reference_engine(prepared, max(3, args.repeats // 3))
     if args.before_tree:
         _before_and_after(args)
