@@ -44,7 +44,7 @@ model. ``--deterministic-only`` prints only the per-pose figures (what the A/B r
 configuration's breakdown and the reference engine's figure.
 
 Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]
-[--before-tree DIR [--rounds R]] [--like-for-like] [--deterministic-only]``
+[--before-tree DIR [--now-tree DIR] [--rounds R]] [--like-for-like] [--deterministic-only]``
 (``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine; the A/B adds about 10 s
 per round and tree).
 """
@@ -59,8 +59,8 @@ from pathlib import Path
 
 import numpy as np
 
-from same_work import (alternating_runs, common_fields_verdict, field_digests, fluid_reflection_scene, solver_config,
-                       tree_root)
+from same_work import (NEW_KNOBS, alternating_runs, common_fields_verdict, field_digests, fluid_reflection_scene,
+                       solver_config, tree_root)
 
 _FIGURES = {
     "specular_rows": "specular_rows alone (no solve overhead)",
@@ -152,21 +152,23 @@ def _print_per_pose(prepared, repeats: int, fine: bool, like_for_like: bool) -> 
 
 def _default_breakdown(prepared, repeats: int) -> None:
     """CPU-time medians of the default deterministic solve (direct + specular + edges, floor on),
-    interleaved with it without the elastic-echo step, without the chains through two curved
-    objects, without both, and without both on the ``fluid`` reflection model (goal: < 50 ms)."""
-    from dataclasses import replace
+    interleaved with it without each new mechanism the tree knows (:data:`~same_work.NEW_KNOBS`:
+    the elastic-echo step, the chains through two curved objects, the shadows), without all of
+    them, and without all of them on the ``fluid`` reflection model (the like-for-like set-up;
+    goal: < 50 ms with every mechanism on)."""
+    from dataclasses import fields, replace
 
     from acoustisim.propagation import SolverConfig, prepare, solve
 
     default = SolverConfig(mechanisms=("direct", "specular", "edge"))
+    known = {item.name for item in fields(SolverConfig)}
     fluid = prepare(fluid_reflection_scene(prepared.scene))
-    cases = {
-        "all on (default)": (prepared, default),
-        "no elastic echoes": (prepared, replace(default, elastic_echoes=False)),
-        "no two-object chains": (prepared, replace(default, max_curved_per_path=1)),
-        "neither": (prepared, replace(default, elastic_echoes=False, max_curved_per_path=1)),
-        "neither, fluid reflection": (fluid, replace(default, elastic_echoes=False, max_curved_per_path=1)),
-    }
+    off = {name: value for name, value in NEW_KNOBS if name in known and getattr(default, name) != value}
+    cases = {"all on (default)": (prepared, default)}
+    cases.update({f"without {name} (= {value!r})": (prepared, replace(default, **{name: value}))
+                  for name, value in off.items()})
+    cases["all new mechanisms off"] = (prepared, replace(default, **off))
+    cases["all new mechanisms off, fluid reflection (like for like)"] = (fluid, replace(default, **off))
     samples: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(repeats):
         for name, (scene, config) in cases.items():
@@ -177,13 +179,80 @@ def _default_breakdown(prepared, repeats: int) -> None:
     rows = {name: len(solve(scene, config=config)) for name, (scene, config) in cases.items()}
     print(f"  deterministic paths, default settings (floor -80 dB), CPU-time medians over {repeats}, interleaved "
           "(goal < 50 ms with every mechanism on):")
-    for name, value in cpu.items():
-        print(f"    {name}: {value * 1e3:.2f} ms, {rows[name]} rows")
     base = cpu["all on (default)"]
-    print(f"    the elastic-echo step {(base - cpu['no elastic echoes']) * 1e3:.2f} ms; the two-object chains "
-          f"{(base - cpu['no two-object chains']) * 1e3:.2f} ms; the elastic reflection model "
-          f"{(cpu['neither'] - cpu['neither, fluid reflection']) * 1e3:.2f} ms; total {base * 1e3:.2f} ms = "
-          f"{base / 0.050:.2f} of the 50 ms budget")
+    for name, value in cpu.items():
+        print(f"    {name}: {value * 1e3:.2f} ms, {rows[name]} rows; all on minus this {(base - value) * 1e3:.2f} ms")
+    print(f"    all on: {base * 1e3:.2f} ms = {base / 0.050:.2f} of the 50 ms budget")
+
+
+_STEPS = (
+    ("direct", "acoustisim.propagation.fast", "FastEngine", "direct_rows"),
+    ("specular", "acoustisim.propagation.fast", "FastEngine", "specular_rows"),
+    ("edges", "acoustisim.propagation.fast", "FastEngine", "edge_rows"),
+    ("shadow step", "acoustisim.propagation.solver", None, "shadow_rows"),
+    ("assembly (with the floor mask)", "acoustisim.propagation.fast", "FastEngine", "assemble_rows"),
+    ("floor mask", "acoustisim.propagation.fast.assemble", None, "floor_mask"),
+    ("roughness", "acoustisim.propagation.solver", None, "apply_coherent_roughness"),
+    ("elastic step", "acoustisim.propagation.elastic_echoes", None, "attach_elastic_echoes"),
+)
+"""The steps of a fast solve timed by :func:`_step_breakdown`: (label, module, class or None,
+function), each the name the solve calls it by (a tree without it has no such step)."""
+
+
+def _step_breakdown(prepared, repeats: int) -> None:
+    """CPU-time medians per solve of each step of the default deterministic solve (direct +
+    specular + edges, every mechanism on, floor -80 dB): :data:`_STEPS` timed by wrapping each
+    function where the solve looks it up, restored afterwards."""
+    import importlib
+
+    from acoustisim.propagation import SolverConfig, solve
+
+    config = SolverConfig(mechanisms=("direct", "specular", "edge"))
+    spent: dict[str, float] = {}
+    restore = []
+
+    def timed(label, function):
+        def call(*args, **kwargs):
+            start = time.process_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.process_time() - start
+        return call
+
+    for label, module_name, class_name, name in _STEPS:
+        try:
+            owner = importlib.import_module(module_name)
+        except ModuleNotFoundError:
+            continue
+        owner = getattr(owner, class_name, None) if class_name else owner
+        if owner is None or not hasattr(owner, name):
+            continue
+        original = owner.__dict__[name] if isinstance(owner, type) else getattr(owner, name)
+        restore.append((owner, name, original))
+        setattr(owner, name, timed(label, original))
+    samples: dict[str, list[float]] = {}
+    try:
+        solve(prepared, config=config)
+        for _ in range(repeats):
+            spent.clear()
+            start = time.process_time()
+            solve(prepared, config=config)
+            spent["total"] = time.process_time() - start
+            for label, value in spent.items():
+                samples.setdefault(label, []).append(value)
+    finally:
+        for owner, name, original in restore:
+            setattr(owner, name, original)
+    cpu = {label: float(np.median(values)) for label, values in samples.items()}
+    print(f"  default deterministic solve (every mechanism on, floor -80 dB), CPU-time medians per step over "
+          f"{repeats} solves:")
+    for label, *_ in _STEPS:
+        if label in cpu:
+            print(f"    {label}: {cpu[label] * 1e3:.2f} ms")
+    named = sum(value for label, value in cpu.items() if label not in ("total", "floor mask"))
+    print(f"    the rest (checks, context, Paths): {(cpu['total'] - named) * 1e3:.2f} ms; "
+          f"total {cpu['total'] * 1e3:.2f} ms")
 
 
 def _reference_engine(prepared, repeats: int) -> None:
@@ -210,8 +279,10 @@ def _reference_engine(prepared, repeats: int) -> None:
 
 
 def _before_and_after(args) -> None:
-    """The per-pose figures of ``args.before_tree`` and of this tree, in alternating subprocesses."""
-    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(Path(__file__).resolve().parents[1])}
+    """The per-pose figures of ``args.before_tree`` and of ``args.now_tree`` (default: this
+    script's checkout), in alternating subprocesses."""
+    now_tree = Path(args.now_tree) if args.now_tree else Path(__file__).resolve().parents[1]
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(now_tree.resolve())}
     arguments = ["--json", "--repeats", str(args.repeats)] + (["--like-for-like"] if args.like_for_like else [])
     runs = alternating_runs(__file__, trees, arguments, args.rounds)
     setup = ", like for like" if args.like_for_like else ""
@@ -313,6 +384,8 @@ def main() -> None:
     parser.add_argument("--columns-before", default=None, help="an older columns.py to time against")
     parser.add_argument("--before-tree", default=None,
                         help="an older checkout's root (acoustisim and scenes): same-run A/B of the per-pose figures")
+    parser.add_argument("--now-tree", default=None,
+                        help="the checkout on the 'now' side of --before-tree (default: this script's own)")
     parser.add_argument("--rounds", type=int, default=3, help="alternating subprocess rounds of --before-tree")
     parser.add_argument("--deterministic-only", action="store_true", help="only the per-pose figures (and the A/B)")
     parser.add_argument("--like-for-like", action="store_true",
@@ -340,6 +413,7 @@ def main() -> None:
     if args.deterministic_only:
         _print_per_pose(per_pose, max(3, args.repeats), False, args.like_for_like)
         _default_breakdown(prepared, max(3, args.repeats))
+        _step_breakdown(prepared, max(3, args.repeats))
         _reference_engine(prepared, max(3, args.repeats // 3))
         if args.before_tree:
             _before_and_after(args)
@@ -364,6 +438,7 @@ def main() -> None:
           f"(solve / baseline = {t_specular / t_raw:.1f})")
     _print_per_pose(per_pose, max(3, args.repeats), True, args.like_for_like)
     _default_breakdown(prepared, max(3, args.repeats))
+    _step_breakdown(prepared, max(3, args.repeats))
     _reference_engine(prepared, max(3, args.repeats // 3))
     if args.before_tree:
         _before_and_after(args)

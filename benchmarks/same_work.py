@@ -6,8 +6,9 @@ both, in alternating subprocesses, each importing its own ``acoustisim`` (the tr
 mechanisms the older tree lacks are switched off where the tree knows them:
 
 * :data:`NEW_KNOBS`: ``SolverConfig`` fields of mechanisms added since (chains through two
-  curved objects, elastic echoes), set to the value that turns them off; a tree without the
-  field has no such mechanism;
+  curved objects, elastic echoes, diffracted shadows of smooth obstacles, edge diffraction
+  combined with reflections), set to the value that turns them off; a tree without the field has
+  no such mechanism;
 * the plane-wave reflection of the built-in solids: the ``elastic`` model (water on an elastic
   half-space) becomes the ``fluid`` one the older trees used (:func:`fluid_reflection_scene`);
 * the record length, where synthesis is compared (:func:`with_record_length`).
@@ -32,7 +33,8 @@ TREE_VARIABLE = "ACOUSTISIM_BENCH_TREE"
 """Environment variable naming the checkout whose ``acoustisim`` and ``scenes`` a benchmark
 imports (set by :func:`alternating_runs` for each side)."""
 
-NEW_KNOBS: tuple[tuple[str, Any], ...] = (("max_curved_per_path", 1), ("elastic_echoes", False))
+NEW_KNOBS: tuple[tuple[str, Any], ...] = (("max_curved_per_path", 1), ("elastic_echoes", False), ("shadows", False),
+                                          ("edge_reflections", 0))
 """``SolverConfig`` fields of mechanisms that older trees lack, and the value that switches each off."""
 
 PRE_SESSION_RECORD_S = 0.0125
