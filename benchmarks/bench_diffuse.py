@@ -151,7 +151,7 @@ def ab_figures(args) -> dict:
 
 def before_and_after(args) -> None:
     """:func:`ab_figures` in ``args.before_tree`` and in this tree, alternating subprocesses."""
-    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(Path(__file__).resolve().parents[1])}
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(tree_root(__file__))}
     arguments = ["--json", "--rays", str(args.rays), "--repeats", str(args.repeats), "--bounces", str(args.bounces)]
     if args.threads is not None:
         arguments += ["--threads", str(args.threads)]

@@ -44,7 +44,7 @@ model. ``--deterministic-only`` prints only the per-pose figures (what the A/B r
 configuration's breakdown and the reference engine's figure.
 
 Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]
-[--before-tree DIR [--now-tree DIR] [--rounds R]] [--like-for-like] [--deterministic-only]``
+[--before-tree DIR [--rounds R]] [--like-for-like] [--deterministic-only]``
 (``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine; the A/B adds about 10 s
 per round and tree).
 """
@@ -279,10 +279,9 @@ def _reference_engine(prepared, repeats: int) -> None:
 
 
 def _before_and_after(args) -> None:
-    """The per-pose figures of ``args.before_tree`` and of ``args.now_tree`` (default: this
-    script's checkout), in alternating subprocesses."""
-    now_tree = Path(args.now_tree) if args.now_tree else Path(__file__).resolve().parents[1]
-    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(now_tree.resolve())}
+    """The per-pose figures of ``args.before_tree`` and of this tree (:func:`~same_work.tree_root`),
+    in alternating subprocesses."""
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(tree_root(__file__))}
     arguments = ["--json", "--repeats", str(args.repeats)] + (["--like-for-like"] if args.like_for_like else [])
     runs = alternating_runs(__file__, trees, arguments, args.rounds)
     setup = ", like for like" if args.like_for_like else ""
@@ -384,8 +383,6 @@ def main() -> None:
     parser.add_argument("--columns-before", default=None, help="an older columns.py to time against")
     parser.add_argument("--before-tree", default=None,
                         help="an older checkout's root (acoustisim and scenes): same-run A/B of the per-pose figures")
-    parser.add_argument("--now-tree", default=None,
-                        help="the checkout on the 'now' side of --before-tree (default: this script's own)")
     parser.add_argument("--rounds", type=int, default=3, help="alternating subprocess rounds of --before-tree")
     parser.add_argument("--deterministic-only", action="store_true", help="only the per-pose figures (and the A/B)")
     parser.add_argument("--like-for-like", action="store_true",

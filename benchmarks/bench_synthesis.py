@@ -181,7 +181,7 @@ def ab_figures(args) -> dict:
 
 def before_and_after(args) -> None:
     """:func:`ab_figures` in ``args.before_tree`` and in this tree, alternating subprocesses."""
-    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(Path(__file__).resolve().parents[1])}
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(tree_root(__file__))}
     arguments = ["--json", "--repeats", str(args.repeats), "--scene", args.scene]
     arguments += ["--like-for-like"] if args.like_for_like else []
     runs = alternating_runs(__file__, trees, arguments, args.rounds)

@@ -1,8 +1,10 @@
 """Like-for-like set-ups for same-run comparisons with an older checkout, and the alternating runs.
 
 A benchmark that compares this tree with an older one (``--before-tree DIR``) runs itself in
-both, in alternating subprocesses, each importing its own ``acoustisim`` (the tree named by
-:data:`TREE_VARIABLE`, else this script's own checkout). For the two to do the same work, the
+both, in alternating subprocesses, each importing its own ``acoustisim``. "This tree" is the one
+named by :data:`TREE_VARIABLE` if set (e.g. ``ACOUSTISIM_BENCH_TREE=/tmp/main python
+benchmarks/bench_propagation.py --before-tree /tmp/old`` compares two other checkouts, such as
+``git archive`` snapshots), else the benchmark script's own checkout. For the two to do the same work, the
 mechanisms the older tree lacks are switched off where the tree knows them:
 
 * :data:`NEW_KNOBS`: ``SolverConfig`` fields of mechanisms added since (chains through two
