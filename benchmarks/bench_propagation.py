@@ -110,7 +110,8 @@ def _per_pose(prepared, repeats: int, fine: bool, like_for_like: bool = False
     """CPU-time medians (s), row counts and the rows' :func:`~same_work.field_digests` per pose
     of the deterministic solves (``_FIGURES``; with ``fine``, also the edge solves with the fine
     1/16-period discretisation, the same-run baseline of the graded one); ``like_for_like``: the
-    new mechanisms off (:func:`~same_work.solver_config`)."""
+    new mechanisms off (:func:`~same_work.solver_config`). Each repeat times every case once, in
+    turn (round-robin), so that all cases see the same load of a shared machine."""
     from acoustisim.propagation import solve
     from acoustisim.propagation.context import SolveContext
 
@@ -118,15 +119,10 @@ def _per_pose(prepared, repeats: int, fine: bool, like_for_like: bool = False
     specular_rows = (_specular_rows_function(1) if like_for_like else None) or _specular_rows_function()
     scene = prepared.scene
     context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
-    rows = specular_rows(context, prepared, 3)
-    out = {"specular_rows": (_median_time(lambda: specular_rows(context, prepared, 3), repeats, time.process_time),
-                             len(rows), field_digests(np.asarray(rows)))}
+    calls = {"specular_rows": lambda: np.asarray(specular_rows(context, prepared, 3))}
     one_curved = _specular_rows_function(1)
     if one_curved is not None and not like_for_like:
-        rows = one_curved(context, prepared, 3)
-        out["specular_rows one curved"] = (
-            _median_time(lambda: one_curved(context, prepared, 3), repeats, time.process_time), len(rows),
-            field_digests(np.asarray(rows)))
+        calls["specular_rows one curved"] = lambda: np.asarray(one_curved(context, prepared, 3))
     cases = [("specular", ("direct", "specular"), True, None), ("edges", ("edge",), True, None),
              ("both", ("direct", "specular", "edge"), True, None),
              ("both floored", ("direct", "specular", "edge"), True, -80.0)]
@@ -135,10 +131,15 @@ def _per_pose(prepared, repeats: int, fine: bool, like_for_like: bool = False
     for key, mechanisms, adaptive, floor_db in cases:
         config = solver_config(like_for_like, max_order=3, mechanisms=mechanisms, amplitude_floor_db=floor_db,
                                edge_adaptive=adaptive)
-        rows = solve(prepared, config=config).rows
-        out[key] = (_median_time(lambda: solve(prepared, config=config), repeats, time.process_time), rows.size,
-                    field_digests(rows))
-    return out
+        calls[key] = lambda config=config: solve(prepared, config=config).rows
+    first = {key: call() for key, call in calls.items()}  # also the warm-up
+    samples: dict[str, list[float]] = {key: [] for key in calls}
+    for _ in range(repeats):
+        for key, call in calls.items():
+            start = time.process_time()
+            call()
+            samples[key].append(time.process_time() - start)
+    return {key: (float(np.median(samples[key])), int(rows.size), field_digests(rows)) for key, rows in first.items()}
 
 
 def _print_per_pose(prepared, repeats: int, fine: bool, like_for_like: bool) -> None:
@@ -295,9 +296,12 @@ def _before_and_after(args) -> None:
             print(f"    {label}: now {now * 1e3:.2f} ms ({runs['now'][0][key][1]} rows; not in the older tree)")
             continue
         before = float(np.median([run[key][0] for run in runs["before"]]))
+        # each round's now / before (the two subprocesses ran one after the other)
+        paired = sorted(n[key][0] / b[key][0] for b, n in zip(runs["before"], runs["now"]))
         rows = (runs["before"][0][key][1], runs["now"][0][key][1])
         print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, now / before = "
-              f"{now / before:.2f} (rows {rows[0]} / {rows[1]}; "
+              f"{now / before:.2f} (per round: median {np.median(paired):.2f}, {paired[0]:.2f} to {paired[-1]:.2f}; "
+              f"rows {rows[0]} / {rows[1]}; "
               f"{common_fields_verdict(runs['before'][0][key][2], runs['now'][0][key][2])})")
 
 
