@@ -22,13 +22,17 @@ baseline.
 The default deterministic solve (direct + specular + edges, amplitude floor on) is timed with
 and without the elastic-echo step (``SolverConfig.elastic_echoes``), interleaved.
 
-The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``)
-is timed against the fast engine's in the same run.
+The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``),
+and its whole default solve (every mechanism, the diffuse rays included), are timed against the
+fast engine's in the same run.
 
 The default configuration (every mechanism on) is broken down, interleaved: the default
-deterministic solve; without the elastic-echo step; without the chains through two curved
-objects (``max_curved_per_path = 1``); without both; and without both on the scene with the
-``fluid`` reflection model (the like-for-like set-up below); with the goal of 50 ms CPU.
+deterministic solve; without each new mechanism the tree knows in turn (:data:`same_work.NEW_KNOBS`:
+the chains through two curved objects, the elastic-echo step, the shadows); without all of them;
+and without all of them on the scene with the ``fluid`` reflection model (the like-for-like
+set-up below); with the goal of 50 ms CPU. Then the CPU time of each step of the default solve
+(direct, specular, edges, shadow step, assembly and the floor mask within it, roughness, elastic
+step), each step's function wrapped where the solve looks it up.
 
 The per-pose figures include ``specular_rows`` alone (the specular solve without the solver's
 direct rows, checks and assembly), and the deterministic paths with the amplitude floor on
@@ -258,7 +262,8 @@ def _step_breakdown(prepared, repeats: int) -> None:
 
 def _reference_engine(prepared, repeats: int) -> None:
     """CPU-time medians of direct + specular (order 3) on the reference and fast engines, interleaved
-    (without the elastic-echo step, the same code after either engine)."""
+    (without the elastic-echo step, the same code after either engine); then of the default solve
+    (every mechanism) on each."""
     from dataclasses import replace
 
     from acoustisim.propagation import SolverConfig, solve
@@ -277,6 +282,19 @@ def _reference_engine(prepared, repeats: int) -> None:
           f"{reference_s * 1e3:.1f} ms "
           f"({n_rows[1]} rows), fast engine {fast_s * 1e3:.2f} ms ({n_rows[0]} rows); reference / fast = "
           f"{reference_s / fast_s:.1f}")
+    # the whole default solve (every mechanism, diffuse rays included) on each engine
+    fast, reference = SolverConfig(), SolverConfig(backend="reference")
+    n_rows = (len(solve(prepared, config=fast)), len(solve(prepared, config=reference)))
+    cpu = {"fast": [], "reference": []}
+    for _ in range(repeats):
+        for key, config in (("fast", fast), ("reference", reference)):
+            start = time.process_time()
+            solve(prepared, config=config)
+            cpu[key].append(time.process_time() - start)
+    fast_s, reference_s = float(np.median(cpu["fast"])), float(np.median(cpu["reference"]))
+    print(f"  default solve (SolverConfig(), {fast.diffuse_rays} diffuse rays), CPU medians over {repeats}: reference "
+          f"engine {reference_s * 1e3:.0f} ms ({n_rows[1]} rows), fast engine {fast_s * 1e3:.1f} ms ({n_rows[0]} "
+          f"rows); reference / fast = {reference_s / fast_s:.1f}")
 
 
 def _before_and_after(args) -> None:
