@@ -32,6 +32,7 @@ from acoustisim.resources import (
     GIB,
     ResourceEstimate,
     ResourceLimits,
+    SceneMeasures,
     combined,
     current_limits,
     geometry_estimate,
@@ -232,6 +233,7 @@ def preflight(
     ResourceLimitError
         More than the limits allow.
     """
+    measures = prepared_measures(scene)
     scene, sonar, config = check_types(scene, sonar, config)
     where = source or scene.name
     pings = check_run_options(n_pings, snr_db, pings_key=pings_key)
@@ -242,14 +244,22 @@ def preflight(
     signal = signal_estimate(sonar, pings) if synthesis else ResourceEstimate()
     geometry = ResourceEstimate()
     if solving:
+        measures = SceneMeasures(scene) if measures is None else measures
         # counts first: they bound the per-mesh work of the full estimate
-        counts = ResourceEstimate(objects=len(scene.objects),
-                                  triangles=int(sum(len(obj.mesh.faces) for obj in scene.objects)))
-        check_resources(counts, limits, sonar, source=where)
-        geometry = geometry_estimate(scene, config)
-    estimate = combined(signal, geometry)
+        check_resources(ResourceEstimate(objects=measures.objects, triangles=measures.triangles), limits, sonar,
+                        source=where)
+        geometry = geometry_estimate(scene, config, measures)
+    estimate = combined(signal, geometry) if synthesis else geometry  # (a solve has no signal part)
     check_resources(estimate, limits, sonar, source=where, pings_key=pings_key, order_key=order_key)
     return estimate
+
+
+def prepared_measures(scene: Any) -> SceneMeasures | None:
+    """The :class:`~acoustisim.resources.SceneMeasures` a prepared scene keeps (computed once for
+    every pose it is solved at), or None for anything else."""
+    from acoustisim.propagation.prepared import PreparedScene
+
+    return scene.resource_measures if isinstance(scene, PreparedScene) else None
 
 
 def check_solve(scene: Any, sonar: Any = None, config: Any = None) -> None:
@@ -264,4 +274,4 @@ def check_simulation(scene: Any, sonar: Any = None, config: Any = None, *, chain
 
 
 __all__ = ("check_resources", "check_run_options", "check_sampling", "check_simulation", "check_solve",
-           "check_types", "preflight")
+           "check_types", "preflight", "prepared_measures")

@@ -34,6 +34,7 @@ import math
 import os
 from contextvars import ContextVar
 from dataclasses import dataclass, fields, replace
+from functools import cached_property
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Iterator, Mapping
 
@@ -127,12 +128,17 @@ class ResourceLimits:
             if not (math.isfinite(value) and value > 0):
                 raise InputError(f"{variable} = {text[:40]!r}: must be a finite number > 0")
             values[name] = value
+        if not values and cls is ResourceLimits:
+            return DEFAULT_LIMITS  # the usual case, on every solve: no variable set
         return cls(**values)  # type: ignore[arg-type]
 
     def raised(self, **overrides: float | None) -> "ResourceLimits":
         """A copy with the given limits replaced (``None`` keeps the current one)."""
         return replace(self, **{k: v for k, v in overrides.items() if v is not None})
 
+
+DEFAULT_LIMITS = ResourceLimits()
+"""The limits when no environment variable or block sets any (immutable)."""
 
 ENVIRONMENT: Mapping[str, str] = MappingProxyType({
     "max_memory_gb": "ACOUSTISIM_MAX_MEMORY_GB",
@@ -301,14 +307,50 @@ def sharp_edge_length(scene: "Scene") -> float:
     return total
 
 
-def geometry_estimate(scene: "Scene", config: "SolverConfig") -> ResourceEstimate:
-    """Triangles, rays, reflector sequences and the path table of solving ``scene`` with ``config``."""
-    triangles = int(sum(len(obj.mesh.faces) for obj in scene.objects))
+@dataclass(frozen=True, eq=False)
+class SceneMeasures:
+    """What the geometry estimate reads from a scene, each measured on first use and kept: a
+    prepared scene holds one for every pose it is solved at (``PreparedScene.resource_measures``).
+
+    Attributes
+    ----------
+    scene : Scene
+    """
+
+    scene: "Scene"
+
+    @property
+    def objects(self) -> int:
+        """Objects in the scene."""
+        return len(self.scene.objects)
+
+    @cached_property
+    def triangles(self) -> int:
+        """Triangles over all objects."""
+        return int(sum(len(obj.mesh.faces) for obj in self.scene.objects))
+
+    @cached_property
+    def reflectors(self) -> int:
+        """Reflecting surfaces M (:func:`reflector_count`)."""
+        return reflector_count(self.scene)
+
+    @cached_property
+    def sharp_edge_m(self) -> float:
+        """Total length of the objects' sharp edges (m, :func:`sharp_edge_length`)."""
+        return sharp_edge_length(self.scene)
+
+
+def geometry_estimate(scene: "Scene", config: "SolverConfig", measures: SceneMeasures | None = None
+                      ) -> ResourceEstimate:
+    """Triangles, rays, reflector sequences and the path table of solving ``scene`` with ``config``
+    (``measures``: the scene's, if kept from an earlier estimate)."""
+    measures = SceneMeasures(scene) if measures is None else measures
+    triangles = measures.triangles
     mechanisms = tuple(config.mechanisms)
     rays = int(config.diffuse_rays) * int(config.diffuse_bounces) if "diffuse" in mechanisms else 0
-    reflectors = reflector_count(scene) if "specular" in mechanisms else 0
+    reflectors = measures.reflectors if "specular" in mechanisms else 0
     chains = chain_bound(reflectors, int(config.max_order)) if reflectors else 0.0
-    edge_metres = sharp_edge_length(scene) if "edge" in mechanisms else 0.0
+    edge_metres = measures.sharp_edge_m if "edge" in mechanisms else 0.0
     rows = 3 + 3 * rays + 3 * int(math.ceil(EDGE_ROWS_PER_METRE * edge_metres))
     return ResourceEstimate(path_rows=rows, path_table_bytes=rows * PATH_ROW_BYTES, objects=len(scene.objects),
                             triangles=triangles,
@@ -323,10 +365,12 @@ def combined(signal: ResourceEstimate, geometry: ResourceEstimate) -> ResourceEs
 
 
 __all__ = (
+    "DEFAULT_LIMITS",
     "ENVIRONMENT",
     "FLAGS",
     "ResourceEstimate",
     "ResourceLimits",
+    "SceneMeasures",
     "chain_bound",
     "combined",
     "current_limits",

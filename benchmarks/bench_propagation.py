@@ -7,10 +7,6 @@ each with the graded edge discretisation (the default, ``SolverConfig.edge_adapt
 the fine 1/16-period one (the same-run baseline of the edge work). Then it checks that a scene
 of over a million triangles loads and solves.
 
-The deterministic paths of the default configuration (direct, specular, edges; the amplitude
-floor; with the smooth obstacles' shadows where the tree has them) are timed too, and, where the
-tree has the knobs, without shadows and with ``edge_reflections=1``.
-
 Figures of the whole solve follow: the CPU-time cost of the amplitude floor (judged across
 the pulse band, ``SolverConfig.amplitude_floor_db = -80``) against keep-all (``None``) on the
 default configuration (with 20 000 diffuse rays); the floor alone
@@ -26,19 +22,33 @@ baseline.
 The default deterministic solve (direct + specular + edges, amplitude floor on) is timed with
 and without the elastic-echo step (``SolverConfig.elastic_echoes``), interleaved.
 
-The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``)
-is timed against the fast engine's in the same run.
+The reference engine's direct + specular solve of the same pose (``SolverConfig(backend="reference")``),
+and its whole default solve (every mechanism, the diffuse rays included), are timed against the
+fast engine's in the same run.
+
+The default configuration (every mechanism on) is broken down, interleaved: the default
+deterministic solve; without each new mechanism the tree knows in turn (:data:`same_work.NEW_KNOBS`:
+the chains through two curved objects, the elastic-echo step, the shadows); without all of them;
+and without all of them on the scene with the ``fluid`` reflection model (the like-for-like
+set-up below); with the goal of 50 ms CPU. Then the CPU time of each step of the default solve
+(direct, specular, edges, shadow step, assembly and the floor mask within it, roughness, elastic
+step), each step's function wrapped where the solve looks it up.
 
 The per-pose figures include ``specular_rows`` alone (the specular solve without the solver's
-direct rows, checks and assembly). ``--before-tree DIR`` (an older checkout's root, holding its
+direct rows, checks and assembly), and the deterministic paths with the amplitude floor on
+(``both floored``: the default -80 dB). ``--before-tree DIR`` (an older checkout's root, holding its
 ``acoustisim`` and ``scenes``, e.g. ``git archive b6e1281 acoustisim scenes | tar -x -C
 /tmp/before``) adds a same-run A/B of the per-pose figures: this script is run on that tree and
 on this one in alternating subprocesses (``--rounds`` each, ``PYTHONPATH`` set to the tree), and
-the medians over the rounds and their ratios are printed. ``--deterministic-only`` prints only
-the per-pose figures (what the A/B runs).
+the medians over the rounds and their ratios are printed, with whether the two trees' rows
+agree byte for byte in the fields both have. ``--like-for-like`` makes the per-pose figures
+(and the A/B) compute what an older tree computes (:mod:`same_work`): the chains through two
+curved objects and the elastic echoes off, the built-in solids on the ``fluid`` reflection
+model. ``--deterministic-only`` prints only the per-pose figures (what the A/B runs), the default
+configuration's breakdown and the reference engine's figure.
 
 Run: ``python benchmarks/bench_propagation.py [--repeats N] [--skip-large] [--columns-before FILE]
-[--before-tree DIR [--rounds R]] [--deterministic-only]``
+[--before-tree DIR [--rounds R]] [--like-for-like] [--deterministic-only]``
 (``--repeats 21 --skip-large``: about 30 s on a quiet 2-core machine; the A/B adds about 10 s
 per round and tree).
 """
@@ -47,13 +57,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from same_work import (NEW_KNOBS, alternating_runs, common_fields_verdict, field_digests, fluid_reflection_scene,
+                       solver_config, tree_root)
 
 _FIGURES = {
     "specular_rows": "specular_rows alone (no solve overhead)",
@@ -61,15 +72,9 @@ _FIGURES = {
     "specular": "specular only (direct + specular)",
     "edges": "edges only graded edges",
     "both": "both (direct + specular + edges) graded edges",
-    "deterministic": "deterministic paths, default configuration (direct + specular + edges, floor -80 dB)",
+    "both floored": "both (direct + specular + edges), amplitude floor -80 dB",
 }
 """The per-pose CPU-time medians compared by ``--before-tree`` (key: label)."""
-
-_NEWER_FIGURES = {
-    "no shadows": "deterministic paths, default configuration but shadows=False",
-    "edge reflections": "deterministic paths, default configuration with edge_reflections=1",
-}
-"""Per-pose figures of knobs an older tree may not have (left out where SolverConfig refuses them)."""
 
 
 def _median_time(function, repeats: int, clock=time.perf_counter) -> float:
@@ -104,77 +109,166 @@ def _specular_rows_function(max_curved_per_path: int | None = None):
     raise ModuleNotFoundError("no specular_rows in this tree")
 
 
-def _per_pose(prepared, repeats: int, fine: bool) -> dict[str, tuple[float, int]]:
-    """CPU-time medians (s) and row counts per pose of the deterministic solves (``_FIGURES``;
-    with ``fine``, also the edge solves with the fine 1/16-period discretisation, the same-run
-    baseline of the graded one)."""
-    from acoustisim.propagation import SolverConfig, solve
+def _per_pose(prepared, repeats: int, fine: bool, like_for_like: bool = False
+              ) -> dict[str, tuple[float, int, dict[str, str]]]:
+    """CPU-time medians (s), row counts and the rows' :func:`~same_work.field_digests` per pose
+    of the deterministic solves (``_FIGURES``; with ``fine``, also the edge solves with the fine
+    1/16-period discretisation, the same-run baseline of the graded one); ``like_for_like``: the
+    new mechanisms off (:func:`~same_work.solver_config`). Each repeat times every case once, in
+    turn (round-robin), so that all cases see the same load of a shared machine."""
+    from acoustisim.propagation import solve
     from acoustisim.propagation.context import SolveContext
 
-    specular_rows = _specular_rows_function()
+    # like for like: one curved reflection per path (an older tree knows no other: its own function)
+    specular_rows = (_specular_rows_function(1) if like_for_like else None) or _specular_rows_function()
     scene = prepared.scene
     context = SolveContext.build(scene, scene.sonar, prepared.raycaster)
-    out = {"specular_rows": (_median_time(lambda: specular_rows(context, prepared, 3), repeats, time.process_time),
-                             len(specular_rows(context, prepared, 3)))}
+    calls = {"specular_rows": lambda: np.asarray(specular_rows(context, prepared, 3))}
     one_curved = _specular_rows_function(1)
-    if one_curved is not None:
-        out["specular_rows one curved"] = (
-            _median_time(lambda: one_curved(context, prepared, 3), repeats, time.process_time),
-            len(one_curved(context, prepared, 3)))
-    cases = [("specular", ("direct", "specular"), True), ("edges", ("edge",), True),
-             ("both", ("direct", "specular", "edge"), True)]
+    if one_curved is not None and not like_for_like:
+        calls["specular_rows one curved"] = lambda: np.asarray(one_curved(context, prepared, 3))
+    cases = [("specular", ("direct", "specular"), True, None), ("edges", ("edge",), True, None),
+             ("both", ("direct", "specular", "edge"), True, None),
+             ("both floored", ("direct", "specular", "edge"), True, -80.0)]
     if fine:
-        cases += [("edges fine", ("edge",), False), ("both fine", ("direct", "specular", "edge"), False)]
-    for key, mechanisms, adaptive in cases:
-        config = SolverConfig(max_order=3, mechanisms=mechanisms, amplitude_floor_db=None, edge_adaptive=adaptive)
-        n_rows = len(solve(prepared, config=config))
-        out[key] = (_median_time(lambda: solve(prepared, config=config), repeats, time.process_time), n_rows)
-    deterministic = ("direct", "specular", "edge")
-    configs = {"deterministic": {}, "no shadows": {"shadows": False}, "edge reflections": {"edge_reflections": 1}}
-    for key, options in configs.items():
-        try:
-            config = SolverConfig(mechanisms=deterministic, **options)
-        except TypeError:  # an older tree without the knob
-            continue
-        n_rows = len(solve(prepared, config=config))
-        out[key] = (_median_time(lambda: solve(prepared, config=config), repeats, time.process_time), n_rows)
-    return out
+        cases += [("edges fine", ("edge",), False, None), ("both fine", ("direct", "specular", "edge"), False, None)]
+    for key, mechanisms, adaptive, floor_db in cases:
+        config = solver_config(like_for_like, max_order=3, mechanisms=mechanisms, amplitude_floor_db=floor_db,
+                               edge_adaptive=adaptive)
+        calls[key] = lambda config=config: solve(prepared, config=config).rows
+    first = {key: call() for key, call in calls.items()}  # also the warm-up
+    samples: dict[str, list[float]] = {key: [] for key in calls}
+    for _ in range(repeats):
+        for key, call in calls.items():
+            start = time.process_time()
+            call()
+            samples[key].append(time.process_time() - start)
+    return {key: (float(np.median(samples[key])), int(rows.size), field_digests(rows)) for key, rows in first.items()}
 
 
-def _print_per_pose(prepared, repeats: int, fine: bool) -> None:
-    fine_labels = {"edges fine": "edges only fine edges (1/16 period)",
-                   "both fine": "both (direct + specular + edges) fine edges (1/16 period)"}
-    labels = dict(_FIGURES, **_NEWER_FIGURES, **fine_labels)
-    print(f"  CPU-time medians per pose over {repeats} (goal < 50 ms for the deterministic paths, issue 17):")
-    for key, (cpu, n_rows) in _per_pose(prepared, repeats, fine).items():
+def _print_per_pose(prepared, repeats: int, fine: bool, like_for_like: bool) -> None:
+    labels = dict(_FIGURES, **{"edges fine": "edges only fine edges (1/16 period)",
+                               "both fine": "both (direct + specular + edges) fine edges (1/16 period)"})
+    setup = " like for like (new mechanisms off, fluid reflection)" if like_for_like else ""
+    print(f"  CPU-time medians per pose over {repeats}{setup} (goal < 20 ms for direct + specular + edges):")
+    for key, (cpu, n_rows, _) in _per_pose(prepared, repeats, fine, like_for_like).items():
         print(f"    {labels[key]}: {cpu * 1e3:.2f} ms, {n_rows} rows")
 
 
-def _elastic_step(prepared, repeats: int) -> None:
-    """CPU-time medians of the default deterministic solve (direct + specular + edges, floor on)
-    with and without the elastic-echo step, interleaved (goal: < 50 ms with it)."""
+def _default_breakdown(prepared, repeats: int) -> None:
+    """CPU-time medians of the default deterministic solve (direct + specular + edges, floor on),
+    interleaved with it without each new mechanism the tree knows (:data:`~same_work.NEW_KNOBS`:
+    the elastic-echo step, the chains through two curved objects, the shadows), without all of
+    them, and without all of them on the ``fluid`` reflection model (the like-for-like set-up;
+    goal: < 50 ms with every mechanism on)."""
+    from dataclasses import fields, replace
+
+    from acoustisim.propagation import SolverConfig, prepare, solve
+
+    default = SolverConfig(mechanisms=("direct", "specular", "edge"))
+    known = {item.name for item in fields(SolverConfig)}
+    fluid = prepare(fluid_reflection_scene(prepared.scene))
+    off = {name: value for name, value in NEW_KNOBS if name in known and getattr(default, name) != value}
+    cases = {"all on (default)": (prepared, default)}
+    cases.update({f"without {name} (= {value!r})": (prepared, replace(default, **{name: value}))
+                  for name, value in off.items()})
+    cases["all new mechanisms off"] = (prepared, replace(default, **off))
+    cases["all new mechanisms off, fluid reflection (like for like)"] = (fluid, replace(default, **off))
+    samples: dict[str, list[float]] = {name: [] for name in cases}
+    for _ in range(repeats):
+        for name, (scene, config) in cases.items():
+            start = time.process_time()
+            solve(scene, config=config)
+            samples[name].append(time.process_time() - start)
+    cpu = {name: float(np.median(values)) for name, values in samples.items()}
+    rows = {name: len(solve(scene, config=config)) for name, (scene, config) in cases.items()}
+    print(f"  deterministic paths, default settings (floor -80 dB), CPU-time medians over {repeats}, interleaved "
+          "(goal < 50 ms with every mechanism on):")
+    base = cpu["all on (default)"]
+    for name, value in cpu.items():
+        print(f"    {name}: {value * 1e3:.2f} ms, {rows[name]} rows; all on minus this {(base - value) * 1e3:.2f} ms")
+    print(f"    all on: {base * 1e3:.2f} ms = {base / 0.050:.2f} of the 50 ms budget")
+
+
+_STEPS = (
+    ("direct", "acoustisim.propagation.fast", "FastEngine", "direct_rows"),
+    ("specular", "acoustisim.propagation.fast", "FastEngine", "specular_rows"),
+    ("edges", "acoustisim.propagation.fast", "FastEngine", "edge_rows"),
+    ("shadow step", "acoustisim.propagation.solver", None, "shadow_rows"),
+    ("assembly (with the floor mask)", "acoustisim.propagation.fast", "FastEngine", "assemble_rows"),
+    ("floor mask", "acoustisim.propagation.fast.assemble", None, "floor_mask"),
+    ("roughness", "acoustisim.propagation.solver", None, "apply_coherent_roughness"),
+    ("elastic step", "acoustisim.propagation.elastic_echoes", None, "attach_elastic_echoes"),
+)
+"""The steps of a fast solve timed by :func:`_step_breakdown`: (label, module, class or None,
+function), each the name the solve calls it by (a tree without it has no such step)."""
+
+
+def _step_breakdown(prepared, repeats: int) -> None:
+    """CPU-time medians per solve of each step of the default deterministic solve (direct +
+    specular + edges, every mechanism on, floor -80 dB): :data:`_STEPS` timed by wrapping each
+    function where the solve looks it up, restored afterwards."""
+    import importlib
+
     from acoustisim.propagation import SolverConfig, solve
 
-    configs = {on: SolverConfig(mechanisms=("direct", "specular", "edge"), elastic_echoes=on) for on in (True, False)}
-    samples: dict[bool, list[float]] = {True: [], False: []}
-    for _ in range(repeats):
-        for on, config in configs.items():
+    config = SolverConfig(mechanisms=("direct", "specular", "edge"))
+    spent: dict[str, float] = {}
+    restore = []
+
+    def timed(label, function):
+        def call(*args, **kwargs):
+            start = time.process_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.process_time() - start
+        return call
+
+    for label, module_name, class_name, name in _STEPS:
+        try:
+            owner = importlib.import_module(module_name)
+        except ModuleNotFoundError:
+            continue
+        owner = getattr(owner, class_name, None) if class_name else owner
+        if owner is None or not hasattr(owner, name):
+            continue
+        original = owner.__dict__[name] if isinstance(owner, type) else getattr(owner, name)
+        restore.append((owner, name, original))
+        setattr(owner, name, timed(label, original))
+    samples: dict[str, list[float]] = {}
+    try:
+        solve(prepared, config=config)
+        for _ in range(repeats):
+            spent.clear()
             start = time.process_time()
             solve(prepared, config=config)
-            samples[on].append(time.process_time() - start)
-    with_step, without = float(np.median(samples[True])), float(np.median(samples[False]))
-    print(f"  deterministic paths, default settings (floor -80 dB), CPU-time medians over {repeats}: "
-          f"{with_step * 1e3:.2f} ms with the elastic-echo step, {without * 1e3:.2f} ms without "
-          f"(the step {(with_step - without) * 1e3:.2f} ms; goal < 50 ms in all)")
+            spent["total"] = time.process_time() - start
+            for label, value in spent.items():
+                samples.setdefault(label, []).append(value)
+    finally:
+        for owner, name, original in restore:
+            setattr(owner, name, original)
+    cpu = {label: float(np.median(values)) for label, values in samples.items()}
+    print(f"  default deterministic solve (every mechanism on, floor -80 dB), CPU-time medians per step over "
+          f"{repeats} solves:")
+    for label, *_ in _STEPS:
+        if label in cpu:
+            print(f"    {label}: {cpu[label] * 1e3:.2f} ms")
+    named = sum(value for label, value in cpu.items() if label not in ("total", "floor mask"))
+    print(f"    the rest (checks, context, Paths): {(cpu['total'] - named) * 1e3:.2f} ms; "
+          f"total {cpu['total'] * 1e3:.2f} ms")
 
 
 def _reference_engine(prepared, repeats: int) -> None:
-    """CPU-time medians of direct + specular (order 3) on the reference and fast engines, interleaved."""
+    """CPU-time medians of direct + specular (order 3) on the reference and fast engines, interleaved
+    (without the elastic-echo step, the same code after either engine); then of the default solve
+    (every mechanism) on each."""
     from dataclasses import replace
 
     from acoustisim.propagation import SolverConfig, solve
 
-    fast = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None)
+    fast = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None, elastic_echoes=False)
     reference = replace(fast, backend="reference")
     n_rows = (len(solve(prepared, config=fast)), len(solve(prepared, config=reference)))
     cpu = {"fast": [], "reference": []}
@@ -184,22 +278,33 @@ def _reference_engine(prepared, repeats: int) -> None:
             solve(prepared, config=config)
             cpu[key].append(time.process_time() - start)
     fast_s, reference_s = float(np.median(cpu["fast"])), float(np.median(cpu["reference"]))
-    print(f"  direct + specular (order 3), CPU medians over {repeats}: reference engine {reference_s * 1e3:.1f} ms "
+    print(f"  direct + specular (order 3, no elastic step), CPU medians over {repeats}: reference engine "
+          f"{reference_s * 1e3:.1f} ms "
           f"({n_rows[1]} rows), fast engine {fast_s * 1e3:.2f} ms ({n_rows[0]} rows); reference / fast = "
           f"{reference_s / fast_s:.1f}")
+    # the whole default solve (every mechanism, diffuse rays included) on each engine
+    fast, reference = SolverConfig(), SolverConfig(backend="reference")
+    n_rows = (len(solve(prepared, config=fast)), len(solve(prepared, config=reference)))
+    cpu = {"fast": [], "reference": []}
+    for _ in range(repeats):
+        for key, config in (("fast", fast), ("reference", reference)):
+            start = time.process_time()
+            solve(prepared, config=config)
+            cpu[key].append(time.process_time() - start)
+    fast_s, reference_s = float(np.median(cpu["fast"])), float(np.median(cpu["reference"]))
+    print(f"  default solve (SolverConfig(), {fast.diffuse_rays} diffuse rays), CPU medians over {repeats}: reference "
+          f"engine {reference_s * 1e3:.0f} ms ({n_rows[1]} rows), fast engine {fast_s * 1e3:.1f} ms ({n_rows[0]} "
+          f"rows); reference / fast = {reference_s / fast_s:.1f}")
 
 
 def _before_and_after(args) -> None:
-    """The per-pose figures of ``args.before_tree`` and of this tree, in alternating subprocesses."""
-    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(Path(__file__).resolve().parents[1])}
-    runs: dict[str, list[dict[str, list]]] = {name: [] for name in trees}
-    for _ in range(args.rounds):
-        for name, root in trees.items():
-            env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
-            command = [sys.executable, __file__, "--json", "--repeats", str(args.repeats)]
-            result = subprocess.run(command, env=env, cwd=root, capture_output=True, text=True, check=True)
-            runs[name].append(json.loads(result.stdout.strip().splitlines()[-1]))
-    print(f"  A/B against {trees['before']}: per-pose CPU medians, median over {args.rounds} alternating "
+    """The per-pose figures of ``args.before_tree`` and of this tree (:func:`~same_work.tree_root`),
+    in alternating subprocesses."""
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(tree_root(__file__))}
+    arguments = ["--json", "--repeats", str(args.repeats)] + (["--like-for-like"] if args.like_for_like else [])
+    runs = alternating_runs(__file__, trees, arguments, args.rounds)
+    setup = ", like for like" if args.like_for_like else ""
+    print(f"  A/B against {trees['before']}{setup}: per-pose CPU medians, median over {args.rounds} alternating "
           f"subprocess rounds of {max(3, args.repeats)} repeats each:")
     for key, label in _FIGURES.items():
         if key not in runs["now"][0]:
@@ -209,9 +314,13 @@ def _before_and_after(args) -> None:
             print(f"    {label}: now {now * 1e3:.2f} ms ({runs['now'][0][key][1]} rows; not in the older tree)")
             continue
         before = float(np.median([run[key][0] for run in runs["before"]]))
+        # each round's now / before (the two subprocesses ran one after the other)
+        paired = sorted(n[key][0] / b[key][0] for b, n in zip(runs["before"], runs["now"]))
         rows = (runs["before"][0][key][1], runs["now"][0][key][1])
-        print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, before / now = "
-              f"{before / now:.2f} (rows {rows[0]} / {rows[1]})")
+        print(f"    {label}: before {before * 1e3:.2f} ms, now {now * 1e3:.2f} ms, now / before = "
+              f"{now / before:.2f} (per round: median {np.median(paired):.2f}, {paired[0]:.2f} to {paired[-1]:.2f}; "
+              f"rows {rows[0]} / {rows[1]}; "
+              f"{common_fields_verdict(runs['before'][0][key][2], runs['now'][0][key][2])})")
 
 
 def _floor_and_columns(prepared, args) -> None:
@@ -298,8 +407,11 @@ def main() -> None:
                         help="an older checkout's root (acoustisim and scenes): same-run A/B of the per-pose figures")
     parser.add_argument("--rounds", type=int, default=3, help="alternating subprocess rounds of --before-tree")
     parser.add_argument("--deterministic-only", action="store_true", help="only the per-pose figures (and the A/B)")
+    parser.add_argument("--like-for-like", action="store_true",
+                        help="per-pose figures without the newer mechanisms, on the fluid reflection model")
     parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    sys.path.insert(0, str(tree_root(__file__)))
 
     import trimesh
 
@@ -313,12 +425,14 @@ def main() -> None:
     start = time.perf_counter()
     prepared = prepare(scene)
     prepare_s = time.perf_counter() - start
+    per_pose = prepare(fluid_reflection_scene(scene)) if args.like_for_like else prepared
     if args.json:  # one side of the --before-tree A/B: the per-pose figures, as JSON
-        print(json.dumps(_per_pose(prepared, max(3, args.repeats), fine=False)))
+        print(json.dumps(_per_pose(per_pose, max(3, args.repeats), fine=False, like_for_like=args.like_for_like)))
         return
     if args.deterministic_only:
-        _print_per_pose(prepared, max(3, args.repeats), fine=False)
-        _elastic_step(prepared, max(3, args.repeats))
+        _print_per_pose(per_pose, max(3, args.repeats), False, args.like_for_like)
+        _default_breakdown(prepared, max(3, args.repeats))
+        _step_breakdown(prepared, max(3, args.repeats))
         _reference_engine(prepared, max(3, args.repeats // 3))
         if args.before_tree:
             _before_and_after(args)
@@ -341,8 +455,9 @@ def main() -> None:
           f"{len(paths)} paths; process CPU time median {cpu_specular * 1e3:.2f} ms (less sensitive to other load)")
     print(f"  baseline raw Embree occlusion of {n_legs} segments: median {t_raw * 1e3:.3f} ms "
           f"(solve / baseline = {t_specular / t_raw:.1f})")
-    _print_per_pose(prepared, max(3, args.repeats), fine=True)
-    _elastic_step(prepared, max(3, args.repeats))
+    _print_per_pose(per_pose, max(3, args.repeats), True, args.like_for_like)
+    _default_breakdown(prepared, max(3, args.repeats))
+    _step_breakdown(prepared, max(3, args.repeats))
     _reference_engine(prepared, max(3, args.repeats // 3))
     if args.before_tree:
         _before_and_after(args)

@@ -38,12 +38,23 @@ untimed):
 Printed: the medians, the ratio ping / floor (goal <= 3) and the peak traced memory (Python and
 numba allocations, ``tracemalloc``) of one ping at the record length and at twice it (memory per
 ping must scale with the record length).
+
+``--before-tree DIR [--rounds R] [--like-for-like]``: a same-run A/B with an older checkout (its
+``acoustisim`` and ``scenes``): the floor and one ping are timed, interleaved, in this tree and in
+DIR in alternating subprocesses (:mod:`same_work`); printed are the medians over the rounds, the
+ping / floor ratio of each tree, now / before, and whether the two trees' path rows agree (in
+the fields both have) and their recordings (the int16 codes and volts of one ping, seed 1) are
+byte-identical. ``--like-for-like`` solves what an older tree solves: the new mechanisms off,
+the built-in solids on the ``fluid`` reflection model, and the record 12.5 ms long (the thesis
+tank's before it was lengthened).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
+import json
 import os
 import statistics
 import subprocess
@@ -54,7 +65,10 @@ import tracemalloc
 import warnings
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from same_work import (PRE_SESSION_RECORD_S, alternating_runs, common_fields_verdict, field_digests,
+                       fluid_reflection_scene, solver_config, tree_root, with_record_length)
+
+ROOT = tree_root(__file__)
 sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
@@ -126,6 +140,67 @@ def first_render_cost(cache_dir: str) -> tuple[float, float]:
     return cpu, wall
 
 
+def ab_figures(args) -> dict:
+    """One side of the ``--before-tree`` A/B, in whichever tree is imported: CPU and wall medians of
+    the floor and of one ping (interleaved), the median of the per-repeat ratios, the digests of
+    the rows and of one ping's recording."""
+    scene = builtin_scene(args.scene)
+    if args.like_for_like:
+        scene = with_record_length(fluid_reflection_scene(scene), PRE_SESSION_RECORD_S)
+    paths = solve(scene, scene.sonar, solver_config(args.like_for_like))
+    rows, responses = paths.rows, tuple(getattr(paths, "responses", ()))
+    synth = PingSynthesiser.create(scene.sonar, scene.medium, ReceiverChain(tvg=TimeVaryingGain()))
+
+    def render(seed: int):
+        # an older synthesiser takes no responses (a like-for-like solve has none)
+        return synth.render(rows, seed=seed, responses=responses) if responses else synth.render(rows, seed=seed)
+
+    n = scene.sonar.n_samples
+    rng = np.random.default_rng(0)
+
+    def floor() -> None:
+        noise = rng.standard_normal((3, n))
+        np.fft.rfft(noise, axis=1)
+
+    first = render(1)  # also the warm-up
+    counter = iter(range(2, 10**9))
+    samples: dict[str, list[tuple[float, float]]] = {"floor": [], "ping": []}
+    for _ in range(args.repeats):
+        samples["floor"].append(cpu_and_wall(floor))
+        samples["ping"].append(cpu_and_wall(lambda: render(next(counter))))
+    out: dict = {name: [statistics.median(c for c, _ in v), statistics.median(w for _, w in v)]
+                 for name, v in samples.items()}
+    out["ratio"] = statistics.median(p[0] / f[0] for p, f in zip(samples["ping"], samples["floor"]))
+    out["rows"] = int(rows.size)
+    out["samples"] = int(n)
+    out["digests"] = field_digests(rows)
+    out["recording"] = hashlib.sha1(np.ascontiguousarray(first.codes).tobytes()
+                                    + np.ascontiguousarray(first.volts).tobytes()).hexdigest()[:16]
+    return out
+
+
+def before_and_after(args) -> None:
+    """:func:`ab_figures` in ``args.before_tree`` and in this tree, alternating subprocesses."""
+    trees = {"before": str(Path(args.before_tree).resolve()), "now": str(tree_root(__file__))}
+    arguments = ["--json", "--repeats", str(args.repeats), "--scene", args.scene]
+    arguments += ["--like-for-like"] if args.like_for_like else []
+    runs = alternating_runs(__file__, trees, arguments, args.rounds)
+    first = {name: run[0] for name, run in runs.items()}
+    same_recording = "byte-identical" if first["before"]["recording"] == first["now"]["recording"] else "different"
+    setup = " like for like" if args.like_for_like else ""
+    same_rows = common_fields_verdict(first["before"]["digests"], first["now"]["digests"])
+    print(f"A/B against {trees['before']}{setup}: {args.scene}, {first['now']['rows']} path rows, 3 x "
+          f"{first['now']['samples']} samples; medians over {args.rounds} alternating subprocess rounds of "
+          f"{args.repeats} interleaved repeats; {same_rows}; one ping's recording (seed 1) {same_recording}")
+    for key in ("floor", "ping"):
+        before = [statistics.median(run[key][i] for run in runs["before"]) for i in (0, 1)]
+        now = [statistics.median(run[key][i] for run in runs["now"]) for i in (0, 1)]
+        print(f"  {key:6s} CPU before {before[0] * 1e3:7.1f} ms, now {now[0] * 1e3:7.1f} ms (now / before "
+              f"{now[0] / before[0]:.2f}); wall before {before[1] * 1e3:7.1f} ms, now {now[1] * 1e3:7.1f} ms")
+    ratios = {name: statistics.median(run["ratio"] for run in run_list) for name, run_list in runs.items()}
+    print(f"  ping / floor (CPU, median of per-repeat ratios): before {ratios['before']:.2f}, now {ratios['now']:.2f}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=9)
@@ -133,8 +208,19 @@ def main() -> int:
     parser.add_argument("--before", default=None, help="an older synthesiser.py to compare with")
     parser.add_argument("--save-rows", default=None, help="save the solver's path rows to this .npy file")
     parser.add_argument("--rows", default=None, help="time these stored path rows (.npy) instead of solving")
+    parser.add_argument("--before-tree", default=None, help="an older checkout: same-run A/B (see the docstring)")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating subprocess rounds of --before-tree")
+    parser.add_argument("--like-for-like", action="store_true",
+                        help="the A/B without the newer mechanisms, on the fluid reflection model, 12.5 ms record")
+    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     warnings.simplefilter("ignore", UserWarning)  # arrivals past the record's end
+    if args.json:  # one side of the --before-tree A/B
+        print(json.dumps(ab_figures(args)))
+        return 0
+    if args.before_tree:
+        before_and_after(args)
+        return 0
 
     scene = builtin_scene(args.scene)
     sonar = scene.sonar

@@ -62,7 +62,8 @@ from acoustisim.scattering.echo import EchoGeometry, EchoTarget, echo_target_for
 from acoustisim.scattering.echo_series import todays_echo
 
 __all__ = ("INTERNAL_ARRIVAL_DTYPE", "MAX_BISTATIC_RAD", "MAX_KA", "SIDE_TOLERANCE_M", "attach_elastic_echoes",
-           "curved_interactions", "flat_rows", "internal_arrival_table", "is_elastic_body", "unfolded_ends")
+           "curved_interactions", "elastic_targets", "flat_rows", "internal_arrival_table", "is_elastic_body",
+           "unfolded_ends")
 
 MAX_BISTATIC_RAD = 0.5 * np.pi
 """Largest bistatic angle (rad) at the object whose echo gets the elastic transfer function: 90
@@ -184,6 +185,44 @@ def flat_rows(target: EchoTarget, geometry: EchoGeometry, water: Fluid
     return flat, compression, np.conj(compression * g_flat / g_row)
 
 
+def elastic_targets(prepared: PreparedScene, context: SolveContext, bodies: Mapping[str, Body] | None = None
+                    ) -> dict[int, tuple[EchoTarget, NDArray[np.float64], NDArray[np.float64] | None]]:
+    """The objects whose echoes get transfer functions, by surface index (into
+    ``scene.surface_names``): their :class:`~acoustisim.scattering.echo.EchoTarget`, centre and
+    axis (:func:`~acoustisim.scattering.echo.echo_target_for`).
+
+    An object qualifies when its body is elastic (:func:`is_elastic_body`) or it is named in
+    ``bodies`` (whose bodies replace the objects' own), and its k a at the band's top is at most
+    :data:`MAX_KA`. Without ``bodies`` the result depends on the scene, the water and the pulse
+    only: it is kept in ``prepared.memo`` for every later pose (do not modify it).
+    """
+    water = Fluid(context.density_kg_m3, context.sound_speed_m_s)
+    pulse = context.sonar.pulse
+    key: Any = None
+    if bodies is None:
+        key = ("elastic targets", water.density_kg_m3, water.sound_speed_m_s, pulse)
+        try:
+            found = prepared.memo.get(key)
+        except TypeError:  # a pulse that cannot be a key (sampled): computed every time
+            key = None
+        else:
+            if found is not None:
+                return found
+    overrides = dict(bodies or {})
+    n_boundaries = len(prepared.scene.boundaries)
+    largest_radius = MAX_KA / (2.0 * np.pi * _band_top_hz(context) / water.sound_speed_m_s)
+    targets: dict[int, tuple[EchoTarget, NDArray[np.float64], NDArray[np.float64] | None]] = {}
+    for j, obj in enumerate(prepared.scene.objects):
+        found = echo_target_for(obj, overrides.get(obj.name), water)
+        if found is None or found[0].radius_m > largest_radius:
+            continue
+        if obj.name in overrides or is_elastic_body(found[0].body):
+            targets[n_boundaries + j] = found
+    if key is not None:
+        prepared.memo[key] = targets
+    return targets
+
+
 def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared: PreparedScene,
                           context: SolveContext, *, bodies: Mapping[str, Body] | None = None
                           ) -> tuple[NDArray[Any], tuple[Any, ...]]:
@@ -210,32 +249,29 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
     """
     scene = prepared.scene
     responses = tuple(responses)
-    overrides = dict(bodies or {})
     water = Fluid(context.density_kg_m3, context.sound_speed_m_s)
     n_boundaries = len(scene.boundaries)
-    targets: dict[int, tuple[EchoTarget, NDArray[np.float64], NDArray[np.float64] | None]] = {}
-    largest_radius = MAX_KA / (2.0 * np.pi * _band_top_hz(context) / water.sound_speed_m_s)
-    for j, obj in enumerate(scene.objects):
-        found = echo_target_for(obj, overrides.get(obj.name), water)
-        if found is None or found[0].radius_m > largest_radius:
-            continue
-        if obj.name in overrides or is_elastic_body(found[0].body):
-            targets[n_boundaries + j] = found
+    targets = elastic_targets(prepared, context, bodies)
     if not targets or rows.size == 0:
         return rows, responses
-    ids = rows["object_ids"].astype(np.int64)
-    candidate = (rows["kind"] == PathKind.SPECULAR) & np.isin(ids, list(targets)).any(axis=1)
-    candidates = np.flatnonzero(candidate)
+    # the specular rows touching a target (a few hundred of the solve's rows): every later
+    # array is over these candidates only
+    target_ids = np.fromiter(targets, dtype=np.int64, count=len(targets))
+    specular = np.flatnonzero(rows["kind"] == PathKind.SPECULAR)
+    specular_ids = rows["object_ids"][specular].astype(np.int64)
+    on_target = np.isin(specular_ids, target_ids)
+    touching = on_target.any(axis=1)
+    candidates = specular[touching]
     if candidates.size == 0:
         return rows, responses
-    curved = np.zeros(ids.shape, dtype=bool)
-    curved[candidates] = curved_interactions(rows[candidates], prepared, n_boundaries)
-    slot_valid = np.arange(MAX_INTERACTIONS)[None, :] < rows["order"][:, None]
-    elastic = curved & np.isin(ids, list(targets)) & slot_valid
-    hit_rows, hit_slots = np.nonzero(elastic)
+    chosen = rows[candidates]
+    ids, on_target = specular_ids[touching], on_target[touching]
+    curved = curved_interactions(chosen, prepared, n_boundaries)
+    slot_valid = np.arange(MAX_INTERACTIONS)[None, :] < chosen["order"][:, None]
+    hit_rows, hit_slots = np.nonzero(curved & on_target & slot_valid)  # hit_rows: indices into candidates
     if hit_rows.size == 0:
         return rows, responses
-    source, receiver = unfolded_ends(rows, curved, hit_rows, hit_slots, context.transmitter_m, context.receivers_m)
+    source, receiver = unfolded_ends(chosen, curved, hit_rows, hit_slots, context.transmitter_m, context.receivers_m)
     hit_objects = ids[hit_rows, hit_slots]
     # every hit's geometry at its object; hits beyond MAX_BISTATIC_RAD keep today's row
     geometry_of = np.empty((hit_rows.size, 4))
@@ -257,7 +293,7 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
         groups.setdefault((target.shape, target.radius_m, target.body, target.material), []).append(int(surface))
     part_of = np.empty((hit_rows.size, 2), dtype=np.int64)  # (batch number, index in batch)
     batches: list[ElasticRows] = []
-    h0 = np.ones(rows.size, dtype=complex)
+    h0 = np.ones(candidates.size, dtype=complex)
     for surfaces in groups.values():
         order = np.flatnonzero(np.isin(hit_objects, surfaces))
         target = targets[surfaces[0]][0]
@@ -278,20 +314,37 @@ def attach_elastic_echoes(rows: NDArray[Any], responses: Sequence[Any], prepared
     described = part_of[:, 0] >= 0
     hit_rows, hit_objects, part_of = hit_rows[described], hit_objects[described], part_of[described]
 
-    rows["amplitude"] *= np.abs(h0)
-    names = scene.surface_names
+    amplitude = rows["amplitude"]
+    amplitude[candidates] = amplitude[candidates] * np.abs(h0)
+    return rows, responses + _echo_responses(rows, responses, candidates[hit_rows], hit_objects, part_of, batches,
+                                             scene.surface_names)
+
+
+def _echo_responses(rows: NDArray[Any], responses: tuple[Any, ...], hit_rows: NDArray[np.int64],
+                    hit_objects: NDArray[np.int64], part_of: NDArray[np.int64], batches: Sequence[ElasticRows],
+                    names: Sequence[str]) -> tuple[Any, ...]:
+    """One :class:`ElasticEchoResponse` per row of ``hit_rows`` (h,) (sorted, a row once per
+    elastic interaction), numbered after ``responses``; sets those rows' ``response_id``."""
+    if hit_rows.size == 0:
+        return ()
+    first = np.flatnonzero(np.r_[True, hit_rows[1:] != hit_rows[:-1]])  # each row's run of interactions
+    stops = np.r_[first[1:], hit_rows.size].tolist()
+    echo_rows = hit_rows[first]
+    previous = rows["response_id"][echo_rows].tolist()
+    objects, batch_of, index_of = hit_objects.tolist(), part_of[:, 0].tolist(), part_of[:, 1].tolist()
+    labels: dict[tuple[tuple[int, int], ...], str] = {}  # one label per combination of (object, body)
     new: list[Any] = []
-    for row in np.unique(hit_rows):
-        mine = np.flatnonzero(hit_rows == row)
-        parts = tuple((batches[part_of[k, 0]], int(part_of[k, 1])) for k in mine)
-        label = "elastic echo of " + ", ".join(
-            f"{names[hit_objects[k]]} ({batches[part_of[k, 0]].target.material.name}"
-            f"{', pipe' if isinstance(batches[part_of[k, 0]].target.body, Shell) else ''})" for k in mine)
-        previous = int(rows["response_id"][row])
-        others = (responses[previous],) if previous >= 0 else ()
-        rows["response_id"][row] = len(responses) + len(new)
-        new.append(ElasticEchoResponse(label, parts, others))
-    return rows, responses + tuple(new)
+    for start, stop, before in zip(first.tolist(), stops, previous):
+        parts = tuple((batches[batch_of[k]], index_of[k]) for k in range(start, stop))
+        key = tuple((objects[k], batch_of[k]) for k in range(start, stop))
+        label = labels.get(key)
+        if label is None:
+            label = labels[key] = "elastic echo of " + ", ".join(
+                f"{names[surface]} ({batches[batch].target.material.name}"
+                f"{', pipe' if isinstance(batches[batch].target.body, Shell) else ''})" for surface, batch in key)
+        new.append(ElasticEchoResponse(label, parts, (responses[before],) if before >= 0 else ()))
+    rows["response_id"][echo_rows] = len(responses) + np.arange(echo_rows.size)
+    return tuple(new)
 
 
 def internal_arrival_table(paths: Paths) -> NDArray[Any]:

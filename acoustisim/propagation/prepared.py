@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +22,7 @@ from acoustisim.propagation.curved import CurvedSet
 from acoustisim.propagation.image_source import PlanarMirrors, is_polyhedral
 from acoustisim.propagation.raycast import RayCaster
 from acoustisim.propagation.smooth_mesh import SmoothMesh
+from acoustisim.resources import SceneMeasures
 
 if TYPE_CHECKING:
     from acoustisim.propagation.edge_extraction import DiffractingEdges, SharpEdges
@@ -87,7 +88,9 @@ class PreparedScene:
 
     ``curved_set`` stacks the reflectors' primitives (same order as ``curved``) for batched
     specular-point solves; ``curved_seen_by`` (r, m) stacks their ``seen_by`` rows;
-    ``object_bounds`` (n_objects, 2, 3) the objects' axis-aligned bounds (m).
+    ``object_bounds`` (n_objects, 2, 3) the objects' axis-aligned bounds (m). ``memo`` keeps
+    what the solve's steps derive from the scene alone (and from the water or the pulse, which
+    are part of their keys), computed on the first pose and reused by every later one.
     """
 
     scene: Scene
@@ -98,6 +101,14 @@ class PreparedScene:
     curved_seen_by: NDArray[np.bool_] = field(repr=False)
     smooth: tuple[SmoothReflector, ...] = ()
     object_bounds: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2, 3)), repr=False)
+    memo: dict[Any, Any] = field(default_factory=dict, repr=False)
+
+    @cached_property
+    def resource_measures(self) -> SceneMeasures:
+        """The scene's :class:`~acoustisim.resources.SceneMeasures` (objects, triangles, reflecting
+        surfaces, sharp-edge length, each measured on first use): the pre-flight of every pose
+        reads them (:func:`acoustisim.preflight.preflight`)."""
+        return SceneMeasures(self.scene)
 
     @cached_property
     def sharp_edges(self) -> "SharpEdges":
