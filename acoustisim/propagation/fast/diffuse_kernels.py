@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from acoustisim.propagation.fast.convex_occlusion import segment_crosses_convex
 from acoustisim.propagation.fast.diffuse_sampling import speckle_of
 from acoustisim.propagation.fast.diffuse_screen import LEGS_CLEAR, LEGS_SCREENED, LegScreen
+from acoustisim.propagation.fast.row_columns import write_path_columns
 
 
 class TriangleSet(NamedTuple):
@@ -509,24 +510,10 @@ def pack_rows(events: EventArrays, receivers: NDArray[np.float64], first_path_id
         e = events.event[i]
         j = events.channel[i]
         order = events.bounce[e]
-        row.path_id = first_path_id + e
-        row.channel = j
-        row.kind = kind
-        row.order = order
-        row.delay_s = 0.0
         r, ax, ay, az = _leg(events.point[e, 0], events.point[e, 1], events.point[e, 2], receivers[j, 0],
                              receivers[j, 1], receivers[j, 2])
-        row.path_length_m = events.travelled[e] + r
-        row.geometric_gain = events.gain[i]
-        row.phase_rad = events.phase[e]
-        row.angle_tx_rad = 0.0
-        row.angle_rx_rad = 0.0
-        row.directivity_tx = 0.0
-        row.directivity_rx = 0.0
-        row.absorption_db = 0.0
-        row.amplitude = 0.0
-        row.roughness_m2 = 0.0
-        row.response_id = -1
+        write_path_columns(row, first_path_id + e, j, kind, order, events.travelled[e] + r, events.gain[i],
+                           events.phase[e])
         row.arrival_dir[0], row.arrival_dir[1], row.arrival_dir[2] = ax, ay, az
         for k in range(3):
             row.departure_dir[k] = events.departure[e, k]

@@ -37,6 +37,7 @@ from acoustisim.propagation.fast.edge_gains import edge_impulses
 from acoustisim.propagation.fast.edge_visibility import (BLOCKED, CLEAR, MASK_BITS, OTHERS_BIT, UNDECIDED,
                                                          ScreenGeometry, scene_screen, screen_legs)
 from acoustisim.propagation.fast.mirror_kernels import backtrace_chains, mirror_arrays
+from acoustisim.propagation.fast.row_columns import write_path_columns
 from acoustisim.propagation.paths import MAX_INTERACTIONS
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.raycast import DEFAULT_EPS_M
@@ -223,22 +224,8 @@ def fill_reflected_rows(rows: NDArray[Any], destination: NDArray[np.int64], keep
         el = inputs.element[i]
         ch = inputs.receiver[p]
         row = rows[destination[r]]
-        row.path_id = inputs.path_id[p]
-        row.channel = ch
-        row.kind = edge_kind
-        row.order = order
-        row.delay_s = 0.0
-        row.path_length_m = inputs.path_length_m[i]
-        row.geometric_gain = inputs.gain[i]
-        row.phase_rad = inputs.phase[i]
-        row.angle_tx_rad = 0.0
-        row.angle_rx_rad = 0.0
-        row.directivity_tx = 0.0
-        row.directivity_rx = 0.0
-        row.absorption_db = 0.0
-        row.amplitude = 0.0
-        row.roughness_m2 = 0.0
-        row.response_id = -1
+        write_path_columns(row, inputs.path_id[p], ch, edge_kind, order, inputs.path_length_m[i], inputs.gain[i],
+                           inputs.phase[i])
         for j in range(n_before):
             for c in range(3):
                 points[j, c] = inputs.before_points[el, j, c]

@@ -30,6 +30,7 @@ from acoustisim.propagation.fast.edge_gains import edge_impulses
 from acoustisim.propagation.fast.edge_order import solver_order
 from acoustisim.propagation.fast.edge_reflections import fill_reflected_rows, reflected_impulses, row_inputs
 from acoustisim.propagation.fast.edge_visibility import EdgeLines, LegTargets, element_visibility
+from acoustisim.propagation.fast.row_columns import write_path_columns
 from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.reference.btm import pair_constants
@@ -75,22 +76,8 @@ def fill_rows(rows: NDArray[Any], keep: NDArray[np.int64], impulses: EdgeImpulse
         e = pair_edge[p]
         ch = pair_receiver[p]
         row = rows[destination[r]]
-        row.path_id = first_path_id + rank[lines.chain[e] * n_receivers + ch]
-        row.channel = ch
-        row.kind = EDGE_KIND
-        row.order = 1
-        row.delay_s = 0.0
-        row.path_length_m = impulses.path_length_m[i]
-        row.geometric_gain = impulses.gain[i]
-        row.phase_rad = 0.0
-        row.angle_tx_rad = 0.0
-        row.angle_rx_rad = 0.0
-        row.directivity_tx = 0.0
-        row.directivity_rx = 0.0
-        row.absorption_db = 0.0
-        row.amplitude = 0.0
-        row.roughness_m2 = 0.0
-        row.response_id = -1
+        write_path_columns(row, first_path_id + rank[lines.chain[e] * n_receivers + ch], ch, EDGE_KIND, 1,
+                           impulses.path_length_m[i], impulses.gain[i], 0.0)
         z = impulses.z_m[i]
         x0 = lines.start[e, 0] + z * lines.direction[e, 0]
         x1 = lines.start[e, 1] + z * lines.direction[e, 1]
