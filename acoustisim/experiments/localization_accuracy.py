@@ -26,7 +26,10 @@ the fused groups' errors; the ratio of the errors' scatter to the reported std (
 pings), 1 for an honest std. ``--no-beam`` runs the same pings through the plain matched filter's
 times (``LocalizationConfig(beam=False)``), the "before" of issue 19. The command line:
 ``acoustisim experiment localization-accuracy`` (``--kinds``, ``--ranges``, ``--bearings``,
-``--snr-db``, ``--fuse-pings``, ``--no-beam``; ``--trials`` is the number of pings per position).
+``--snr-db``, ``--fuse-pings``, ``--no-beam``, ``--echo-model``; ``--trials`` is the number of
+pings per position). ``--echo-model point`` (or ``vertical-edge``) times every ping with that
+expected echo (``LocalizationConfig.echo_model``) instead of the per-ping choice: the scatter
+that the choice adds shows as the difference.
 """
 
 from __future__ import annotations
@@ -49,6 +52,9 @@ DEFAULT_PINGS = 500
 DEFAULT_RANGES_M: tuple[float, ...] = (0.3, 0.5, 0.8, 1.2, 1.8, 2.5)
 DEFAULT_BEARINGS_DEG: tuple[float, ...] = (-10.0, -5.0, 0.0, 5.0, 10.0)
 KINDS: tuple[str, ...] = ("post", "edge")
+ECHO_MODEL_CHOICES: tuple[str, ...] = ("auto", "point", "vertical-edge")
+"""``binsonar.localization.LocalizationConfig.echo_model``'s values (repeated: the parser is
+built without importing binsonar's pipeline)."""
 POST_RADIUS_M = 0.005
 """The thin post of issue 19."""
 PRISM_SIZE_M = 0.5
@@ -84,7 +90,7 @@ apart, as a misclassification."""
 
 
 def add_arguments(parser: Any) -> None:
-    """``--kinds``, ``--ranges`` (m), ``--bearings`` (deg), ``--snr-db``, ``--fuse-pings``, ``--no-beam``."""
+    """``--kinds``, ``--ranges`` (m), ``--bearings`` (deg), ``--snr-db``, ``--fuse-pings``, ``--no-beam``, ``--echo-model``."""
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=None, help="targets (default: post edge)")
     parser.add_argument("--ranges", nargs="+", type=float, default=None,
                         help=f"ranges (m, default {' '.join(f'{r:g}' for r in DEFAULT_RANGES_M)})")
@@ -95,6 +101,8 @@ def add_arguments(parser: Any) -> None:
                         help="pings per fused group (default 20)")
     parser.add_argument("--no-beam", action="store_true", default=None, dest="no_beam",
                         help="the plain matched filter's times (binsonar localize --no-beam), for comparison")
+    parser.add_argument("--echo-model", choices=ECHO_MODEL_CHOICES, default=None, dest="echo_model",
+                        help="expected echo of the beam-aware timing (default auto: chosen per ping)")
 
 
 def target_scene(kind: str, range_m: float, bearing_deg: float) -> tuple[Any, Any, Any]:
@@ -194,7 +202,8 @@ def measure_position(trial: Trial) -> dict[str, Any]:
     chain = receiver_chain(scene, sonar, paths, start_s)
     synthesiser = PingSynthesiser.create(sonar, scene.medium, chain)
     solve_cpu_s = time.process_time() - t0
-    config = LocalizationConfig(fuse=False, beam=bool(p.get("beam", True)))
+    config = LocalizationConfig(fuse=False, beam=bool(p.get("beam", True)),
+                                echo_model=str(p.get("echo_model", "auto")))
     pose = np.array([*sonar.position_m, sonar.yaw_deg, sonar.pitch_deg, sonar.roll_deg])
     columns: dict[str, list[Any]] = {k: [] for k in ("range_error_m", "bearing_error_deg", "range_std_m",
                                                      "bearing_std_deg", "cls", "status", "echo_model")}
@@ -300,14 +309,18 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     group = int(config.option("fuse_pings", 20))
     n_pings = config.trials_or(DEFAULT_PINGS)
     beam = not bool(config.option("no_beam", False))
+    echo_model = str(config.option("echo_model", "auto"))
     if not all(0.2 <= r <= 5.0 for r in ranges) or not all(-20.0 <= b <= 20.0 for b in bearings):
         raise InputError(f"localization accuracy: ranges must be within 0.2-5 m and bearings within +/-20 deg, got "
                          f"{list(ranges)}, {list(bearings)}")
+    if echo_model not in ECHO_MODEL_CHOICES:
+        raise InputError(f"localization accuracy: echo_model must be one of {', '.join(ECHO_MODEL_CHOICES)}, got "
+                         f"{echo_model!r}")
     if not (2 <= n_pings <= 100_000 and 1 <= group <= n_pings and 5.0 <= snr_db <= 80.0):
         raise InputError(f"localization accuracy: need 2 <= pings <= 100000, 1 <= fuse pings <= pings and "
                          f"5 <= snr_db <= 80, got {n_pings}, {group}, {snr_db}")
     params = [{"kind": k, "range_m": r, "bearing_deg": b, "n_pings": n_pings, "snr_db": snr_db, "fuse_pings": group,
-               "beam": beam}
+               "beam": beam, "echo_model": echo_model}
               for k in kinds for r in ranges for b in bearings]
     wall = time.perf_counter()
     raw = run_trials(measure_position, make_trials(config.seed, params), workers=config.workers,
@@ -317,7 +330,8 @@ def run(config: ExperimentConfig) -> ExperimentReport:
     report = ExperimentReport(NAME, config.out_dir)
     passed = {k: sum(p["within_tolerance"][k] for p in positions) for k in ("bias", "variance", "fused", "detected")}
     report.results.update({"positions": positions, "raw": raw, "n_pings": n_pings, "snr_db": snr_db,
-                           "fuse_pings": group, "beam": beam, "wall_s": wall_s, "passed": passed,
+                           "fuse_pings": group, "beam": beam, "echo_model": echo_model, "wall_s": wall_s,
+                           "passed": passed,
                            "tolerances": {"bias": BIAS_TOLERANCE, "fused": FUSED_TOLERANCE,
                                           "normalised_variance": VARIANCE_TOLERANCE}})
     report.add_section(__doc__.split("\n\n", 1)[1].split("The command line")[0].strip())

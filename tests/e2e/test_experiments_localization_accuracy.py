@@ -67,3 +67,23 @@ def test_no_beam_runs_the_same_pings_with_plain_times(tmp_path: Path) -> None:
     assert set(beam["raw"][0]["echo_model"]) <= {"point", "vertical-edge"}
     # Each position reports the ratio of the errors' scatter to the reported std.
     assert all(math.isfinite(p["range_scatter_to_reported"]) for p in beam["positions"] + plain["positions"])
+
+
+def test_a_fixed_echo_model_times_every_ping_with_it(tmp_path: Path) -> None:
+    # --echo-model point: the per-ping choice off, so its share of the scatter can be measured.
+    module = experiment_module("localization-accuracy")
+    config = ExperimentConfig(name="localization-accuracy", out_dir=tmp_path, seed=5, trials=4, workers=1,
+                              progress=False, options={"kinds": ["edge"], "ranges": [0.5], "bearings": [0.0],
+                                                       "fuse_pings": 2, "echo_model": "point"})
+    payload = json.loads(Path(module.run(config).write()["results"]).read_text())
+    assert payload["echo_model"] == "point" and set(payload["raw"][0]["echo_model"]) == {"point"}
+
+
+def test_an_unknown_echo_model_is_refused(tmp_path: Path) -> None:
+    from acoustisim.errors import InputError
+
+    module = experiment_module("localization-accuracy")
+    config = ExperimentConfig(name="localization-accuracy", out_dir=tmp_path, seed=5, trials=4, workers=1,
+                              progress=False, options={"echo_model": "plane"})
+    with pytest.raises(InputError, match="echo_model must be one of auto, point, vertical-edge, got 'plane'"):
+        module.run(config)
