@@ -102,12 +102,16 @@ def _open_v73(path: Any, description: ImportDescription) -> ArraySource:
     where = str(path)
     h5 = open_hdf5(path, "MATLAB v7.3 file")
     try:
-        names = [key for key in h5.keys() if not key.startswith("#")]
-        candidates = []
-        for key in names:
-            link = h5.get(key, getlink=True)
-            if isinstance(link, h5py.HardLink) and isinstance(h5.get(key), h5py.Dataset):
-                candidates.append(key)
+        try:  # a damaged link table fails in HDF5's iteration (RuntimeError, KeyError, OSError)
+            names = [key for key in h5.keys() if not key.startswith("#")]
+            candidates = []
+            for key in names:
+                link = h5.get(key, getlink=True)
+                if isinstance(link, h5py.HardLink) and isinstance(h5.get(key), h5py.Dataset):
+                    candidates.append(key)
+        except (RuntimeError, KeyError, OSError, ValueError) as exc:
+            raise InputError(f"{where}: cannot list the variables of this MATLAB v7.3 file (damaged?): "
+                             f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
         name = choose_variable(candidates if description.settings.variable is None else names,
                                description.settings.variable, where, "MATLAB")
         dset = checked_dataset(h5, name, where, ReadLimits(), kinds="iuf", required=True)

@@ -220,7 +220,8 @@ class RecordingHeader:
                 positions = np.array([[-d, 0.0, 0.0], [0.0, 0.0, 0.0], [d, 0.0, 0.0]])
         else:
             try:
-                positions = np.array(self.channel_positions_m, dtype=float)
+                with np.errstate(invalid="ignore", over="ignore"):  # what does not convert is refused below
+                    positions = np.array(self.channel_positions_m, dtype=float)
             except (TypeError, ValueError):
                 raise RecordingError(f"{where}: channel_positions_m must be (3, 3) numbers, got "
                                      f"{short_repr(self.channel_positions_m)}") from None
