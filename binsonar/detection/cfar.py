@@ -158,8 +158,9 @@ def cfar_layout(plan: MatchedPlan, guard_s: float, n_reference: int) -> tuple[ND
     The spacing is the correlation time tau_c of |z|^2 in cells (at least 1): the reference
     cells are then effectively independent, so N is also the effective number of cells.
     """
-    if not (math.isfinite(guard_s) and guard_s >= 0):
-        raise RecordingError(f"guard_s must be >= 0, got {guard_s!r}")
+    record_s = plan.n_samples / plan.sample_rate_hz
+    if not (math.isfinite(guard_s) and 0 <= guard_s <= record_s):
+        raise RecordingError(f"guard_s must be >= 0 and at most the record's length ({record_s:g} s), got {guard_s!r}")
     if not (isinstance(n_reference, (int, np.integer)) and n_reference >= 2 and n_reference % 2 == 0):
         raise RecordingError(f"n_reference must be an even integer >= 2, got {n_reference!r}")
     cell_s = plan.decimation / plan.sample_rate_hz

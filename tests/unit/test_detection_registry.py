@@ -89,6 +89,7 @@ def test_options_are_checked_at_prepare(method):
     ("matched", "pfa", 1.0, "pfa must be in"),
     ("local-matched", "candidates", 17, r"candidates must be an integer in \[1, 16\]"),
     ("ca-cfar", "n_reference", 7, "n_reference must be an even integer"),
+    ("ca-cfar", "guard_s", 1e300, r"guard_s must be >= 0 and at most the record's length"),
     ("energy", "tof", "middle", "tof must be one of"),
     ("threshold", "search_window_s", (1.0,), r"search_window_s must be \(start_s, stop_s\)"),
     ("seed-3", "single", 2, "single must be true or false"),
