@@ -18,7 +18,7 @@ with side echoes left over, gated by |L_side - L_centre| <= |R_side - R_centre| 
 inequality), nearest first.
 
 Ringing first-come: a body's elastic and internal echoes (a post's compressional echo through
-its diameter 21 us behind its specular echo, a pipe wall's reverberations) arrive at nearly the
+its diameter 4 a / c_L = 42 us behind its specular echo, a pipe wall's reverberations) arrive at nearly the
 specular echo's bearing, often on only some channels, and with another reflector's echo on the
 remaining channel they can make a triple that fits the gate better than the body's own (whose
 centre lies half the point/plane spread off the gate's middle): greedily accepted first, it
