@@ -260,41 +260,41 @@ def _step_breakdown(prepared, repeats: int) -> None:
           f"total {cpu['total'] * 1e3:.2f} ms")
 
 
+def _engines_interleaved(prepared, fast, repeats: int) -> tuple[float, float, int, int]:
+    """CPU-time medians (s) of ``fast`` and of it on the reference engine, timed in turn within
+    each repeat, and the row counts of each."""
+    from dataclasses import replace
+
+    from acoustisim.propagation import solve
+
+    configs = {"fast": fast, "reference": replace(fast, backend="reference")}
+    n_rows = {key: len(solve(prepared, config=config)) for key, config in configs.items()}  # also the warm-up
+    cpu: dict[str, list[float]] = {key: [] for key in configs}
+    for _ in range(repeats):
+        for key, config in configs.items():
+            start = time.process_time()
+            solve(prepared, config=config)
+            cpu[key].append(time.process_time() - start)
+    return float(np.median(cpu["fast"])), float(np.median(cpu["reference"])), n_rows["fast"], n_rows["reference"]
+
+
 def _reference_engine(prepared, repeats: int) -> None:
     """CPU-time medians of direct + specular (order 3) on the reference and fast engines, interleaved
     (without the elastic-echo step, the same code after either engine); then of the default solve
     (every mechanism) on each."""
-    from dataclasses import replace
-
-    from acoustisim.propagation import SolverConfig, solve
+    from acoustisim.propagation import SolverConfig
 
     fast = SolverConfig(max_order=3, mechanisms=("direct", "specular"), amplitude_floor_db=None, elastic_echoes=False)
-    reference = replace(fast, backend="reference")
-    n_rows = (len(solve(prepared, config=fast)), len(solve(prepared, config=reference)))
-    cpu = {"fast": [], "reference": []}
-    for _ in range(repeats):
-        for key, config in (("fast", fast), ("reference", reference)):
-            start = time.process_time()
-            solve(prepared, config=config)
-            cpu[key].append(time.process_time() - start)
-    fast_s, reference_s = float(np.median(cpu["fast"])), float(np.median(cpu["reference"]))
+    fast_s, reference_s, fast_rows, reference_rows = _engines_interleaved(prepared, fast, repeats)
     print(f"  direct + specular (order 3, no elastic step), CPU medians over {repeats}: reference engine "
-          f"{reference_s * 1e3:.1f} ms "
-          f"({n_rows[1]} rows), fast engine {fast_s * 1e3:.2f} ms ({n_rows[0]} rows); reference / fast = "
-          f"{reference_s / fast_s:.1f}")
+          f"{reference_s * 1e3:.1f} ms ({reference_rows} rows), fast engine {fast_s * 1e3:.2f} ms ({fast_rows} rows); "
+          f"reference / fast = {reference_s / fast_s:.1f}")
     # the whole default solve (every mechanism, diffuse rays included) on each engine
-    fast, reference = SolverConfig(), SolverConfig(backend="reference")
-    n_rows = (len(solve(prepared, config=fast)), len(solve(prepared, config=reference)))
-    cpu = {"fast": [], "reference": []}
-    for _ in range(repeats):
-        for key, config in (("fast", fast), ("reference", reference)):
-            start = time.process_time()
-            solve(prepared, config=config)
-            cpu[key].append(time.process_time() - start)
-    fast_s, reference_s = float(np.median(cpu["fast"])), float(np.median(cpu["reference"]))
-    print(f"  default solve (SolverConfig(), {fast.diffuse_rays} diffuse rays), CPU medians over {repeats}: reference "
-          f"engine {reference_s * 1e3:.0f} ms ({n_rows[1]} rows), fast engine {fast_s * 1e3:.1f} ms ({n_rows[0]} "
-          f"rows); reference / fast = {reference_s / fast_s:.1f}")
+    default = SolverConfig()
+    fast_s, reference_s, fast_rows, reference_rows = _engines_interleaved(prepared, default, repeats)
+    print(f"  default solve (SolverConfig(), {default.diffuse_rays} diffuse rays), CPU medians over {repeats}: "
+          f"reference engine {reference_s * 1e3:.0f} ms ({reference_rows} rows), fast engine {fast_s * 1e3:.1f} ms "
+          f"({fast_rows} rows); reference / fast = {reference_s / fast_s:.1f}")
 
 
 def _before_and_after(args) -> None:
