@@ -32,8 +32,22 @@ arrivals). A sharp vertical edge diffracts: its echo is the line integral's
 (f^-1/2) and the beam's weighting along the edge; timing an edge with the point model is
 biased by up to 40 ns on a channel at 0.3 m (measured on the simulator's noise-free edge),
 timing a post with the edge model likewise. ``refine_target`` refines with one model; the
-pipeline compares the models' output SNRs (the generalised likelihood ratio of the two
-shapes) where the geometry cannot tell (``localize_ping``).
+pipeline compares the models' fits where the geometry cannot tell (``localize_ping``).
+
+Comparing the models: each model m is fitted by its own delays and complex amplitudes (three
+of each; the same degrees of freedom for both), and in noise of level P_c per bin the
+generalised log-likelihood of m is, up to terms common to both,
+
+    L_m = sum_c |z_mc|^2 / (P_c S0_mc),     S0_mc = sum_k |A_mck|^2,
+
+the energy of the record the fitted echo explains (least squares). ``model_fit_snr`` is L_m less
+the noise's share (1 per channel). The noise level P_c is one number per channel, common to
+both models: the per-bin estimate averaged over the band with the template's weights |T_k|^2.
+Weighting each model by the per-bin estimate instead (sum_k W_mk P_ck) gives each model its own
+random normalisation: a relative error e in it moves L_m by e L_m, and with L ~ 1,500 at
+2E/N0 = 30 dB on three channels, the two models' normalisations differing by 2 % swamp their
+difference (tens). Under the point model, L_edge - L_point has the mean -mu (the part of the
+echo the edge model cannot explain, in noise units) and, at high SNR, the sd sqrt(2 mu).
 
 Method
 ------
@@ -48,7 +62,7 @@ Method
    at its level there); a coherent echo that overlaps the target's (a multipath arriving
    within the pulse) does not, and biases it.
 4. The echo's ``tof_std_s`` from the variance above, its ``snr_db`` 10 log10(2 |z_s|^2 /
-   sum W P), and the model's output SNR sum_c |z_s,c|^2 / sum_k W_ck P_ck.
+   sum W P), and the model's fit ``model_fit_snr`` (above).
 
 Accuracy
 --------
@@ -60,6 +74,16 @@ variance is the high-SNR limit, validated at 2E/N0 = 30 dB (the experiment
 The noise spectrum's resolution is the sample rate over its segment length (``NOISE_SEGMENT``
 down to 64 samples, so that ``NOISE_SEGMENTS_MIN`` segments stay clear of the echoes): smooth
 noise spectra only.
+
+The model comparison (``model_fit_snr``), measured in the experiment ``localization-accuracy``
+(500 pings per position at 2E/N0 = 30 dB, 0.3 m / 10 deg, 0.5 m / 0 deg, 0.8 m / 8 deg,
+1.5 m / -6 deg, 2.5 m / -10 deg): the 5 mm post is timed with the point model in every ping
+(2,500 of 2,500), the 60-degree edge with the edge model in 2,496 of 2,500. On the post at
+0.3 m / 10 deg, the difference of the fits (edge - point) has mean -50 and sd 10 (the
+likelihood ratio's sqrt(2 mu) = 10). Its scatter also holds the noise level's relative error
+e_c per channel (about sum_c g_c e_c, g_c the channel's share of the difference): with the
+record's noise estimate from a few short segments it grows (sd 24 against 11 on a synthetic
+point echo whose noise is measured within 0.12 ms of it rather than 0.5 ms).
 """
 
 from __future__ import annotations
@@ -268,8 +292,8 @@ class RefinedTarget:
     position_m : ndarray, shape (3,)
         Head-frame position from the refined left and right TOFs (m).
     output_snr : float
-        sum over channels of |z_s|^2 / E|n|^2, the filters' output SNR: the larger, the better
-        the model explains the echoes.
+        The model's fit (``model_fit_snr``): the energy of the echoes it explains over the noise
+        level, summed over the channels; the larger, the better the model explains the echoes.
     """
 
     echoes: tuple[Any, Any, Any]
@@ -402,10 +426,38 @@ def refine_target(echoes: Sequence[Any], setup: BeamSetup, noise: PingNoise,
     out = tuple(None if e is None else replace(e, tof_s=float(refined.tof_s[ch]), tof_std_s=float(std[ch]),
                                                snr_db=float(snr_db[ch]))
                 for ch, e in enumerate(triple))
-    output_snr = float(np.sum((signal / noise_out)[active]))
-    return RefinedTarget(out, model, refined.position_m, output_snr)  # type: ignore[arg-type]
+    return RefinedTarget(out, model, refined.position_m, model_fit_snr(z, expected, power, grid.template_spectrum, active))
 
 
-__all__ = ("BeamSetup", "ECHO_MODELS", "NoiseSpectrum", "PingNoise", "RefinedTarget", "refine_target",
+def model_fit_snr(z: NDArray[np.complex128], expected: NDArray[np.complex128], noise_power: NDArray[np.float64],
+                  template_spectrum: NDArray[np.complex128], active: NDArray[np.bool_]) -> float:
+    """The statistic ``refine_target``'s models are compared by: sum over the active channels of
+    |z_c|^2 / (P_c sum_k |A_ck|^2) - 1 (module docstring, "Comparing the models").
+
+    Parameters
+    ----------
+    z : ndarray, shape (c,)
+        The correlation sum_k X_k conj(A_k) at the model's refined TOF.
+    expected : ndarray, shape (c, k)
+        A, the model's expected echo.
+    noise_power : ndarray, shape (c, k)
+        E|N_k|^2 as estimated per bin (``NoiseSpectrum.bin_power``).
+    template_spectrum : ndarray, shape (k,)
+        T: the per-bin estimate is averaged over the band with the weights |T_k|^2, which do not
+        depend on the model, into one level P_c per channel.
+    active : ndarray of bool, shape (c,)
+
+    Returns
+    -------
+    float
+        The fitted echoes' energy over the noise level, less the noise's own share (1 per channel).
+    """
+    weight = np.abs(template_spectrum) ** 2
+    level = np.sum(noise_power * weight, axis=1) / np.sum(weight)  # (c,)
+    fit = np.abs(z) ** 2 / (level * np.sum(np.abs(expected) ** 2, axis=1)) - 1.0
+    return float(np.sum(fit[active]))
+
+
+__all__ = ("BeamSetup", "ECHO_MODELS", "NoiseSpectrum", "PingNoise", "RefinedTarget", "model_fit_snr", "refine_target",
            "search_half_width_s", "segment_spectra",
            "tof_variance_s2")

@@ -13,8 +13,9 @@ bandwidth, before the fits. Association then allows the plain matched filter's b
 (``LocalizationConfig.beam_association_floor_s``), and a centre echo with one side echo is a
 target too when the cued search finds the other side (a weak edge next to a strong one). Which
 expected echo: the point model for every target; where the fits say "point" (or cannot tell),
-also the vertical edge's, and the one with the larger output SNR is kept
-(``LocalizationConfig.echo_model`` fixes one instead). ``LocalizationConfig(beam=False)`` (the
+also the vertical edge's, and the one that explains more of the echoes' energy is kept
+(``beam_targets.model_fit_snr``, both at one noise level per channel: a likelihood ratio;
+``LocalizationConfig.echo_model`` fixes one instead). ``LocalizationConfig(beam=False)`` (the
 command line's ``--no-beam``) keeps the plain matched filter's times.
 """
 
@@ -94,7 +95,8 @@ class LocalizationConfig:
         standard deviations of 1 us cover.
     echo_model : {"auto", "point", "vertical-edge"}
         "auto": the point model's echo for every target, and where the fits say point (or
-        cannot tell) also the vertical edge's, keeping the one with the larger output SNR;
+        cannot tell) also the vertical edge's, keeping the one with the better fit
+        (``beam_targets.model_fit_snr``);
         otherwise that model for every target.
     ringing_span_s : float
         Echoes arriving up to this long (s) after an earlier echo on the same channel that is at
