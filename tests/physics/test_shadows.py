@@ -17,6 +17,7 @@ from acoustisim.propagation.shadows import ApertureTerms, Legs, aperture_terms, 
 from acoustisim.scene import Scene, Tank
 from scenes.builders import default_sonar, post
 from support.diffraction_references import kirchhoff_post_shadow, wedge_point_source
+from support.response_spans import worst_outside_span_db
 
 C = 1482.38
 
@@ -263,22 +264,8 @@ def test_shadow_responses_hold_their_echo_within_their_span(thesis_tank) -> None
     # shadowed row of the thesis tank's default pose (measured worst -81.7 dB, with the
     # half-integrated edge waves' slow tails; 2 ms window at 4 MHz). The elastic echoes are off:
     # their responses state their own level (-60 dB, tests/physics/test_elastic_echo_responses.py).
-    from acoustisim.synthesis.transducer import pulse_spectrum
-
     paths = solve(thesis_tank, config=SolverConfig(elastic_echoes=False))
-    fs, n = 4e6, 1 << 13
-    f = np.fft.rfftfreq(n, 1 / fs)
-    band = f <= 1.3e6
-    spectrum = pulse_spectrum(thesis_tank.sonar.pulse, f) * band
-    t = np.fft.fftfreq(n) * n / fs  # times (s), the second half negative
-    worst = -np.inf
-    for response in paths.responses:
-        transfer = np.ones(f.size, dtype=complex)
-        transfer[band] = response.transfer(f[band], paths.sound_speed_m_s)
-        echo = np.fft.irfft(spectrum * transfer, n)
-        start, stop = response.span_s
-        outside = (t < start - 6e-6) | (t > stop + 6e-6)
-        worst = max(worst, 20 * np.log10(np.abs(echo[outside]).max() / np.abs(echo).max()))
+    worst = worst_outside_span_db(paths.responses, thesis_tank.sonar.pulse, paths.sound_speed_m_s, (-6e-6, 6e-6))
     assert len(paths.responses) > 100
     assert worst < -80.0, worst
 
