@@ -8,6 +8,7 @@ fluid bodies forced through the step synthesise today's echoes.
 from __future__ import annotations
 
 from dataclasses import replace
+from types import MappingProxyType
 
 import numpy as np
 import pytest
@@ -26,7 +27,7 @@ from scenes.builders import post
 
 DETERMINISTIC = ("direct", "specular")
 
-ALONE = dict(mechanisms=DETERMINISTIC, shadows=False)
+ALONE = MappingProxyType({"mechanisms": DETERMINISTIC, "shadows": False})
 """The step alone: without the diffracted shadows, whose responses the elastic ones would
 multiply (that product: :func:`test_an_elastic_echo_in_a_shadow_multiplies_the_shadows_response`)."""
 
