@@ -6,7 +6,7 @@ mechanism alone (graded edges, keep-all), of the fast engine's edge rows
 (:func:`acoustisim.propagation.fast.edges.edge_rows`) and of the reference engine's
 (:func:`acoustisim.propagation.reference.edge_paths.edge_rows`).
 
-Then the same with one reflection combined with each edge (``SolverConfig(edge_reflections=1)``:
+Then the same with one reflection combined with each edge (``SolverConfig(edge_reflections=1, edge_reflection_fresnel_v=None)``:
 edge -> mirror or curved surface, and the reverse): the fast and the reference edge rows' CPU
 medians and their ratio, and the row count.
 
@@ -93,7 +93,7 @@ def measure_reflections(repeats: int) -> dict[str, float]:
     from scenes.builtin import builtin_scene
 
     prepared = prepare(builtin_scene("thesis-tank"))
-    config = SolverConfig(max_order=3, mechanisms=("edge",), amplitude_floor_db=None, edge_reflections=1)
+    config = SolverConfig(max_order=3, mechanisms=("edge",), amplitude_floor_db=None, edge_reflections=1, edge_reflection_fresnel_v=None)
     context = SolveContext.build(prepared.scene, prepared.scene.sonar, prepared.raycaster)
     cases = {"fast": lambda: fast_edge_rows(context, config, prepared),
              "reference": lambda: reference_edge_rows(context, config, prepared)}

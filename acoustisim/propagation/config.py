@@ -17,6 +17,12 @@ MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge", "diffuse")
 MAX_EDGE_REFLECTIONS = 2
 """Most reflections combined with one edge diffraction (an edge path of order 3)."""
 
+DEFAULT_EDGE_REFLECTION_FRESNEL_V = 3.0
+"""Default reach of the edge-and-reflection paths (``SolverConfig.edge_reflection_fresnel_v``):
+a half-plane's diffracted field is about 0.225 / |v| of the geometric field it accompanies
+(within 10 % for |v| >= 1; Fresnel integral asymptotics), so the paths left out at |v| > 3 are
+each more than 22.5 dB below their geometric path's unobstructed level."""
+
 BACKENDS: tuple[str, ...] = ("fast", "reference")
 """The engines (:mod:`acoustisim.propagation.engine`): "fast" (compiled kernels, the default) and
 "reference" (one plain-numpy module per mechanism; the same rows, slower)."""
@@ -53,14 +59,23 @@ class SolverConfig:
         element is one delay step (the fine reference discretisation).
     edge_reflections : int
         Most reflections combined with one edge diffraction (0 to
-        :data:`MAX_EDGE_REFLECTIONS`): 0 (default), first-order edge diffraction only; 1, also
+        :data:`MAX_EDGE_REFLECTIONS`): 0, first-order edge diffraction only; 1 (default), also
         the paths edge -> reflection and reflection -> edge (kind ``edge``, order 2; planar
         mirrors by the image method, curved surfaces at their specular point from each edge
-        element: the edges heard via the floor and the surface); 2, also two planar reflections
+        element: the field diffracted around a prism into the shadow it casts on a post or a
+        wall, an edge heard via the floor or the surface); 2, also two planar reflections
         before, after or around the edge (order 3).
         :mod:`acoustisim.propagation.reference.edge_reflections`. Each such path is a line
-        integral of about as many rows as a first-order edge's: on the thesis tank, 1 multiplies
-        the edge rows by about 14 (see ``benchmarks/bench_propagation.py``).
+        integral of about as many rows as a first-order edge's.
+    edge_reflection_fresnel_v : float or None
+        Reach of the edge-and-reflection paths: an (edge, mirrors) pair is traced when the
+        edge lies within this Fresnel-Kirchhoff parameter |v| of the geometric path of the same
+        mirrors, shadowed or lit (v = 2 sqrt(detour / wavelength) at the centre frequency;
+        default :data:`DEFAULT_EDGE_REFLECTION_FRESNEL_V` = 3: shadows and transition zones,
+        where the diffracted field matters most). The pairs left out are separate arrivals each
+        more than 22.5 dB below their geometric path's unobstructed level. None traces every
+        pair (on the thesis tank about 14 times the first-order edge rows; see
+        :mod:`acoustisim.propagation.reference.edge_reflections`, Selection).
     shadows : bool
         True (default): a specular leg passing near or blocked by a smooth convex obstacle
         (sphere, cylinder) is weighted by the field diffracted around it (a Kirchhoff-Fresnel
@@ -108,7 +123,8 @@ class SolverConfig:
     diffuse_bounces: int = 1
     edge_segment_m: float = 5e-4
     edge_adaptive: bool = True
-    edge_reflections: int = 0
+    edge_reflections: int = 1
+    edge_reflection_fresnel_v: float | None = DEFAULT_EDGE_REFLECTION_FRESNEL_V
     shadows: bool = True
     amplitude_floor_db: float | None = -80.0
     amplitude_floor_band_hz: tuple[float, float] | None = None
@@ -158,6 +174,11 @@ class SolverConfig:
         integer("edge_reflections", 0)
         if self.edge_reflections > MAX_EDGE_REFLECTIONS:
             raise InputError(f"solver.edge_reflections = {self.edge_reflections!r}: at most {MAX_EDGE_REFLECTIONS}")
+        reach = self.edge_reflection_fresnel_v
+        if reach is not None and (
+            isinstance(reach, bool) or not isinstance(reach, (int, float)) or not (math.isfinite(reach) and reach >= 0)
+        ):
+            raise InputError(f"solver.edge_reflection_fresnel_v = {reach!r}: must be a finite number >= 0 or None")
         if not isinstance(self.shadows, bool):
             raise InputError(f"solver.shadows = {self.shadows!r}: must be true or false")
         floor = self.amplitude_floor_db

@@ -22,7 +22,7 @@ def both_engines(scene, config, sonar=None):
 
 
 def test_engines_agree_on_the_thesis_tank_with_one_reflection(thesis_tank) -> None:
-    config = SolverConfig(mechanisms=("edge",), edge_reflections=1, amplitude_floor_db=None)
+    config = SolverConfig(mechanisms=("edge",), edge_reflections=1, edge_reflection_fresnel_v=None, amplitude_floor_db=None)
     fast, reference = both_engines(thesis_tank, config)
     assert np.count_nonzero(reference["order"] == 2) > 100_000
     assert_rows_match(fast, reference, label="thesis-tank/edge+1")
@@ -30,7 +30,7 @@ def test_engines_agree_on_the_thesis_tank_with_one_reflection(thesis_tank) -> No
 
 @pytest.mark.slow
 def test_engines_agree_on_the_thesis_tank_at_other_poses(thesis_tank) -> None:
-    config = SolverConfig(mechanisms=("edge",), edge_reflections=1, amplitude_floor_db=None)
+    config = SolverConfig(mechanisms=("edge",), edge_reflections=1, edge_reflection_fresnel_v=None, amplitude_floor_db=None)
     for position, yaw in (((1.3, 1.2, 0.3), 10.0), ((2.0, 2.2, 0.7), -25.0)):
         sonar = thesis_tank.sonar.with_pose(position_m=position, yaw_deg=yaw)
         fast, reference = both_engines(thesis_tank, config, sonar)
@@ -39,7 +39,7 @@ def test_engines_agree_on_the_thesis_tank_at_other_poses(thesis_tank) -> None:
 
 def test_engines_agree_with_two_reflections(builtin_scenes) -> None:
     # the free-edge prism has only its own facets to reflect on: every split of two reflections
-    config = SolverConfig(mechanisms=("edge",), edge_reflections=2, amplitude_floor_db=None)
+    config = SolverConfig(mechanisms=("edge",), edge_reflections=2, edge_reflection_fresnel_v=None, amplitude_floor_db=None)
     scene = builtin_scenes("free-edge")
     sonar = scene.sonar.with_pose(position_m=(-1.0, 0.3, 0.2), yaw_deg=-10.0)
     fast, reference = both_engines(scene, config, sonar)

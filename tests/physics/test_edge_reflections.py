@@ -90,7 +90,7 @@ def test_half_plane_on_a_rigid_floor_against_the_exact_solution(backend, knife_o
     transmitter = in_edge_frame(edge, 0.5, 60.0, 0.05)
     receiver = in_edge_frame(edge, 0.4, receiver_deg, 0.08)
     image = transmitter * np.array([1.0, 1.0, -1.0])
-    rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=2),
+    rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=2, edge_reflection_fresnel_v=None),
                                           prepared)
     direct = np.concatenate([on_the_edge_via_floor(rows, prepared, edge, 0),
                              on_the_edge_via_floor(rows, prepared, edge, 2)])
@@ -123,7 +123,7 @@ def test_reciprocity_of_edge_and_floor_paths(backend, knife_on_a_rigid_floor):
     a, b = in_edge_frame(edge, 0.5, 60.0, 0.1), in_edge_frame(edge, 0.35, 250.0, 0.25)
     k = 2 * np.pi * 100e3 / prepared.scene.medium.sound_speed
     engine = edge_engine(backend)
-    config = SolverConfig(edge_reflections=1)
+    config = SolverConfig(edge_reflections=1, edge_reflection_fresnel_v=None)
     there = on_the_edge_via_floor(engine.edge_rows(pose(prepared, a, b), config, prepared), prepared, edge, 1)
     back = on_the_edge_via_floor(engine.edge_rows(pose(prepared, b, a), config, prepared), prepared, edge, 1)
     assert there.size > 100
@@ -149,7 +149,7 @@ def test_curved_reflector_of_vanishing_curvature_reflects_as_a_plane(backend):
         scene = Scene(name=name, medium=Medium(water="fresh", temperature_c=20.0, salinity_ppt=0.0, depth_m=0.5),
                       sonar=default_sonar(), tank=None, objects=(knife, mirror))
         prepared = prepare(scene)
-        rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=1),
+        rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=1, edge_reflection_fresnel_v=None),
                                               prepared)
         mirror_id = scene.surface_names.index("mirror")
         front = np.all(np.abs(rows["points_m"][:, :, :2] - [2.0, 0.0]) < 1e-9, axis=2).any(axis=1)
@@ -167,7 +167,7 @@ def test_rows_are_labelled_with_the_edge_and_the_reflecting_surface(backend, kni
     # image to the edge point) crosses it; delay = path length / c, the unfolded length.
     prepared, edge = knife_on_a_rigid_floor
     transmitter, receiver = in_edge_frame(edge, 0.5, 60.0, 0.3), in_edge_frame(edge, 0.4, 250.0, 0.4)
-    rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=1),
+    rows = edge_engine(backend).edge_rows(pose(prepared, transmitter, receiver), SolverConfig(edge_reflections=1, edge_reflection_fresnel_v=None),
                                           prepared)
     once = on_the_edge_via_floor(rows, prepared, edge, 1)
     floor = prepared.scene.surface_names.index("floor")
@@ -194,7 +194,7 @@ def test_thesis_tank_edges_heard_via_the_floor_and_the_surface(backend, thesis_t
     # receiver's image across the floor (z -> -z) or the surface (z -> 2 d - z); the surface's
     # path is the floor's with the sign flipped (R = -1 against the floor's positive R) at
     # mid-depth, where the two images are symmetric.
-    config = SolverConfig(mechanisms=("edge",), edge_reflections=1, amplitude_floor_db=None, backend=backend)
+    config = SolverConfig(mechanisms=("edge",), edge_reflections=1, edge_reflection_fresnel_v=None, amplitude_floor_db=None, backend=backend)
     paths = solve(thesis_tank, config=config)
     arrivals = paths.arrivals()
     names = paths.surface_names
@@ -215,15 +215,15 @@ def test_thesis_tank_edges_heard_via_the_floor_and_the_surface(backend, thesis_t
 
 
 def test_no_reflections_reproduce_the_first_order_rows(backend, thesis_tank) -> None:
-    # edge_reflections = 0 (the default) leaves the first-order rows as they were: the same rows
+    # edge_reflections = 0 leaves the first-order rows as they were: the same rows
     # (values, order, path ids) as the first-order part of a solve with reflections, whose rows
     # come first and whose element floor is the only thing the reflections could change (it is
     # relative to the strongest impulse of both; on the thesis tank a first-order one).
     prepared = prepare(thesis_tank)
     context = SolveContext.build(thesis_tank, thesis_tank.sonar, prepared.raycaster)
     engine = edge_engine(backend)
-    alone = engine.edge_rows(context, SolverConfig(), prepared)
-    both = engine.edge_rows(context, SolverConfig(edge_reflections=1), prepared)
+    alone = engine.edge_rows(context, SolverConfig(edge_reflections=0), prepared)
+    both = engine.edge_rows(context, SolverConfig(edge_reflections=1, edge_reflection_fresnel_v=None), prepared)
     assert np.all(alone["order"] == 1) and alone.size > 10_000
     first = both[both["order"] == 1]
     assert first.tobytes() == alone.tobytes()  # bit for bit (NaN padding included)

@@ -96,7 +96,9 @@ def test_response_is_normalised_and_in_the_engineering_convention(thesis_tank) -
 
 
 @pytest.mark.parametrize("field, value", [("shadows", 1), ("edge_reflections", -1), ("edge_reflections", 3),
-                                          ("edge_reflections", True), ("edge_reflections", 1.0)])
+                                          ("edge_reflections", True), ("edge_reflections", 1.0),
+                                          ("edge_reflection_fresnel_v", -1.0), ("edge_reflection_fresnel_v", float("nan")),
+                                          ("edge_reflection_fresnel_v", True), ("edge_reflection_fresnel_v", "3")])
 def test_knobs_refuse_bad_values(field: str, value: object) -> None:
     with pytest.raises(InputError, match=f"solver.{field}"):
         SolverConfig(**{field: value})

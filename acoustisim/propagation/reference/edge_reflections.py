@@ -36,6 +36,31 @@ divergence of the curved reflection relative to that plane mirror, D = g (r1 + r
 geometric-optics factor of X (:func:`.curved.go_amplitude`, r1 and r2 the legs' lengths), and
 the material's reflection coefficient at X (the same with the source's image before the edge).
 
+Selection
+---------
+Each pair (an edge between two images) perturbs the geometric path of the same mirrors, the
+straight path between the images. Its Fresnel-Kirchhoff parameter
+
+    v = +/- 2 sqrt(delta / lambda0),   delta = min over the edge of (m + l) - |T_b - R_a|,
+
+(lambda0 = c / f0; positive where the edge's wedge blocks the straight path) says how much: the
+knife-edge field relative to the unobstructed geometric one is F(v) = (1 + j)/2 Int_v^inf
+exp(-j pi s^2 / 2) ds (e.g. Born & Wolf, section 8.7), whose diffracted part has magnitude about
+0.225 / |v| for |v| >= 1, in the shadow (v > 0) and the lit region (v < 0) alike. With
+``config.edge_reflection_fresnel_v`` = V (default 3), pairs with |v| <= V are traced: the
+shadows and the transition zones of sharp objects (the field diffracted around a prism into the
+shadow it casts on a post or a wall, and back), where this field is the leading term or of the
+order of the geometric one. Pairs with |v| > V (an edge heard via the floor, a wall or a post
+away from any geometric path it disturbs) are left out: each is a separate arrival more than
+20 log10(0.225 / V) (-22.5 dB) below the unobstructed level of its geometric path; at the thesis
+tank's default pose the strongest of them is 29.3 dB below the strongest echo
+(``benchmarks/bench_edges.py``). Also left out at the default reach: an edge ending on a mirror (the prism standing on the
+floor and reaching the surface) continuing into its image there, a pair whose geometric path
+it rarely disturbs; the end then diffracts as the end of a first-order edge does. Tracing these
+pairs at the thesis tank's default pose takes 70,000 rows (about 45 ms CPU).
+``edge_reflection_fresnel_v = None`` traces every pair (the exact half-plane on a rigid plane
+needs them: ``tests/physics/test_edge_reflections.py``).
+
 Method
 ------
 For every split (b, a) of 1 <= b + a <= ``config.edge_reflections`` reflections:
@@ -281,6 +306,34 @@ def diffracting(scene_edges: DiffractingEdges, edge: NDArray[np.int64], source: 
     return ok, WedgePairs(scene_edges.nu[edge], r_s, theta_s, z_s, r_r, theta_r, z_r, edges.pressure_release)
 
 
+def fresnel_parameter(wedge: WedgePairs, length_m: NDArray[np.float64], wavelength_m: float) -> NDArray[np.float64]:
+    """The Fresnel-Kirchhoff parameter v of each pair's edge on the straight path between its
+    source and receiver (images), shape (p,): v = 2 sqrt(delta / lambda) (Selection), positive
+    where the edge's wedge blocks that path (|theta_r - theta_s| > pi), negative where it is lit.
+
+    ``delta`` (m) is the detour via the finite edge: the least m + l over its points (the
+    infinite edge's apex, clipped to [0, ``length_m``]) minus the straight distance.
+    """
+    dz = wedge.z_r - wedge.z_s
+    z_apex = np.clip(wedge.z_s + dz * wedge.r_s / (wedge.r_s + wedge.r_r), 0.0, length_m)
+    via_edge = np.hypot(wedge.r_s, z_apex - wedge.z_s) + np.hypot(wedge.r_r, wedge.z_r - z_apex)
+    opening = wedge.theta_r - wedge.theta_s
+    straight = np.sqrt(np.maximum(wedge.r_s**2 + wedge.r_r**2 - 2.0 * wedge.r_s * wedge.r_r * np.cos(opening)
+                                  + dz**2, 0.0))
+    v = 2.0 * np.sqrt(np.maximum(via_edge - straight, 0.0) / wavelength_m)
+    return np.where(np.abs(opening) > np.pi, v, -v)
+
+
+def within_reach(config: SolverConfig, context: SolveContext, scene_edges: DiffractingEdges, edge: NDArray[np.int64],
+                 wedge: WedgePairs) -> NDArray[np.bool_]:
+    """Whether each pair is traced under ``config.edge_reflection_fresnel_v`` (Selection), (p,)."""
+    if config.edge_reflection_fresnel_v is None:
+        return np.ones(edge.size, dtype=bool)
+    wavelength = context.sound_speed_m_s / context.centre_frequency_hz
+    v = fresnel_parameter(wedge, scene_edges.length_m[edge], wavelength)
+    return np.abs(v) <= config.edge_reflection_fresnel_v
+
+
 def joint_geometry(scene_edges: DiffractingEdges, edge: NDArray[np.int64], combo: NDArray[np.int64], n_combos: int,
                    wedge: WedgePairs) -> PairGeometry:
     """The pairs' discretisation geometry, chain joints open where the neighbouring edge's pair
@@ -291,9 +344,10 @@ def joint_geometry(scene_edges: DiffractingEdges, edge: NDArray[np.int64], combo
     return PairGeometry(scene_edges.length_m[edge], wedge.r_s, wedge.z_s, wedge.r_r, wedge.z_r, open_start, open_end)
 
 
-def reflected_pairs(scene_edges: DiffractingEdges, facing: NDArray[np.bool_], sides: ImageSides) -> ReflectedPairs:
-    """The (edge, before, after, receiver) pairs of one planar split that diffract (Method, step
-    2), edge-major, then before, after, receiver."""
+def reflected_pairs(config: SolverConfig, context: SolveContext, scene_edges: DiffractingEdges,
+                    facing: NDArray[np.bool_], sides: ImageSides) -> ReflectedPairs:
+    """The (edge, before, after, receiver) pairs of one planar split that diffract and are within
+    reach (Method, step 2; Selection), edge-major, then before, after, receiver."""
     n_edges = len(scene_edges.edges)
     n_before, n_after = sides.before.shape[1], sides.after.shape[1]
     n_rx = sides.receiver_valid.shape[1]
@@ -306,6 +360,7 @@ def reflected_pairs(scene_edges: DiffractingEdges, facing: NDArray[np.bool_], si
         keep &= facing[sides.after[a, 0], e]
     e, b, a, r = e[keep], b[keep], a[keep], r[keep]
     ok, wedge = diffracting(scene_edges, e, sides.source_images[b, -1], sides.receiver_images[a, r, -1])
+    ok &= within_reach(config, context, scene_edges, e, wedge)
     e, b, a, r = e[ok], b[ok], a[ok], r[ok]
     wedge = WedgePairs(*(column[ok] for column in wedge))
     combo = (b * sides.after.shape[0] + a) * n_rx + r
@@ -387,7 +442,7 @@ def split_impulses(context: SolveContext, config: SolverConfig, prepared: Prepar
     """The impulses of one planar split (Method, steps 1-6), or None when it has none."""
     scene_edges, mirrors = prepared.diffracting_edges, prepared.mirrors
     sides = image_sides(context, mirrors, split, np.any(facing, axis=1))
-    pairs = reflected_pairs(scene_edges, facing, sides)
+    pairs = reflected_pairs(config, context, scene_edges, facing, sides)
     if pairs.edge.size == 0:
         return None
     try:
@@ -441,10 +496,10 @@ def curved_images(prepared: PreparedScene, reflector: NDArray[np.int64], edge_po
     return found.point + np.linalg.norm(far - found.point, axis=1)[:, None] * towards, found
 
 
-def curved_pairs(context: SolveContext, prepared: PreparedScene, after: bool, kernels: ElementKernels
-                 ) -> ReflectedPairs:
-    """The (edge, reflector, receiver) pairs of one curved side that diffract, at a
-    representative specular point (Method, curved reflectors), edge-major."""
+def curved_pairs(config: SolverConfig, context: SolveContext, prepared: PreparedScene, after: bool,
+                 kernels: ElementKernels) -> ReflectedPairs:
+    """The (edge, reflector, receiver) pairs of one curved side that diffract and are within reach,
+    at a representative specular point (Method, curved reflectors; Selection), edge-major."""
     scene_edges = prepared.diffracting_edges
     edges = scene_edges.edges
     tx = np.asarray(context.transmitter_m, dtype=float)
@@ -463,6 +518,7 @@ def curved_pairs(context: SolveContext, prepared: PreparedScene, after: bool, ke
     e, c, r, image = e[live], c[live], r[live], image[live]
     source, receiver = (np.broadcast_to(tx, image.shape), image) if after else (image, rx[r])
     ok, wedge = diffracting(scene_edges, e, source, receiver)
+    ok &= within_reach(config, context, scene_edges, e, wedge)
     e, c, r = e[ok], c[ok], r[ok]
     wedge = WedgePairs(*(column[ok] for column in wedge))
     geometry = joint_geometry(scene_edges, e, c * n_rx + r, n_curved * n_rx, wedge)
@@ -476,7 +532,7 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
     (Method, curved reflectors), or None when there are none."""
     scene_edges = prepared.diffracting_edges
     edges = scene_edges.edges
-    pairs = curved_pairs(context, prepared, after, kernels)
+    pairs = curved_pairs(config, context, prepared, after, kernels)
     if pairs.edge.size == 0:
         return None
     try:
@@ -617,7 +673,7 @@ def reflected_rows(context: SolveContext, prepared: PreparedScene, parts: list[S
 
 __all__ = ("ElementKernels", "FACING_TOLERANCE_M", "ImageSides", "REPRESENTATIVE_FRACTIONS", "ReflectedPairs",
            "SplitImpulses", "boundary_faces", "coefficients", "curved_images", "curved_impulses", "curved_pairs",
-           "diffracting", "edges_facing", "element_centres", "image_sides", "joint_geometry", "pair_path_index",
+           "diffracting", "edges_facing", "element_centres", "fresnel_parameter", "image_sides", "joint_geometry", "pair_path_index",
            "path_vertices", "reference_backtrace", "reference_kernels", "reference_path_visibility",
            "reflected_impulses", "reflected_pairs", "reflected_rows", "reflection_points", "reflection_products",
-           "reflection_splits", "split_impulses", "weighted")
+           "reflection_splits", "split_impulses", "weighted", "within_reach")
