@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from acoustisim.errors import InputError
 from acoustisim.geometry import CylinderPrimitive, SpherePrimitive
 from acoustisim.preflight import check_solve
+from acoustisim.propagation.apex_response import apex_response
 from acoustisim.propagation.config import MECHANISMS, SolverConfig
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.engine import engine_for
@@ -126,6 +127,7 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
     engine = engine_for(config)
     obstacles = prepared.smooth_obstacles if config.shadows else None
     parts: list[NDArray[Any]] = []
+    responses: list[Any] = []
     next_id = 0
     for mechanism in MECHANISMS:  # in this order: it fixes the order of rows with equal delays
         if mechanism not in config.mechanisms:
@@ -138,13 +140,14 @@ def solve(scene: Scene | PreparedScene, sonar: SonarHead | None = None,
             rows = engine.specular_rows(mechanism_context, legs_scene, config.max_order, config.max_curved_per_path)
         elif mechanism == "edge":
             rows = engine.edge_rows(mechanism_context, config, prepared)
+            if np.any(rows["response_id"] >= 0):  # Keller's apex rows name the first response
+                responses.append(apex_response(context))
         else:
             rows = engine.diffuse_rows(mechanism_context, config, prepared)
         rows = np.asarray(rows, dtype=PATH_DTYPE)
         parts.append(rows)
         if rows.size:
             next_id = max(next_id, int(rows["path_id"].max()) + 1)
-    responses: list[Any] = []
     if obstacles is not None:
         for i, part in enumerate(parts):
             parts[i], shadows = shadow_rows(part, context, obstacles, len(responses))

@@ -24,12 +24,13 @@ FS = 200e6  # fine time grid for the convolutions (5 ns: 0.9 degrees of phase at
 
 def edge_rows(backend, scene, position=None, config=None, context=None):
     """The engine's edge rows of a pose of ``scene`` (a Scene or PreparedScene; path ids from
-    100, or ``context``'s), derived columns filled."""
+    100, or ``context``'s), derived columns filled; first-order diffraction only unless
+    ``config`` says otherwise (the edges combined with reflections: test_edge_reflections.py)."""
     prepared = prepare(scene)
     if context is None:
         sonar = prepared.scene.sonar if position is None else prepared.scene.sonar.with_pose(position)
         context = SolveContext.build(prepared.scene, sonar, prepared.raycaster, first_path_id=100)
-    rows = edge_engine(backend).edge_rows(context, config or SolverConfig(), prepared)
+    rows = edge_engine(backend).edge_rows(context, config or SolverConfig(edge_reflections=0), prepared)
     return complete_columns(rows, context), context
 
 

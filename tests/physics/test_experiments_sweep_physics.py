@@ -73,7 +73,7 @@ def test_edge_echo_without_directivity_peaks_at_the_least_time_truth() -> None:
     sonar = pose_for_target(scene.sonar, (*EDGE_M, scene.sonar.position_m[2]), range_m, 2.0, yaw_deg=2.0)
     sonar = replace(sonar, record_length_s=stop + 20e-6)
     paths = solve(scene, sonar, solver_config({"reverberation": False}))
-    edge = paths.rows[paths.rows["kind"] == PathKind.EDGE].copy()
+    edge = paths.rows[(paths.rows["kind"] == PathKind.EDGE) & (paths.rows["order"] == 1)].copy()
     point = np.array([*EDGE_M, sonar.position_m[2]])
     truth = [(np.linalg.norm(point - sonar.transmitter_position) + np.linalg.norm(point - r)) / c
              for r in sonar.receiver_positions]
@@ -126,7 +126,7 @@ def test_beam_aware_refinement_removes_the_beam_bias_of_the_simulated_edge(range
 
     scene, sonar, _, truth, gate = position_setup(range_m, 2.0)
     paths = solve(scene, sonar, solver_config({"reverberation": False}))
-    edge = paths.rows[paths.rows["kind"] == PathKind.EDGE].copy()
+    edge = paths.rows[(paths.rows["kind"] == PathKind.EDGE) & (paths.rows["order"] == 1)].copy()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sim = simulate(scene, sonar, paths=Paths(edge, paths.surface_names), n_pings=1)

@@ -41,7 +41,7 @@ from acoustisim.propagation.fast.row_columns import write_path_columns
 from acoustisim.propagation.paths import MAX_INTERACTIONS
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.raycast import DEFAULT_EPS_M
-from acoustisim.propagation.reference.edge_reflections import ElementKernels, SplitImpulses
+from acoustisim.propagation.reference.edge_reflections import ElementKernels, ReflectedParts, SplitImpulses
 from acoustisim.propagation.reference.edge_reflections import reflected_impulses as reference_reflected_impulses
 
 
@@ -171,7 +171,7 @@ def fast_kernels() -> ElementKernels:
     return ElementKernels(discretise_edges, edge_impulses, fast_backtrace, fast_path_visibility, specular_points)
 
 
-def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> list[SplitImpulses]:
+def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene) -> ReflectedParts:
     """The reference's :func:`~acoustisim.propagation.reference.edge_reflections.reflected_impulses`
     with the fast kernels."""
     return reference_reflected_impulses(context, config, prepared, fast_kernels())

@@ -28,10 +28,11 @@ from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.fast.edge_elements import discretise_edges
 from acoustisim.propagation.fast.edge_gains import edge_impulses
 from acoustisim.propagation.fast.edge_order import solver_order
-from acoustisim.propagation.fast.edge_reflections import fill_reflected_rows, reflected_impulses, row_inputs
+from acoustisim.propagation.fast.edge_reflections import fast_kernels, fill_reflected_rows, reflected_impulses, row_inputs
+from acoustisim.propagation.reference.edge_apex import apex_parts, apex_rows
 from acoustisim.propagation.fast.edge_visibility import EdgeLines, LegTargets, element_visibility
 from acoustisim.propagation.fast.row_columns import write_path_columns
-from acoustisim.propagation.paths import PATH_DTYPE, PathKind, empty_paths_array
+from acoustisim.propagation.paths import PATH_DTYPE, PathKind
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.reference.btm import pair_constants
 from acoustisim.propagation.reference.edge_reflections import pair_path_index
@@ -121,11 +122,15 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
         if not np.all(visible):
             elements = elements.select(visible)
         impulses = edge_impulses(elements, pair_constants(pairs.wedge), config.edge_adaptive)
-    reflected = reflected_impulses(context, config, prepared)
+    parts = reflected_impulses(context, config, prepared)
+    reflected = parts.impulses
+    apex = apex_rows(context, prepared, apex_parts(context, prepared, parts.far, fast_kernels()), 0)
+    apex = apex[np.lexsort((apex["path_length_m"] / context.sound_speed_m_s, apex["channel"]))]
     strongest = max([float(np.max(np.abs(impulses.gain), initial=0.0))]
                     + [float(np.max(np.abs(part.impulses.gain))) for part in reflected])
     if strongest == 0.0:
-        return empty_paths_array(0)
+        impulses = EdgeImpulses(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
+        reflected = []
     floor = ELEMENT_FLOOR * strongest
     keep = np.flatnonzero(np.abs(impulses.gain) > floor)
     kept = [np.flatnonzero(np.abs(part.impulses.gain) > floor) for part in reflected]
@@ -140,26 +145,50 @@ def edge_rows(context: SolveContext, config: SolverConfig, prepared: PreparedSce
     every = np.concatenate([keep] + [k + impulse_offset[j + 1] for j, k in enumerate(kept)])
     ordered = solver_order(every, point_pair, path_length, pair_receiver, context.sound_speed_m_s,
                            context.receivers_m.shape[0])
-    rows = np.empty(ordered.size, dtype=PATH_DTYPE)
+    position, apex_position = interleaved(pair_receiver[point_pair[ordered]],
+                                          path_length[ordered] / context.sound_speed_m_s, apex["channel"],
+                                          apex["path_length_m"] / context.sound_speed_m_s)
+    rows = np.empty(ordered.size + apex.size, dtype=PATH_DTYPE)
     lines, targets = EdgeLines.of(scene_edges), LegTargets.of(context)
     if not reflected:  # first order only: the rows in the solver's order, written in turn
-        fill_rows(rows, ordered, impulses, pairs.edge, pairs.receiver, lines, targets, int(context.first_path_id),
-                  np.arange(ordered.size))
-        return rows
-    destination = np.empty(impulse_offset[-1], dtype=np.int64)
-    destination[ordered] = np.arange(ordered.size)
-    # each part's rows written in increasing destination (sequential writes)
-    mine = keep[np.argsort(destination[keep], kind="stable")]
-    used = fill_rows(rows, mine, impulses, pairs.edge, pairs.receiver, lines, targets, int(context.first_path_id),
-                     destination[mine])
-    path_index = pair_path_index(reflected, kept, scene_edges.edges.chain)
-    next_id = int(context.first_path_id) + used
-    for j, (part, k) in enumerate(zip(reflected, kept)):  # a loop over the few splits
-        where = destination[k + impulse_offset[j + 1]]
-        order = np.argsort(where, kind="stable")
-        fill_reflected_rows(rows, where[order], k[order], row_inputs(context, prepared, part, next_id + path_index[j]),
-                            EDGE_KIND)
+        used = fill_rows(rows, ordered, impulses, pairs.edge, pairs.receiver, lines, targets,
+                         int(context.first_path_id), position)
+        next_id = int(context.first_path_id) + used
+    else:
+        destination = np.empty(impulse_offset[-1], dtype=np.int64)
+        destination[ordered] = position
+        # each part's rows written in increasing destination (sequential writes)
+        mine = keep[np.argsort(destination[keep], kind="stable")]
+        used = fill_rows(rows, mine, impulses, pairs.edge, pairs.receiver, lines, targets,
+                         int(context.first_path_id), destination[mine])
+        path_index = pair_path_index(reflected, kept, scene_edges.edges.chain)
+        next_id = int(context.first_path_id) + used
+        for j, (part, k) in enumerate(zip(reflected, kept)):  # a loop over the few splits
+            where = destination[k + impulse_offset[j + 1]]
+            order = np.argsort(where, kind="stable")
+            fill_reflected_rows(rows, where[order], k[order],
+                                row_inputs(context, prepared, part, next_id + path_index[j]), EDGE_KIND)
+        next_id += max(int(index.max(initial=-1)) for index in path_index) + 1
+    if apex.size:  # Keller's apex rows, path ids after the others in the reference's pair order
+        apex["path_id"] += next_id
+        rows[apex_position] = apex
     return rows
+
+
+def interleaved(channel: NDArray[Any], delay_s: NDArray[np.float64], apex_channel: NDArray[Any],
+                apex_delay_s: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The places of the element rows (sorted by channel then delay, (n,)) and of the apex rows
+    (sorted so too, (k,)) in their merge by channel then delay, ties to the element rows first
+    (the order a stable sort of the element rows followed by the apex rows gives)."""
+    position = np.arange(delay_s.size, dtype=np.int64)
+    apex_position = np.arange(apex_delay_s.size, dtype=np.int64)
+    for ch in np.unique(apex_channel):  # a loop over the few channels
+        lo, hi = np.searchsorted(channel, ch, side="left"), np.searchsorted(channel, ch, side="right")
+        a_lo, a_hi = np.searchsorted(apex_channel, ch, side="left"), np.searchsorted(apex_channel, ch, side="right")
+        position[lo:hi] += np.searchsorted(apex_delay_s[a_lo:a_hi], delay_s[lo:hi], side="left")
+        position[hi:] += a_hi - a_lo
+        apex_position[a_lo:a_hi] += lo + np.searchsorted(delay_s[lo:hi], apex_delay_s[a_lo:a_hi], side="right")
+    return position, apex_position
 
 
 __all__ = ("EDGE_KIND", "edge_rows", "fill_rows")

@@ -130,7 +130,7 @@ from acoustisim.propagation.edge_extraction import DiffractingEdges
 from acoustisim.propagation.image_source import PlanarMirrors
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
-from acoustisim.propagation.reference.btm import WedgePairs, pair_constants
+from acoustisim.propagation.reference.btm import WedgePairs, pair_constants, wedge_phis
 from acoustisim.propagation.reference.curved import go_amplitude, specular_points
 from acoustisim.propagation.reference.edge_elements import EdgeElements, PairGeometry, discretise_edges
 from acoustisim.propagation.reference.edges import (ANGLE_TOLERANCE_RAD, MIN_DISTANCE_M, EdgeImpulses,
@@ -307,31 +307,39 @@ def diffracting(scene_edges: DiffractingEdges, edge: NDArray[np.int64], source: 
 
 
 def fresnel_parameter(wedge: WedgePairs, length_m: NDArray[np.float64], wavelength_m: float) -> NDArray[np.float64]:
-    """The Fresnel-Kirchhoff parameter v of each pair's edge on the straight path between its
-    source and receiver (images), shape (p,): v = 2 sqrt(delta / lambda) (Selection), positive
-    where the edge's wedge blocks that path (|theta_r - theta_s| > pi), negative where it is lit.
+    """The smallest Fresnel-Kirchhoff parameter |v| of each pair's edge over the geometric
+    boundaries of its wedge (Selection), shape (p,), >= 0.
 
-    ``delta`` (m) is the detour via the finite edge: the least m + l over its points (the
-    infinite edge's apex, clipped to [0, ``length_m``]) minus the straight distance.
+    Each term of beta (:mod:`.btm`, phi one of pi +/- thS +/- thR) is singular on a boundary,
+    nu phi = 2 pi k: the straight path between the source and the receiver (images) or its
+    reflection in a face of the wedge grazes the edge there. phi' = phi - 2 pi k / nu (k the
+    nearest) measures the distance from it: that geometric path is D = sqrt(L^2 - 2 rS rR
+    (1 - cos phi')) long, L = sqrt((rS + rR)^2 + (zR - zS)^2), and v = 2 sqrt(delta / lambda),
+    delta = L_e - D, L_e the least path via the finite edge (the apex clipped to [0,
+    ``length_m``]). A term with |phi'| >= pi is far from every boundary it has (its cotangent
+    is bounded there) and does not count.
     """
     dz = wedge.z_r - wedge.z_s
     z_apex = np.clip(wedge.z_s + dz * wedge.r_s / (wedge.r_s + wedge.r_r), 0.0, length_m)
     via_edge = np.hypot(wedge.r_s, z_apex - wedge.z_s) + np.hypot(wedge.r_r, wedge.z_r - z_apex)
-    opening = wedge.theta_r - wedge.theta_s
-    straight = np.sqrt(np.maximum(wedge.r_s**2 + wedge.r_r**2 - 2.0 * wedge.r_s * wedge.r_r * np.cos(opening)
-                                  + dz**2, 0.0))
-    v = 2.0 * np.sqrt(np.maximum(via_edge - straight, 0.0) / wavelength_m)
-    return np.where(np.abs(opening) > np.pi, v, -v)
+    nu = wedge.nu[:, None]
+    phi = wedge_phis(wedge.theta_s, wedge.theta_r)
+    offset = phi - (2.0 * np.pi / nu) * np.round(nu * phi / (2.0 * np.pi))
+    least = np.hypot(wedge.r_s + wedge.r_r, dz)[:, None]
+    rsr = (wedge.r_s * wedge.r_r)[:, None]
+    straight = np.sqrt(np.maximum(least**2 - 2.0 * rsr * (1.0 - np.cos(offset)), 0.0))
+    v = 2.0 * np.sqrt(np.maximum(via_edge[:, None] - straight, 0.0) / wavelength_m)
+    return np.min(np.where(np.abs(offset) < np.pi, v, np.inf), axis=1)
 
 
 def within_reach(config: SolverConfig, context: SolveContext, scene_edges: DiffractingEdges, edge: NDArray[np.int64],
                  wedge: WedgePairs) -> NDArray[np.bool_]:
-    """Whether each pair is traced under ``config.edge_reflection_fresnel_v`` (Selection), (p,)."""
+    """Whether each pair lies within ``config.edge_reflection_fresnel_v`` of a geometric
+    boundary (Selection), (p,); every pair when it is None."""
     if config.edge_reflection_fresnel_v is None:
         return np.ones(edge.size, dtype=bool)
     wavelength = context.sound_speed_m_s / context.centre_frequency_hz
-    v = fresnel_parameter(wedge, scene_edges.length_m[edge], wavelength)
-    return np.abs(v) <= config.edge_reflection_fresnel_v
+    return fresnel_parameter(wedge, scene_edges.length_m[edge], wavelength) <= config.edge_reflection_fresnel_v
 
 
 def joint_geometry(scene_edges: DiffractingEdges, edge: NDArray[np.int64], combo: NDArray[np.int64], n_combos: int,
@@ -345,9 +353,10 @@ def joint_geometry(scene_edges: DiffractingEdges, edge: NDArray[np.int64], combo
 
 
 def reflected_pairs(config: SolverConfig, context: SolveContext, scene_edges: DiffractingEdges,
-                    facing: NDArray[np.bool_], sides: ImageSides) -> ReflectedPairs:
-    """The (edge, before, after, receiver) pairs of one planar split that diffract and are within
-    reach (Method, step 2; Selection), edge-major, then before, after, receiver."""
+                    facing: NDArray[np.bool_], sides: ImageSides) -> tuple[ReflectedPairs, ReflectedPairs]:
+    """The (edge, before, after, receiver) pairs of one planar split that diffract (Method, step
+    2), edge-major, then before, after, receiver: those within reach and those beyond
+    (Selection), each with its own chain joints."""
     n_edges = len(scene_edges.edges)
     n_before, n_after = sides.before.shape[1], sides.after.shape[1]
     n_rx = sides.receiver_valid.shape[1]
@@ -360,12 +369,16 @@ def reflected_pairs(config: SolverConfig, context: SolveContext, scene_edges: Di
         keep &= facing[sides.after[a, 0], e]
     e, b, a, r = e[keep], b[keep], a[keep], r[keep]
     ok, wedge = diffracting(scene_edges, e, sides.source_images[b, -1], sides.receiver_images[a, r, -1])
-    ok &= within_reach(config, context, scene_edges, e, wedge)
-    e, b, a, r = e[ok], b[ok], a[ok], r[ok]
-    wedge = WedgePairs(*(column[ok] for column in wedge))
-    combo = (b * sides.after.shape[0] + a) * n_rx + r
-    geometry = joint_geometry(scene_edges, e, combo, sides.before.shape[0] * sides.after.shape[0] * n_rx, wedge)
-    return ReflectedPairs(e, r, b, a, wedge, geometry)
+    near = within_reach(config, context, scene_edges, e, wedge)
+    n_combos = sides.before.shape[0] * sides.after.shape[0] * n_rx
+
+    def subset(chosen: NDArray[np.bool_]) -> ReflectedPairs:
+        e_, b_, a_, r_ = e[chosen], b[chosen], a[chosen], r[chosen]
+        wedge_ = WedgePairs(*(column[chosen] for column in wedge))
+        geometry = joint_geometry(scene_edges, e_, (b_ * sides.after.shape[0] + a_) * n_rx + r_, n_combos, wedge_)
+        return ReflectedPairs(e_, r_, b_, a_, wedge_, geometry)
+
+    return subset(ok & near), subset(ok & ~near)
 
 
 def element_centres(scene_edges: DiffractingEdges, elements: EdgeElements, pairs: ReflectedPairs
@@ -438,11 +451,10 @@ def weighted(impulses: EdgeImpulses, element: NDArray[np.int64], factor: NDArray
 
 
 def split_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene, split: tuple[int, int],
-                   facing: NDArray[np.bool_], kernels: ElementKernels) -> SplitImpulses | None:
-    """The impulses of one planar split (Method, steps 1-6), or None when it has none."""
+                   sides: ImageSides, pairs: ReflectedPairs, kernels: ElementKernels) -> SplitImpulses | None:
+    """The impulses of one planar split's ``pairs`` within reach (Method, steps 3-6), or None
+    when it has none."""
     scene_edges, mirrors = prepared.diffracting_edges, prepared.mirrors
-    sides = image_sides(context, mirrors, split, np.any(facing, axis=1))
-    pairs = reflected_pairs(config, context, scene_edges, facing, sides)
     if pairs.edge.size == 0:
         return None
     try:
@@ -497,9 +509,10 @@ def curved_images(prepared: PreparedScene, reflector: NDArray[np.int64], edge_po
 
 
 def curved_pairs(config: SolverConfig, context: SolveContext, prepared: PreparedScene, after: bool,
-                 kernels: ElementKernels) -> ReflectedPairs:
-    """The (edge, reflector, receiver) pairs of one curved side that diffract and are within reach,
-    at a representative specular point (Method, curved reflectors; Selection), edge-major."""
+                 kernels: ElementKernels) -> tuple[ReflectedPairs, ReflectedPairs]:
+    """The (edge, reflector, receiver) pairs of one curved side that diffract, at a
+    representative specular point (Method, curved reflectors), edge-major: those within reach
+    and those beyond (Selection), each with its own chain joints."""
     scene_edges = prepared.diffracting_edges
     edges = scene_edges.edges
     tx = np.asarray(context.transmitter_m, dtype=float)
@@ -518,21 +531,24 @@ def curved_pairs(config: SolverConfig, context: SolveContext, prepared: Prepared
     e, c, r, image = e[live], c[live], r[live], image[live]
     source, receiver = (np.broadcast_to(tx, image.shape), image) if after else (image, rx[r])
     ok, wedge = diffracting(scene_edges, e, source, receiver)
-    ok &= within_reach(config, context, scene_edges, e, wedge)
-    e, c, r = e[ok], c[ok], r[ok]
-    wedge = WedgePairs(*(column[ok] for column in wedge))
-    geometry = joint_geometry(scene_edges, e, c * n_rx + r, n_curved * n_rx, wedge)
-    none = np.full(e.size, -1, dtype=np.int64)
-    return ReflectedPairs(e, r, none if after else c, c if after else none, wedge, geometry)
+    near = within_reach(config, context, scene_edges, e, wedge)
+
+    def subset(chosen: NDArray[np.bool_]) -> ReflectedPairs:
+        e_, c_, r_ = e[chosen], c[chosen], r[chosen]
+        wedge_ = WedgePairs(*(column[chosen] for column in wedge))
+        geometry = joint_geometry(scene_edges, e_, c_ * n_rx + r_, n_curved * n_rx, wedge_)
+        none = np.full(e_.size, -1, dtype=np.int64)
+        return ReflectedPairs(e_, r_, none if after else c_, c_ if after else none, wedge_, geometry)
+
+    return subset(ok & near), subset(ok & ~near)
 
 
 def curved_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene, after: bool,
-                    kernels: ElementKernels) -> SplitImpulses | None:
-    """The impulses of edge -> curved reflector (``after``) or curved reflector -> edge paths
-    (Method, curved reflectors), or None when there are none."""
+                    pairs: ReflectedPairs, kernels: ElementKernels) -> SplitImpulses | None:
+    """The impulses of the edge -> curved reflector (``after``) or curved reflector -> edge
+    ``pairs`` within reach (Method, curved reflectors), or None when there are none."""
     scene_edges = prepared.diffracting_edges
     edges = scene_edges.edges
-    pairs = curved_pairs(config, context, prepared, after, kernels)
     if pairs.edge.size == 0:
         return None
     try:
@@ -592,22 +608,51 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
                          empty if after else points, points if after else empty)
 
 
+class FarPairs(NamedTuple):
+    """The pairs of one split beyond reach (Selection; :mod:`.edge_apex` makes their rows):
+    ``split`` (b, a); ``sides`` the planar split's :class:`ImageSides` (None for a curved
+    reflector); ``after`` (curved: the reflector after the edge); ``pairs``."""
+
+    split: tuple[int, int]
+    sides: ImageSides | None
+    after: bool
+    pairs: ReflectedPairs
+
+
+class ReflectedParts(NamedTuple):
+    """What :func:`reflected_impulses` finds: the impulses of the pairs within reach, one
+    :class:`SplitImpulses` per split that has some, and the pairs beyond, one :class:`FarPairs`
+    per split that has some."""
+
+    impulses: list[SplitImpulses]
+    far: list[FarPairs]
+
+
 def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene,
-                       kernels: ElementKernels | None = None) -> list[SplitImpulses]:
-    """The impulses of every split of up to ``config.edge_reflections`` reflections: planar
-    splits by :func:`reflection_splits`, then the curved reflector after, then before, the edge."""
+                       kernels: ElementKernels | None = None) -> ReflectedParts:
+    """The impulses of every split of up to ``config.edge_reflections`` reflections within reach,
+    and the pairs beyond: planar splits by :func:`reflection_splits`, then the curved reflector
+    after, then before, the edge."""
     kernels = reference_kernels() if kernels is None else kernels
     scene_edges, mirrors = prepared.diffracting_edges, prepared.mirrors
-    if len(scene_edges.edges) == 0 or config.edge_reflections == 0:
-        return []
     found: list[SplitImpulses | None] = []
+    far: list[FarPairs] = []
+    if len(scene_edges.edges) == 0 or config.edge_reflections == 0:
+        return ReflectedParts([], [])
     if mirrors.count:
         facing = edges_facing(mirrors, scene_edges)
-        found += [split_impulses(context, config, prepared, split, facing, kernels)
-                  for split in reflection_splits(config.edge_reflections)]
+        for split in reflection_splits(config.edge_reflections):  # a loop over the few splits
+            sides = image_sides(context, mirrors, split, np.any(facing, axis=1))
+            near_pairs, far_pairs = reflected_pairs(config, context, scene_edges, facing, sides)
+            found.append(split_impulses(context, config, prepared, split, sides, near_pairs, kernels))
+            far.append(FarPairs(split, sides, False, far_pairs))
     if prepared.curved:
-        found += [curved_impulses(context, config, prepared, after, kernels) for after in (True, False)]
-    return [part for part in found if part is not None]
+        for after in (True, False):
+            near_pairs, far_pairs = curved_pairs(config, context, prepared, after, kernels)
+            found.append(curved_impulses(context, config, prepared, after, near_pairs, kernels))
+            far.append(FarPairs((0, 1) if after else (1, 0), None, after, far_pairs))
+    return ReflectedParts([part for part in found if part is not None],
+                          [part for part in far if part.pairs.edge.size])
 
 
 def pair_path_index(parts: list[SplitImpulses], kept: list[NDArray[np.int64]], chain: NDArray[np.int64]
@@ -671,7 +716,7 @@ def reflected_rows(context: SolveContext, prepared: PreparedScene, parts: list[S
     return np.concatenate(blocks) if blocks else empty_paths_array(0)
 
 
-__all__ = ("ElementKernels", "FACING_TOLERANCE_M", "ImageSides", "REPRESENTATIVE_FRACTIONS", "ReflectedPairs",
+__all__ = ("ElementKernels", "FACING_TOLERANCE_M", "FarPairs", "ReflectedParts", "ImageSides", "REPRESENTATIVE_FRACTIONS", "ReflectedPairs",
            "SplitImpulses", "boundary_faces", "coefficients", "curved_images", "curved_impulses", "curved_pairs",
            "diffracting", "edges_facing", "element_centres", "fresnel_parameter", "image_sides", "joint_geometry", "pair_path_index",
            "path_vertices", "reference_backtrace", "reference_kernels", "reference_path_visibility",

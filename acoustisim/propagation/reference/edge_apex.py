@@ -1,0 +1,280 @@
+"""Edge diffraction combined with reflections, away from every geometric boundary: Keller's apex.
+
+Physics
+-------
+Near its onset tau0 = L / c (L = sqrt((rS + rR)^2 + (zR - zS)^2), the least path via the edge
+line, through the apex z* = zS + (zR - zS) rS / (rS + rR)), Medwin's closed form for the
+infinite wedge (:mod:`.btm`, equation (2); physics.md section 4) has cosh(eta) - 1 =
+c^2 (t^2 - tau0^2) / (2 rS rR), so eta ~ c sqrt(2 tau0 (t - tau0) / (rS rR)) and
+
+    h(t) ~ -(nu beta0 / 2 pi) / sqrt(rS rR 2 tau0 (t - tau0)),   t > tau0,
+
+beta0 = beta at eta = 0 = sum_i s_i cot(nu phi_i / 2). Its Fourier transform (engineering
+convention, a delay d is exp(-j 2 pi f d)) is Keller's geometrical theory of diffraction
+(Keller 1962, J. Opt. Soc. Am. 52, 116) for a point source, in BTM's normalisation:
+
+    H(f) = A sqrt(f0 / f) exp(-j pi / 4) exp(-j 2 pi f tau0),
+    A = -(nu beta0 / 2 pi) sqrt(pi c / (2 L rS rR 2 pi f0)),
+
+the half-integrated pulse (-3 dB per octave, -45 deg) of a sharp edge. A diffracted wave that
+comes back via planar mirrors is this between the images (the image method, as in
+:mod:`.edge_reflections`), times the mirrors' reflection coefficients at the apex's reflection
+points; via a curved reflector, between the transmitter and the image R* of the apex's own
+specular point X, times the divergence D = g (r1 + r2) and the coefficient at X (g
+:func:`.curved.go_amplitude`).
+
+The expansion holds where beta0 is bounded, away from the geometric boundaries (the straight
+path between the images, its reflections in the wedge's faces) where a term of beta is
+singular: the uniform theory's transition function F(X), X = k L a = pi v^2 / 2 (v the
+Fresnel-Kirchhoff parameter of :func:`.edge_reflections.fresnel_parameter`), is 1 + j / (2 X)
++ O(X^-2) (Kouyoumjian & Pathak 1974, Proc. IEEE 62, 1448), so beyond |v| = 3 (X = 14) Keller
+is within 4 % (0.3 dB) of the uniform field. This module takes exactly the pairs that
+:mod:`.edge_reflections` leaves out (``SolverConfig.edge_reflection_fresnel_v``) and whose apex
+lies on the edge.
+
+Method
+------
+Per pair beyond reach (:func:`.edge_reflections.reflected_pairs` and
+:func:`.edge_reflections.curved_pairs` with ``beyond``): the apex z* in the frame of its images;
+pairs whose apex lies off the finite edge are dropped. The apex's reflection points (back-traced
+toward the images as for an element), its visibility (the element probe's legs), the product of
+the reflection coefficients, and A make one row: kind ``edge``, order 1 + b + a, delay tau0,
+``geometric_gain`` A (sign kept; times |R| and the phase -arg R for a complex R),
+``phase_rad`` -pi / 4, ``response_id`` :data:`APEX_RESPONSE_ID`: the solver's
+:class:`~acoustisim.propagation.apex_response.ApexResponse` gives its sqrt(f0 / f). On a curved reflector the apex and its specular
+point are found together: X from the representative pair's apex, the image R* of X, the apex
+of the new image, :data:`APEX_ITERATIONS` times.
+
+Accuracy
+--------
+Against the BTM line integral of a long edge (``tests/physics/test_edge_apex.py``): within
+0.3 dB at |v| >= 3, the error falling as 1 / v^2. Not modelled: the ends of the finite edge
+(each cuts a branch, a step in h(t) that Keller's apex lacks: a separate, weaker arrival when
+an end lies many periods after the apex; the rows of pairs whose apex lies off the edge, which
+have only these), and the low frequencies where k rS or k rR < 1 (sqrt(f0 / f) is held
+constant below :data:`~acoustisim.propagation.apex_response.LOWEST_FREQUENCY_FRACTION` f0, where the seed's pulse is 60 dB down).
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from acoustisim.propagation.context import SolveContext
+from acoustisim.propagation.apex_response import APEX_RESPONSE_ID
+from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
+from acoustisim.propagation.prepared import PreparedScene
+from acoustisim.propagation.reference.btm import WedgePairs, beta, least_time
+from acoustisim.propagation.reference.curved import go_amplitude
+from acoustisim.propagation.reference.edge_reflections import (ElementKernels, FarPairs, ReflectedPairs,
+                                                               boundary_faces, coefficients, curved_images, diffracting,
+                                                               path_vertices, reflection_points, reflection_products)
+from acoustisim.propagation.reference.specular import REAL_TOLERANCE
+
+APEX_ITERATIONS = 3
+"""Curved reflectors: rounds of (apex -> specular point -> image -> apex)."""
+
+
+class ApexRows(NamedTuple):
+    """The apex arrivals of one split, shape (p,) each unless said: ``split`` (b, a); ``pairs``;
+    ``surfaces`` (p, b + 1 + a) in path order; ``gain`` A times the reflections' factor (1/m,
+    signed); ``phase`` (rad, -pi / 4 - arg of a complex factor); ``z_m`` the apex on its edge
+    (m); ``path_length_m`` L (m); ``before_points`` (p, b, 3) and ``after_points`` (p, a, 3) the
+    reflection points in path order (m)."""
+
+    split: tuple[int, int]
+    pairs: ReflectedPairs
+    surfaces: NDArray[np.int64]
+    gain: NDArray[np.float64]
+    phase: NDArray[np.float64]
+    z_m: NDArray[np.float64]
+    path_length_m: NDArray[np.float64]
+    before_points: NDArray[np.float64]
+    after_points: NDArray[np.float64]
+
+    def select(self, keep: NDArray[np.intp]) -> "ApexRows":
+        """The pairs ``keep``."""
+        pairs = ReflectedPairs(*(column[keep] for column in self.pairs[:4]),
+                               WedgePairs(*(column[keep] for column in self.pairs.wedge)),
+                               type(self.pairs.geometry)(*(column[keep] for column in self.pairs.geometry)))
+        return ApexRows(self.split, pairs, self.surfaces[keep], self.gain[keep], self.phase[keep], self.z_m[keep],
+                        self.path_length_m[keep], self.before_points[keep], self.after_points[keep])
+
+
+def keller_amplitude(wedge: WedgePairs, sound_speed_m_s: float, centre_frequency_hz: float) -> NDArray[np.float64]:
+    """A of each pair (Physics), shape (p,), 1/m: the apex field at f0 relative to the source's
+    pressure at 1 m, before the phase -pi / 4."""
+    beta0 = beta(wedge.nu, np.zeros_like(wedge.r_s), wedge.theta_s, wedge.theta_r, wedge.pressure_release)
+    _, least = least_time(wedge.r_s, wedge.z_s, wedge.r_r, wedge.z_r)
+    omega0 = 2.0 * np.pi * centre_frequency_hz
+    return -(wedge.nu * beta0 / (2.0 * np.pi)) * np.sqrt(
+        np.pi * sound_speed_m_s / (2.0 * least * wedge.r_s * wedge.r_r * omega0))
+
+
+def apex_positions(wedge: WedgePairs, length_m: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The apex z* along each pair's edge (m), (p,), and whether it lies on the finite edge."""
+    z_apex, _ = least_time(wedge.r_s, wedge.z_s, wedge.r_r, wedge.z_r)
+    return z_apex, (z_apex > 0.0) & (z_apex < length_m)
+
+
+def with_factor(gain: NDArray[np.float64], factor: NDArray[np.complex128]) -> tuple[NDArray[np.float64],
+                                                                                   NDArray[np.float64]]:
+    """``gain`` times a complex ``factor``: a real factor keeps its sign in the gain, a complex
+    one gives |factor| and the phase -arg(factor); and the row phases, -pi / 4 added."""
+    real = np.abs(factor.imag) <= REAL_TOLERANCE * np.abs(factor)
+    return (gain * np.where(real, factor.real, np.abs(factor)),
+            np.where(real, 0.0, -np.angle(factor)) - 0.25 * np.pi)
+
+
+def planar_apex_rows(context: SolveContext, prepared: PreparedScene, far: FarPairs, kernels: ElementKernels
+                     ) -> ApexRows | None:
+    """The apex arrivals of one planar split's pairs beyond reach, or None when it has none."""
+    scene_edges, mirrors = prepared.diffracting_edges, prepared.mirrors
+    split, sides, pairs = far.split, far.sides, far.pairs
+    z_apex, on_edge = apex_positions(pairs.wedge, scene_edges.length_m[pairs.edge])
+    edges = scene_edges.edges
+    apex = edges.start_m[pairs.edge] + z_apex[:, None] * edges.direction[pairs.edge]
+    index = np.arange(pairs.edge.size)
+    before_points, after_points, inside = reflection_points(prepared, sides, pairs, index, apex, kernels)
+    alive = np.flatnonzero(on_edge & inside)
+    sequence_b, sequence_a = sides.before[pairs.before[alive]], sides.after[pairs.after[alive]]
+    none = np.full((alive.size, 1), -1, dtype=np.int64)
+    faces = boundary_faces(prepared)
+    probes = apex[alive] + scene_edges.probe_offset_m[pairs.edge[alive]]
+    visible = np.zeros(pairs.edge.size, dtype=bool)
+    if alive.size:
+        visible[alive] = kernels.path_visibility(
+            context, prepared, path_vertices(context, pairs.receiver[alive], before_points[alive], probes,
+                                             after_points[alive]),
+            np.concatenate([none, mirrors.patch[sequence_b], none, mirrors.patch[sequence_a], none], axis=1),
+            np.concatenate([none, faces[sequence_b], none, faces[sequence_a], none], axis=1))
+    keep = np.flatnonzero(visible)
+    if keep.size == 0:
+        return None
+    sequence = np.concatenate([sides.before[pairs.before[keep]], sides.after[pairs.after[keep]]], axis=1)
+    product = reflection_products(context, mirrors, sequence, split[0],
+                                  path_vertices(context, pairs.receiver[keep], before_points[keep], apex[keep],
+                                                after_points[keep]))
+    amplitude = keller_amplitude(pairs.wedge, context.sound_speed_m_s, context.centre_frequency_hz)
+    gain, phase = with_factor(amplitude[keep], product)
+    surfaces = np.concatenate([mirrors.surface[sides.before[pairs.before]],
+                               scene_edges.edges.surface[pairs.edge][:, None],
+                               mirrors.surface[sides.after[pairs.after]]], axis=1)
+    _, least = least_time(pairs.wedge.r_s, pairs.wedge.z_s, pairs.wedge.r_r, pairs.wedge.z_r)
+    full = ApexRows(split, pairs, surfaces, np.zeros(pairs.edge.size), np.zeros(pairs.edge.size), z_apex, least,
+                    before_points, after_points).select(keep)
+    return full._replace(gain=gain, phase=phase)
+
+
+def curved_apex_rows(context: SolveContext, prepared: PreparedScene, far: FarPairs, kernels: ElementKernels
+                     ) -> ApexRows | None:
+    """The apex arrivals of the edge -> curved reflector (``far.after``) or curved reflector ->
+    edge pairs beyond reach, or None when there are none."""
+    scene_edges = prepared.diffracting_edges
+    edges = scene_edges.edges
+    after, pairs = far.after, far.pairs
+    tx = np.asarray(context.transmitter_m, dtype=float)
+    rx = np.asarray(context.receivers_m, dtype=float)
+    reflector = pairs.after if after else pairs.before
+    far = rx[pairs.receiver] if after else np.broadcast_to(tx, (pairs.edge.size, 3))
+    z_apex, _ = apex_positions(pairs.wedge, scene_edges.length_m[pairs.edge])
+    wedge, valid = pairs.wedge, np.ones(pairs.edge.size, dtype=bool)
+    for _ in range(APEX_ITERATIONS):  # a fixed few rounds of the apex's own specular point
+        apex = edges.start_m[pairs.edge] + np.clip(z_apex, 0.0, scene_edges.length_m[pairs.edge])[:, None] * \
+            edges.direction[pairs.edge]
+        image, found = curved_images(prepared, reflector, apex, far, after, kernels)
+        valid &= found.valid
+        image = np.where(found.valid[:, None], image, far)
+        source, target = (np.broadcast_to(tx, image.shape), image) if after else (image, rx[pairs.receiver])
+        ok, wedge = diffracting(scene_edges, pairs.edge, source, target)
+        valid &= ok
+        z_apex, on_edge = apex_positions(wedge, scene_edges.length_m[pairs.edge])
+    apex = edges.start_m[pairs.edge] + z_apex[:, None] * edges.direction[pairs.edge]
+    image, found = curved_images(prepared, reflector, apex, far, after, kernels)
+    alive = np.flatnonzero(valid & on_edge & found.valid)
+    probes = apex[alive] + scene_edges.probe_offset_m[pairs.edge[alive]]
+    x = found.point[alive]
+    patch = np.array([item.patch for item in prepared.curved], dtype=np.int64)[reflector[alive]]
+    n = alive.size
+    none = np.full(n, -1, dtype=np.int64)
+    middle = [probes[:, None, :], x[:, None, :]] if after else [x[:, None, :], probes[:, None, :]]
+    patches = np.column_stack([none, none, patch, none] if after else [none, patch, none, none])
+    visible = np.zeros(pairs.edge.size, dtype=bool)
+    if n:
+        visible[alive] = kernels.path_visibility(
+            context, prepared, np.concatenate([np.broadcast_to(tx, (n, 1, 3)), *middle, rx[pairs.receiver[alive]][:, None, :]],
+                                              axis=1), patches, np.full(patches.shape, -1, dtype=np.int64))
+    keep = np.flatnonzero(visible)
+    if keep.size == 0:
+        return None
+    x = found.point[keep]
+    a, b = (apex[keep], rx[pairs.receiver[keep]]) if after else (np.broadcast_to(tx, x.shape), apex[keep])
+    spreading, go_phase = go_amplitude(a, b, x, found.normal[keep], found.e1[keep], found.e2[keep], found.k11[keep],
+                                       found.k22[keep], found.k12[keep])
+    r1, r2 = np.linalg.norm(x - a, axis=1), np.linalg.norm(x - b, axis=1)
+    cosine = np.abs(np.einsum("ij,ij->i", x - a, found.normal[keep])) / r1
+    materials = tuple(item.material for item in prepared.curved)
+    factor = (coefficients(context, materials, reflector[keep], cosine) * spreading * (r1 + r2)
+              * np.exp(-1j * go_phase))
+    own = WedgePairs(*(column[keep] for column in wedge))
+    gain, phase = with_factor(keller_amplitude(own, context.sound_speed_m_s, context.centre_frequency_hz), factor)
+    _, least = least_time(own.r_s, own.z_s, own.r_r, own.z_r)
+    surfaces_curved = np.array([item.surface for item in prepared.curved], dtype=np.int64)
+    edge_surface = edges.surface[pairs.edge]
+    surfaces = np.column_stack([edge_surface, surfaces_curved[reflector]] if after
+                               else [surfaces_curved[reflector], edge_surface])
+    points = found.point[:, None, :]
+    empty = np.zeros((pairs.edge.size, 0, 3))
+    full = ApexRows((0, 1) if after else (1, 0), pairs._replace(wedge=wedge), surfaces, np.zeros(pairs.edge.size),
+                    np.zeros(pairs.edge.size), z_apex, np.zeros(pairs.edge.size),
+                    empty if after else points, points if after else empty).select(keep)
+    return full._replace(gain=gain, phase=phase, path_length_m=least)
+
+
+def apex_parts(context: SolveContext, prepared: PreparedScene, far: list[FarPairs], kernels: ElementKernels
+               ) -> list[ApexRows]:
+    """The apex arrivals of the pairs beyond reach (``ReflectedParts.far``), one part per split
+    that has some, in its order."""
+    found = [planar_apex_rows(context, prepared, part, kernels) if part.sides is not None
+             else curved_apex_rows(context, prepared, part, kernels) for part in far]
+    return [part for part in found if part is not None]
+
+
+def apex_rows(context: SolveContext, prepared: PreparedScene, parts: list[ApexRows], first_path_id: int
+              ) -> NDArray[Any]:
+    """The rows of ``parts`` (one per pair, in (part, pair) order), path ids from
+    ``first_path_id``."""
+    edges = prepared.diffracting_edges.edges
+    blocks = []
+    next_id = int(first_path_id)
+    for part in parts:  # a loop over the few splits
+        p = part.pairs
+        n = p.edge.size
+        order = 1 + part.split[0] + part.split[1]
+        edge_points = edges.start_m[p.edge] + part.z_m[:, None] * edges.direction[p.edge]
+        vertices = path_vertices(context, p.receiver, part.before_points, edge_points, part.after_points)
+        rows = empty_paths_array(n)
+        rows["path_id"] = next_id + np.arange(n)
+        next_id += n
+        rows["channel"] = p.receiver
+        rows["kind"] = PathKind.EDGE
+        rows["order"] = order
+        rows["path_length_m"] = part.path_length_m
+        rows["geometric_gain"] = part.gain
+        rows["phase_rad"] = part.phase
+        rows["response_id"] = APEX_RESPONSE_ID
+        departure = vertices[:, 1] - vertices[:, 0]
+        arrival = vertices[:, -1] - vertices[:, -2]
+        rows["departure_dir"] = departure / np.linalg.norm(departure, axis=1, keepdims=True)
+        rows["arrival_dir"] = arrival / np.linalg.norm(arrival, axis=1, keepdims=True)
+        stored = min(order, MAX_INTERACTIONS)
+        rows["object_ids"][:, :stored] = part.surfaces[:, :stored]
+        rows["points_m"][:, :stored] = vertices[:, 1:1 + stored]
+        blocks.append(rows)
+    return np.concatenate(blocks) if blocks else empty_paths_array(0)
+
+
+__all__ = ("APEX_ITERATIONS", "ApexRows", "apex_parts", "apex_positions", "apex_rows", "curved_apex_rows",
+           "keller_amplitude", "planar_apex_rows", "with_factor")
