@@ -18,10 +18,10 @@ MAX_EDGE_REFLECTIONS = 2
 """Most reflections combined with one edge diffraction (an edge path of order 3)."""
 
 DEFAULT_EDGE_REFLECTION_FRESNEL_V = 3.0
-"""Default reach of the edge-and-reflection paths (``SolverConfig.edge_reflection_fresnel_v``):
-a half-plane's diffracted field is about 0.225 / |v| of the geometric field it accompanies
-(within 10 % for |v| >= 1; Fresnel integral asymptotics), so the paths left out at |v| > 3 are
-each more than 22.5 dB below their geometric path's unobstructed level."""
+"""Default reach of the integrated edge-and-reflection paths
+(``SolverConfig.edge_reflection_fresnel_v``): beyond it Keller's apex row is within 0.3 dB of
+the uniform field (the transition function 1 + j / (2 X), X = pi v^2 / 2 = 14) and measured
+within 0.06 dB of the line integral (``tests/physics/test_edge_apex.py``)."""
 
 BACKENDS: tuple[str, ...] = ("fast", "reference")
 """The engines (:mod:`acoustisim.propagation.engine`): "fast" (compiled kernels, the default) and
@@ -68,13 +68,15 @@ class SolverConfig:
         :mod:`acoustisim.propagation.reference.edge_reflections`. Each such path is a line
         integral of about as many rows as a first-order edge's.
     edge_reflection_fresnel_v : float or None
-        Reach of the edge-and-reflection paths: an (edge, mirrors) pair is traced when the
-        edge lies within this Fresnel-Kirchhoff parameter |v| of the geometric path of the same
-        mirrors, shadowed or lit (v = 2 sqrt(detour / wavelength) at the centre frequency;
-        default :data:`DEFAULT_EDGE_REFLECTION_FRESNEL_V` = 3: shadows and transition zones,
-        where the diffracted field matters most). The pairs left out are separate arrivals each
-        more than 22.5 dB below their geometric path's unobstructed level. None traces every
-        pair (on the thesis tank about 14 times the first-order edge rows; see
+        Reach of the integrated edge-and-reflection paths: an (edge, mirrors) pair whose edge
+        lies within this Fresnel-Kirchhoff parameter |v| of a geometric boundary of its wedge
+        (the straight path between the images, shadowed or lit, or its reflection in a face;
+        v = 2 sqrt(detour / wavelength) at the centre frequency) is integrated as a line
+        integral of elements; beyond, it is one row at its apex by Keller's geometrical theory
+        of diffraction (within 0.06 dB of the integral at |v| >= 3;
+        :mod:`acoustisim.propagation.reference.edge_apex`). Default
+        :data:`DEFAULT_EDGE_REFLECTION_FRESNEL_V` = 3. None integrates every pair (on the thesis
+        tank about 14 times the first-order edge rows; see
         :mod:`acoustisim.propagation.reference.edge_reflections`, Selection).
     shadows : bool
         True (default): a specular leg passing near or blocked by a smooth convex obstacle

@@ -21,11 +21,12 @@ MECHANISMS: tuple[str, ...] = ("direct", "specular", "edge")
 
 
 VARIANTS: tuple[tuple[str, str, tuple[tuple[str, Any], ...]], ...] = (
-    ("thesis-tank-hard-shadows", "thesis-tank", (("shadows", False),)),
+    ("thesis-tank-hard-shadows", "thesis-tank", (("shadows", False), ("edge_reflections", 0))),
 )
 """Stored tables of a built-in scene solved with other settings: (table, scene, SolverConfig
-options). ``thesis-tank-hard-shadows`` is the thesis tank with the smooth obstacles' shadows off,
-the table as it was before they existed: the knob off reproduces those rows."""
+options). ``thesis-tank-hard-shadows`` is the thesis tank with the smooth obstacles' shadows and
+the edges combined with reflections off, the table as it was before they existed: the knobs off
+reproduce those rows."""
 
 
 def table_names() -> tuple[str, ...]:

@@ -38,28 +38,21 @@ the material's reflection coefficient at X (the same with the source's image bef
 
 Selection
 ---------
-Each pair (an edge between two images) perturbs the geometric path of the same mirrors, the
-straight path between the images. Its Fresnel-Kirchhoff parameter
+Near a geometric boundary (the straight path between the images, which the edge's wedge may
+block, or its reflection in a face of the wedge) the diffracted field is of the order of the
+geometric one and varies fast; away from all of them it is Keller's ray from the apex. The
+Fresnel-Kirchhoff parameter of a pair (:func:`fresnel_parameter`)
 
-    v = +/- 2 sqrt(delta / lambda0),   delta = min over the edge of (m + l) - |T_b - R_a|,
+    v = 2 sqrt(delta / lambda0),   delta = min over the edge of (m + l) - D,
 
-(lambda0 = c / f0; positive where the edge's wedge blocks the straight path) says how much: the
-knife-edge field relative to the unobstructed geometric one is F(v) = (1 + j)/2 Int_v^inf
-exp(-j pi s^2 / 2) ds (e.g. Born & Wolf, section 8.7), whose diffracted part has magnitude about
-0.225 / |v| for |v| >= 1, in the shadow (v > 0) and the lit region (v < 0) alike. With
-``config.edge_reflection_fresnel_v`` = V (default 3), pairs with |v| <= V are traced: the
-shadows and the transition zones of sharp objects (the field diffracted around a prism into the
-shadow it casts on a post or a wall, and back), where this field is the leading term or of the
-order of the geometric one. Pairs with |v| > V (an edge heard via the floor, a wall or a post
-away from any geometric path it disturbs) are left out: each is a separate arrival more than
-20 log10(0.225 / V) (-22.5 dB) below the unobstructed level of its geometric path; at the thesis
-tank's default pose the strongest of them is 29.3 dB below the strongest echo
-(``benchmarks/bench_edges.py``). Also left out at the default reach: an edge ending on a mirror (the prism standing on the
-floor and reaching the surface) continuing into its image there, a pair whose geometric path
-it rarely disturbs; the end then diffracts as the end of a first-order edge does. Tracing these
-pairs at the thesis tank's default pose takes 70,000 rows (about 45 ms CPU).
-``edge_reflection_fresnel_v = None`` traces every pair (the exact half-plane on a rigid plane
-needs them: ``tests/physics/test_edge_reflections.py``).
+D the length of the nearest such geometric path and lambda0 = c / f0, says which: the uniform
+theory's transition function is 1 + j / (2 X) + O(X^-2), X = pi v^2 / 2 (Kouyoumjian & Pathak
+1974). Pairs with |v| <= ``config.edge_reflection_fresnel_v`` (default 3: the shadows and
+transition zones of sharp objects, e.g. the field diffracted around a prism into the shadow it
+casts on a wall and back) are integrated here; the others are one row each at their apex
+(:mod:`.edge_apex`, within 0.06 dB of this integral at |v| >= 3), unless the apex lies off the
+edge or within an end's Fresnel zone (:func:`.edge_apex.apex_positions`): those are left out.
+``edge_reflection_fresnel_v = None`` integrates every pair.
 
 Method
 ------
@@ -118,6 +111,7 @@ by two edges, curved reflectors combined with planar mirrors around an edge.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -611,12 +605,15 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
 class FarPairs(NamedTuple):
     """The pairs of one split beyond reach (Selection; :mod:`.edge_apex` makes their rows):
     ``split`` (b, a); ``sides`` the planar split's :class:`ImageSides` (None for a curved
-    reflector); ``after`` (curved: the reflector after the edge); ``pairs``."""
+    reflector); ``after`` (curved: the reflector after the edge); ``pairs``; the wavelength at
+    f0 (m) and the reach (``config.edge_reflection_fresnel_v``) they were selected with."""
 
     split: tuple[int, int]
     sides: ImageSides | None
     after: bool
     pairs: ReflectedPairs
+    wavelength_m: float
+    reach_v: float
 
 
 class ReflectedParts(NamedTuple):
@@ -639,18 +636,20 @@ def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: Pr
     far: list[FarPairs] = []
     if len(scene_edges.edges) == 0 or config.edge_reflections == 0:
         return ReflectedParts([], [])
+    wavelength = context.sound_speed_m_s / context.centre_frequency_hz
+    reach = math.inf if config.edge_reflection_fresnel_v is None else float(config.edge_reflection_fresnel_v)
     if mirrors.count:
         facing = edges_facing(mirrors, scene_edges)
         for split in reflection_splits(config.edge_reflections):  # a loop over the few splits
             sides = image_sides(context, mirrors, split, np.any(facing, axis=1))
             near_pairs, far_pairs = reflected_pairs(config, context, scene_edges, facing, sides)
             found.append(split_impulses(context, config, prepared, split, sides, near_pairs, kernels))
-            far.append(FarPairs(split, sides, False, far_pairs))
+            far.append(FarPairs(split, sides, False, far_pairs, wavelength, reach))
     if prepared.curved:
         for after in (True, False):
             near_pairs, far_pairs = curved_pairs(config, context, prepared, after, kernels)
             found.append(curved_impulses(context, config, prepared, after, near_pairs, kernels))
-            far.append(FarPairs((0, 1) if after else (1, 0), None, after, far_pairs))
+            far.append(FarPairs((0, 1) if after else (1, 0), None, after, far_pairs, wavelength, reach))
     return ReflectedParts([part for part in found if part is not None],
                           [part for part in far if part.pairs.edge.size])
 
