@@ -51,7 +51,7 @@ theory's transition function is 1 + j / (2 X) + O(X^-2), X = pi v^2 / 2 (Kouyoum
 transition zones of sharp objects, e.g. the field diffracted around a prism into the shadow it
 casts on a wall and back) are integrated here; the others are one row each at their apex
 (:mod:`.edge_apex`, within 0.06 dB of this integral at |v| >= 3), unless the apex lies off the
-edge or within an end's Fresnel zone (:func:`.edge_apex.apex_positions`): those are left out.
+edge or within an end's Fresnel zone (:func:`.edge_apex.stationary_points`): those are left out.
 ``edge_reflection_fresnel_v = None`` integrates every pair.
 
 Method
@@ -605,14 +605,13 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
 class FarPairs(NamedTuple):
     """The pairs of one split beyond reach (Selection; :mod:`.edge_apex` makes their rows):
     ``split`` (b, a); ``sides`` the planar split's :class:`ImageSides` (None for a curved
-    reflector); ``after`` (curved: the reflector after the edge); ``pairs``; the wavelength at
-    f0 (m) and the reach (``config.edge_reflection_fresnel_v``) they were selected with."""
+    reflector); ``after`` (curved: the reflector after the edge); ``pairs``; the reach
+    (``config.edge_reflection_fresnel_v``) they were selected with."""
 
     split: tuple[int, int]
     sides: ImageSides | None
     after: bool
     pairs: ReflectedPairs
-    wavelength_m: float
     reach_v: float
 
 
@@ -636,7 +635,6 @@ def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: Pr
     far: list[FarPairs] = []
     if len(scene_edges.edges) == 0 or config.edge_reflections == 0:
         return ReflectedParts([], [])
-    wavelength = context.sound_speed_m_s / context.centre_frequency_hz
     reach = math.inf if config.edge_reflection_fresnel_v is None else float(config.edge_reflection_fresnel_v)
     if mirrors.count:
         facing = edges_facing(mirrors, scene_edges)
@@ -644,12 +642,12 @@ def reflected_impulses(context: SolveContext, config: SolverConfig, prepared: Pr
             sides = image_sides(context, mirrors, split, np.any(facing, axis=1))
             near_pairs, far_pairs = reflected_pairs(config, context, scene_edges, facing, sides)
             found.append(split_impulses(context, config, prepared, split, sides, near_pairs, kernels))
-            far.append(FarPairs(split, sides, False, far_pairs, wavelength, reach))
+            far.append(FarPairs(split, sides, False, far_pairs, reach))
     if prepared.curved:
         for after in (True, False):
             near_pairs, far_pairs = curved_pairs(config, context, prepared, after, kernels)
             found.append(curved_impulses(context, config, prepared, after, near_pairs, kernels))
-            far.append(FarPairs((0, 1) if after else (1, 0), None, after, far_pairs, wavelength, reach))
+            far.append(FarPairs((0, 1) if after else (1, 0), None, after, far_pairs, reach))
     return ReflectedParts([part for part in found if part is not None],
                           [part for part in far if part.pairs.edge.size])
 
