@@ -15,8 +15,12 @@ target too when the cued search finds the other side (a weak edge next to a stro
 expected echo: the point model for every target; where the fits say "point" (or cannot tell),
 also the vertical edge's, and the one that explains more of the echoes' energy is kept
 (``beam_targets.model_fit_snr``, both at one noise level per channel: a likelihood ratio;
-``LocalizationConfig.echo_model`` fixes one instead). ``LocalizationConfig(beam=False)`` (the
-command line's ``--no-beam``) keeps the plain matched filter's times.
+``LocalizationConfig.echo_model`` fixes one instead). Then the joint search
+(``joint_search``: the three channels summed along hypothesised positions, at a stated
+false-alarm probability) finds the targets whose echo crossed the detector on one channel only,
+or on none; its hits are timed and fitted like the groups (``joint_targets``).
+``LocalizationConfig(beam=False)`` (the command line's ``--no-beam``) keeps the plain matched
+filter's times, without the joint search.
 """
 
 from __future__ import annotations
