@@ -45,6 +45,12 @@ from binsonar.localization.target import STATUS_AMBIGUOUS, Target
 from binsonar.recording import Recording, RecordingError, as_poses
 
 ECHO_MODEL_CHOICES: tuple[str, ...] = ("auto",) + ECHO_MODELS
+JOINT_SEARCH_METHODS: tuple[str, ...] = ("ca-cfar", "os-cfar")
+"""Detectors after which the joint search runs: those that report every echo above their
+threshold, so that what they did not report is noise or an echo too weak for one channel (after
+"matched", which reports one echo per channel, the other strong echoes would look new)."""
+JOINT_SEARCH_MIN_TEMPLATES = 8
+"""The joint search needs a record at least this many templates long (its noise windows)."""
 """``LocalizationConfig.echo_model``: "auto" chooses per target, the others fix the expected echo."""
 
 
@@ -91,8 +97,9 @@ class LocalizationConfig:
         edges).
     joint_search : JointSearchConfig
         The joint multi-channel search for targets whose echo crosses the detector on one
-        channel or none (``joint_search``; beam-aware pipeline only). ``enabled=False`` turns it
-        off (the command line's ``--no-joint``).
+        channel or none (``joint_search``; beam-aware pipeline after a CFAR detector only,
+        ``JOINT_SEARCH_METHODS``). ``enabled=False`` turns it off (the command line's
+        ``--no-joint``).
     beam_tof_floor_s : float
         Systematic TOF uncertainty (s) added in quadrature to the std of beam-timed echoes. 0
         by default: the expected echo models the beam and the target class, and the std follows
@@ -496,7 +503,9 @@ def localize_detections(detections: DetectionResult, geometry: ArrayGeometry, so
     per_ping: list[tuple[Target, ...]] = []
     unassociated: list[int] = []
     joint = None
-    if setup is not None and waveforms is not None and config.joint_search.enabled and detections.n_pings:
+    if (setup is not None and waveforms is not None and config.joint_search.enabled and detections.n_pings
+            and detections.method in JOINT_SEARCH_METHODS
+            and np.shape(waveforms)[-1] >= JOINT_SEARCH_MIN_TEMPLATES * setup.template.samples.size):
         joint = JointSetup.create(setup.template, setup.transducers, np.shape(waveforms)[-1], setup.sample_rate_hz,
                                   setup.sound_speed_m_s, geometry.receivers_m, config.joint_search)
     for k in range(detections.n_pings):
