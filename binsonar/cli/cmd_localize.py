@@ -1,9 +1,12 @@
-"""``binsonar localize PING.h5 [--method DETECTOR] [--pfa X] [--sound-speed C] [--no-beam] [--json]``: targets per ping.
+"""``binsonar localize PING.h5 [--method DETECTOR] [--pfa X] [--sound-speed C] [--no-beam] [--no-joint] [--json]``: targets per ping.
 
 Beam-aware by default: when the recording's array description gives its transducers as pistons,
 each target's echoes are re-timed with the echo the beam makes and their stds follow that
 echo's SNR and bandwidth (``binsonar.localization.beam_targets``); ``--no-beam`` keeps the plain
-matched filter's times (with ``--tof-floor-ns``).
+matched filter's times (with ``--tof-floor-ns``). Beam-aware, a joint search over the three
+channels also finds targets whose echo crosses the detector on one channel only, or on none,
+when the channels together hold the energy (``binsonar.localization.joint_search``);
+``--no-joint`` turns it off.
 
 ``--json`` prints one object: ``source``, ``method``, ``sound_speed_m_s``, ``sound_speed_source``
 ("recording" or "argument"), ``beam_aware`` and ``beam`` (how the echoes were timed), ``pings`` (per ping: ``ping``, ``pose`` or null,
@@ -56,6 +59,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-beam", action="store_true", dest="no_beam",
                         help="keep the plain matched filter's times (default: re-time each target's echoes "
                              "with the beams the array description gives)")
+    parser.add_argument("--no-joint", action="store_true", dest="no_joint",
+                        help="no joint search over the three channels (default: beam-aware, also find targets "
+                             "whose echo crosses the detector on one channel only, at 1e-3 false alarms per ping)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     parser.set_defaults(run=run)
 
@@ -81,7 +87,10 @@ def run(args: argparse.Namespace) -> int:
         raise RecordingError(f"unknown detection method {args.method!r}; choose one of: {', '.join(METHODS)}")
     if args.tof_floor_ns > 1e6:
         raise RecordingError(f"--tof-floor-ns: must be at most 1e6 ns, got {args.tof_floor_ns!r}")
-    config = LocalizationConfig(fuse=not args.no_fuse, tof_floor_s=args.tof_floor_ns * 1e-9, beam=not args.no_beam)
+    from binsonar.localization.joint_search import JointSearchConfig
+
+    config = LocalizationConfig(fuse=not args.no_fuse, tof_floor_s=args.tof_floor_ns * 1e-9, beam=not args.no_beam,
+                                joint_search=JointSearchConfig(enabled=not args.no_joint))
     options = {}
     if args.pfa is not None:
         if not (math.isfinite(args.pfa) and 0.0 < args.pfa < 0.5):

@@ -15,8 +15,12 @@ target too when the cued search finds the other side (a weak edge next to a stro
 expected echo: the point model for every target; where the fits say "point" (or cannot tell),
 also the vertical edge's, and the one that explains more of the echoes' energy is kept
 (``beam_targets.model_fit_snr``, both at one noise level per channel: a likelihood ratio;
-``LocalizationConfig.echo_model`` fixes one instead). ``LocalizationConfig(beam=False)`` (the
-command line's ``--no-beam``) keeps the plain matched filter's times.
+``LocalizationConfig.echo_model`` fixes one instead). Then the joint search
+(``joint_search``: the three channels summed along hypothesised positions, at a stated
+false-alarm probability) finds the targets whose echo crossed the detector on one channel only,
+or on none; its hits are timed and fitted like the groups (``joint_targets``).
+``LocalizationConfig(beam=False)`` (the command line's ``--no-beam``) keeps the plain matched
+filter's times, without the joint search.
 """
 
 from __future__ import annotations
@@ -36,10 +40,17 @@ from binsonar.localization.beam_targets import ECHO_MODELS, BeamSetup, PingNoise
 from binsonar.localization.classify import POINT, UNKNOWN
 from binsonar.localization.estimate import EstimationConfig, target_from_path_lengths
 from binsonar.localization.fusion import FusedTarget, fuse, group_across_pings, observations_of
+from binsonar.localization.joint_search import JointSearchConfig, JointSetup, joint_search
 from binsonar.localization.target import STATUS_AMBIGUOUS, Target
 from binsonar.recording import Recording, RecordingError, as_poses
 
 ECHO_MODEL_CHOICES: tuple[str, ...] = ("auto",) + ECHO_MODELS
+JOINT_SEARCH_METHODS: tuple[str, ...] = ("ca-cfar", "os-cfar")
+"""Detectors after which the joint search runs: those that report every echo above their
+threshold, so that what they did not report is noise or an echo too weak for one channel (after
+"matched", which reports one echo per channel, the other strong echoes would look new)."""
+JOINT_SEARCH_MIN_TEMPLATES = 8
+"""The joint search needs a record at least this many templates long (its noise windows)."""
 """``LocalizationConfig.echo_model``: "auto" chooses per target, the others fix the expected echo."""
 
 
@@ -84,6 +95,11 @@ class LocalizationConfig:
         Iterations, search windows and the cued search of the refinement (its
         ``model.target`` is set per target; ``model.wedge_interior_angle_deg`` applies to
         edges).
+    joint_search : JointSearchConfig
+        The joint multi-channel search for targets whose echo crosses the detector on one
+        channel or none (``joint_search``; beam-aware pipeline after a CFAR detector only,
+        ``JOINT_SEARCH_METHODS``). ``enabled=False`` turns it off (the command line's
+        ``--no-joint``).
     beam_tof_floor_s : float
         Systematic TOF uncertainty (s) added in quadrature to the std of beam-timed echoes. 0
         by default: the expected echo models the beam and the target class, and the std follows
@@ -119,6 +135,7 @@ class LocalizationConfig:
     min_range_m: float = 0.05
     beam: bool = True
     beam_refinement: BeamRefinementConfig = field(default_factory=BeamRefinementConfig)
+    joint_search: JointSearchConfig = field(default_factory=JointSearchConfig)
     beam_tof_floor_s: float = 0.0
     beam_association_floor_s: float = 1e-6
     echo_model: str = "auto"
@@ -235,10 +252,13 @@ class PingBeam:
     setup : BeamSetup
     noise : PingNoise
         The ping's samples (V) and detected echoes.
+    joint : JointSetup or None
+        The joint search's plan (None: no joint search).
     """
 
     setup: BeamSetup
     noise: PingNoise = field(repr=False)
+    joint: JointSetup | None = None
 
     @property
     def rows(self) -> NDArray[np.float64]:
@@ -246,11 +266,12 @@ class PingBeam:
         return self.noise.rows
 
     @classmethod
-    def of(cls, rows: ArrayLike, setup: BeamSetup, echoes: tuple[tuple[Echo, ...], ...] = ((), (), ())) -> "PingBeam":
+    def of(cls, rows: ArrayLike, setup: BeamSetup, echoes: tuple[tuple[Echo, ...], ...] = ((), (), ()),
+           joint: JointSetup | None = None) -> "PingBeam":
         """The ping ``rows`` (3, n) (V) and its detected ``echoes`` (left out of the noise estimates)."""
         busy = tuple(np.array([e.tof_s for e in channel], dtype=float) for channel in echoes)
         return cls(setup, PingNoise(np.asarray(rows, dtype=float), setup.sample_rate_hz, setup.t0_s, busy,
-                                    setup.busy_half_width_s))
+                                    setup.busy_half_width_s), joint)
 
 
 def _refined_target(refined: RefinedTarget, geometry: ArrayGeometry, c: float, ping: int,
@@ -331,6 +352,7 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
     groups = sorted(groups, key=lambda g: sum(i is None for i in (g.left, g.centre, g.right)))
     targets: list[Target] = []
     used = 0
+    claimed = [np.zeros(len(ch), dtype=bool) for ch in echoes]  # echoes of a located reflector
     for grp in groups:
         idx = (grp.left, grp.centre, grp.right)
         ech = tuple(echoes[ch][i] if i is not None else None for ch, i in enumerate(idx))
@@ -339,6 +361,9 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
             if timed is None:
                 continue
             used += sum(i is not None for i in idx)
+            for ch, i in enumerate(idx):
+                if i is not None:
+                    claimed[ch][i] = True
             if any(same_reflector(timed, other, cfg.gate_n_sigma) for other in targets):
                 continue
             t = timed
@@ -350,11 +375,48 @@ def localize_ping(echoes: tuple[tuple[Echo, ...], ...], geometry: ArrayGeometry,
         clipped = [ch for ch, e in enumerate(t.echoes) if e is not None and getattr(e, "clipped", False)]
         if clipped:
             t = replace(t, message=f"{t.message}; echoes on clipped channel(s) {clipped} (unreliable)")
-        if pose is not None:
-            t = t.with_pose(pose)
         targets.append(t)
+    if beam is not None and beam.joint is not None and beam.joint.config.enabled:
+        joint, seeds = joint_targets(echoes, claimed, geometry, c, ping, beam, beam.joint, cfg, targets)
+        targets.extend(joint)
+        used += seeds
+    if pose is not None:
+        targets = [t.with_pose(pose) for t in targets]
     targets.sort(key=lambda t: (math.isnan(t.range_m), t.range_m))
     return targets, sum(len(ch) for ch in echoes) - used
+
+
+def joint_targets(echoes: tuple[tuple[Echo, ...], ...], claimed: list[NDArray[np.bool_]], geometry: ArrayGeometry,
+                  c: float, ping: int, beam: PingBeam, joint: JointSetup, cfg: LocalizationConfig,
+                  targets: list[Target]) -> tuple[list[Target], int]:
+    """The joint search's targets (``joint_search``) that are not one of ``targets``, beam-timed and
+    fitted like the others, and how many detected echoes (seeds) they use.
+
+    Each joint detection's three delays are re-timed with the expected echo
+    (``beam_timed_target``: the point and the edge models); a detection that the refinement
+    brings onto a target already found is that target and is dropped.
+    """
+    found = joint_search(beam.rows, joint, t0_s=beam.setup.t0_s, transmitter_m=geometry.transmitter_m,
+                         receivers_m=geometry.receivers_m, echoes=echoes, used=claimed, min_range_m=cfg.min_range_m)
+    out: list[Target] = []
+    seeds = 0
+    for detection in found:
+        triple = []
+        for ch in range(3):
+            if detection.seed is not None and detection.seed[0] == ch:
+                triple.append(echoes[ch][detection.seed[1]])
+            else:
+                triple.append(Echo(channel=ch, tof_s=float(detection.tof_s[ch]),
+                                   amplitude=float(detection.amplitude_v[ch]), snr_db=float("nan"),
+                                   score=detection.statistic / detection.threshold, ping=ping))
+        timed = beam_timed_target(tuple(triple), geometry, c, ping, beam, cfg)
+        if timed is None or any(same_reflector(timed, other, cfg.gate_n_sigma) for other in (*targets, *out)):
+            continue
+        timed = replace(timed, message=f"{timed.message}; joint search (summed {detection.statistic:.1f} over "
+                                       f"threshold {detection.threshold:.1f})")
+        seeds += detection.seed is not None
+        out.append(timed)
+    return out, seeds
 
 
 def same_reflector(a: Target, b: Target, n_sigma: float) -> bool:
@@ -440,10 +502,16 @@ def localize_detections(detections: DetectionResult, geometry: ArrayGeometry, so
     """
     per_ping: list[tuple[Target, ...]] = []
     unassociated: list[int] = []
+    joint = None
+    if (setup is not None and waveforms is not None and config.joint_search.enabled and detections.n_pings
+            and detections.method in JOINT_SEARCH_METHODS
+            and np.shape(waveforms)[-1] >= JOINT_SEARCH_MIN_TEMPLATES * setup.template.samples.size):
+        joint = JointSetup.create(setup.template, setup.transducers, np.shape(waveforms)[-1], setup.sample_rate_hz,
+                                  setup.sound_speed_m_s, geometry.receivers_m, config.joint_search)
     for k in range(detections.n_pings):
         beam = None
         if setup is not None and waveforms is not None:
-            beam = PingBeam.of(waveforms[k], setup, detections.echoes[k])
+            beam = PingBeam.of(waveforms[k], setup, detections.echoes[k], joint)
         ts, left_out = localize_ping(detections.echoes[k], geometry, float(sound_speed_m_s), ping=first_ping + k,
                                      rms_bandwidth_hz=rms_bandwidth_hz, pose=None if poses is None else poses[k],
                                      config=config, beam=beam)
