@@ -91,9 +91,8 @@ from acoustisim.propagation.apex_response import APEX_RESPONSE_ID
 from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.reference.btm import WedgePairs, beta, least_time
-from acoustisim.propagation.reference.curved import go_amplitude
 from acoustisim.propagation.reference.edge_reflections import (ElementKernels, FarPairs, ReflectedPairs,
-                                                               boundary_faces, coefficients, curved_images, diffracting,
+                                                               boundary_faces, curved_factor, curved_images, diffracting,
                                                                path_vertices, reflection_points, reflection_products)
 from acoustisim.propagation.reference.specular import REAL_TOLERANCE
 
@@ -287,15 +286,8 @@ def curved_apex_rows(context: SolveContext, prepared: PreparedScene, far: FarPai
     keep = np.flatnonzero(visible)
     if keep.size == 0:
         return None
-    x = found.point[keep]
-    a, b = (apex[keep], rx[pairs.receiver[keep]]) if after else (np.broadcast_to(tx, x.shape), apex[keep])
-    spreading, go_phase = go_amplitude(a, b, x, found.normal[keep], found.e1[keep], found.e2[keep], found.k11[keep],
-                                       found.k22[keep], found.k12[keep])
-    r1, r2 = np.linalg.norm(x - a, axis=1), np.linalg.norm(x - b, axis=1)
-    cosine = np.abs(np.einsum("ij,ij->i", x - a, found.normal[keep])) / r1
-    materials = tuple(item.material for item in prepared.curved)
-    factor = (coefficients(context, materials, reflector[keep], cosine) * spreading * (r1 + r2)
-              * np.exp(-1j * go_phase))
+    a, b = (apex[keep], rx[pairs.receiver[keep]]) if after else (np.broadcast_to(tx, (keep.size, 3)), apex[keep])
+    factor = curved_factor(context, prepared, reflector[keep], found, keep, a, b)
     gain, phase = with_factor(points.amplitude[keep], factor)
     surfaces_curved = np.array([item.surface for item in prepared.curved], dtype=np.int64)
     edge_surface = edges.surface[pairs.edge]

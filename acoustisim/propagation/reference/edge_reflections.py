@@ -537,6 +537,21 @@ def curved_pairs(config: SolverConfig, context: SolveContext, prepared: Prepared
     return subset(ok & near), subset(ok & ~near)
 
 
+def curved_factor(context: SolveContext, prepared: PreparedScene, reflector: NDArray[np.int64], found: Any,
+                  keep: NDArray[np.intp], a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """The curved reflection's factor relative to the plane mirror of its tangent plane (Physics):
+    D R exp(-j phase), D = g (r1 + r2) the divergence, R the coefficient at the specular point,
+    for the points ``keep`` of ``found`` (:class:`~acoustisim.propagation.curved.SurfacePoints`)
+    on ``reflector`` (k,) between ``a`` and ``b`` (k, 3) (m); complex, (k,)."""
+    x = found.point[keep]
+    spreading, go_phase = go_amplitude(a, b, x, found.normal[keep], found.e1[keep], found.e2[keep], found.k11[keep],
+                                       found.k22[keep], found.k12[keep])
+    r1, r2 = np.linalg.norm(x - a, axis=1), np.linalg.norm(x - b, axis=1)
+    cosine = np.abs(np.einsum("ij,ij->i", x - a, found.normal[keep])) / r1
+    materials = tuple(item.material for item in prepared.curved)
+    return coefficients(context, materials, reflector, cosine) * spreading * (r1 + r2) * np.exp(-1j * go_phase)
+
+
 def curved_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene, after: bool,
                     pairs: ReflectedPairs, kernels: ElementKernels) -> SplitImpulses | None:
     """The impulses of the edge -> curved reflector (``after``) or curved reflector -> edge
@@ -575,15 +590,8 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
     keep = np.flatnonzero(visible)
     if keep.size == 0:
         return None
-    x = found.point[keep]
-    a, b = (centres[keep], rx[receiver[keep]]) if after else (np.broadcast_to(tx, x.shape), centres[keep])
-    spreading, go_phase = go_amplitude(a, b, x, found.normal[keep], found.e1[keep], found.e2[keep], found.k11[keep],
-                                       found.k22[keep], found.k12[keep])
-    r1, r2 = np.linalg.norm(x - a, axis=1), np.linalg.norm(x - b, axis=1)
-    cosine = np.abs(np.einsum("ij,ij->i", x - a, found.normal[keep])) / r1
-    materials = tuple(item.material for item in prepared.curved)
-    factor = (coefficients(context, materials, reflector[keep], cosine) * spreading * (r1 + r2)
-              * np.exp(-1j * go_phase))
+    a, b = (centres[keep], rx[receiver[keep]]) if after else (np.broadcast_to(tx, (keep.size, 3)), centres[keep])
+    factor = curved_factor(context, prepared, reflector[keep], found, keep, a, b)
     # each element integrated with its own image: its own constants
     own = EdgeElements(np.arange(keep.size), elements.z_start_m[keep], elements.z_end_m[keep],
                        elements.path_length_m[keep])
@@ -714,7 +722,7 @@ def reflected_rows(context: SolveContext, prepared: PreparedScene, parts: list[S
 
 
 __all__ = ("ElementKernels", "FACING_TOLERANCE_M", "FarPairs", "ReflectedParts", "ImageSides", "REPRESENTATIVE_FRACTIONS", "ReflectedPairs",
-           "SplitImpulses", "boundary_faces", "coefficients", "curved_images", "curved_impulses", "curved_pairs",
+           "SplitImpulses", "boundary_faces", "coefficients", "curved_factor", "curved_images", "curved_impulses", "curved_pairs",
            "diffracting", "edges_facing", "element_centres", "fresnel_parameter", "image_sides", "joint_geometry", "pair_path_index",
            "path_vertices", "reference_backtrace", "reference_kernels", "reference_path_visibility",
            "reflected_impulses", "reflected_pairs", "reflected_rows", "reflection_points", "reflection_products",
