@@ -75,8 +75,8 @@ class SolverConfig:
         integral of elements; beyond, it is one row at its apex by Keller's geometrical theory
         of diffraction (within 0.06 dB of the integral at |v| >= 3;
         :mod:`acoustisim.propagation.reference.edge_apex`). Default
-        :data:`DEFAULT_EDGE_REFLECTION_FRESNEL_V` = 3. None integrates every pair (on the thesis
-        tank about 14 times the first-order edge rows; see
+        :data:`DEFAULT_EDGE_REFLECTION_FRESNEL_V` = 3. None or inf (``inf`` in a TOML ``[solver]`` table)
+        integrates every pair (on the thesis tank about 14 times the first-order edge rows; see
         :mod:`acoustisim.propagation.reference.edge_reflections`, Selection).
     shadows : bool
         True (default): a specular leg passing near or blocked by a smooth convex obstacle
@@ -177,10 +177,9 @@ class SolverConfig:
         if self.edge_reflections > MAX_EDGE_REFLECTIONS:
             raise InputError(f"solver.edge_reflections = {self.edge_reflections!r}: at most {MAX_EDGE_REFLECTIONS}")
         reach = self.edge_reflection_fresnel_v
-        if reach is not None and (
-            isinstance(reach, bool) or not isinstance(reach, (int, float)) or not (math.isfinite(reach) and reach >= 0)
-        ):
-            raise InputError(f"solver.edge_reflection_fresnel_v = {reach!r}: must be a finite number >= 0 or None")
+        if reach is not None and (isinstance(reach, bool) or not isinstance(reach, (int, float)) or not reach >= 0):
+            raise InputError(f"solver.edge_reflection_fresnel_v = {reach!r}: must be a number >= 0 (inf integrates "
+                             "every pair) or None")
         if not isinstance(self.shadows, bool):
             raise InputError(f"solver.shadows = {self.shadows!r}: must be true or false")
         floor = self.amplitude_floor_db

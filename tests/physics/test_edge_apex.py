@@ -163,3 +163,13 @@ def test_apex_response_holds_its_echo_within_its_span(thesis_tank) -> None:
     outside = (t < start + lit.min()) | (t > stop + lit.max())
     assert 20 * np.log10(echo[outside].max() / echo.max()) < -57.0
     assert 5e-6 < stop < 100e-6  # the half-integrated pulse's slow tail
+
+
+def test_an_infinite_reach_integrates_every_pair_as_none_does(thesis_tank) -> None:
+    # inf (what a TOML [solver] table can say) and None both integrate every pair: no apex row,
+    # the same rows to the byte.
+    prepared = prepare(thesis_tank)
+    rows = {reach: solve(prepared, config=SolverConfig(mechanisms=("edge",), edge_reflection_fresnel_v=reach)).rows
+            for reach in (None, float("inf"))}
+    assert not np.any(rows[None]["response_id"] == APEX_RESPONSE_ID)
+    assert rows[None].tobytes() == rows[float("inf")].tobytes()
