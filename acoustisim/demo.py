@@ -115,13 +115,14 @@ class DemoResult:
 
 def _target_label(target: Any, arrivals: Any, labels: list[str], internal: Any = None,
                   resolution_s: float = 0.0) -> tuple[str, list[str]]:
-    """The target's name from its echoes (the centre's if any, else the side channels' agreement)."""
+    """The target's name from its echoes: the centre's if the truth explains it, else the
+    explained channels' agreement (or all their names); "unexplained" when none is."""
     per_channel = []
     for ch, echo in enumerate(target.echoes):
         per_channel.append("" if echo is None else label_echo(arrivals, labels, ch, echo.tof_s, internal=internal,
                                                               resolution_s=resolution_s)[0])
-    named = [lab for lab in per_channel if lab]
-    if per_channel[1]:
+    named = [lab for lab in per_channel if lab and lab != "unexplained"]
+    if per_channel[1] and per_channel[1] != "unexplained":
         return per_channel[1], per_channel
     if named and all(lab == named[0] for lab in named):
         return named[0], per_channel
