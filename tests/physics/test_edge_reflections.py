@@ -228,3 +228,26 @@ def test_no_reflections_reproduce_the_first_order_rows(backend, thesis_tank) -> 
     first = both[both["order"] == 1]
     assert first.tobytes() == alone.tobytes()  # bit for bit (NaN padding included)
     assert np.all(both["path_id"][both["order"] > 1] > alone["path_id"].max())
+
+
+def test_every_curved_reflection_point_lies_on_its_post(backend, thesis_tank) -> None:
+    # Each edge + curved reflection row (integrated elements and Keller rows, every pair of the
+    # thesis tank's default pose) names the post it reflects on and holds its specular point: at
+    # the post's radius from its axis (1e-6 m: Newton's tolerance on the specular point is far
+    # below it). A row holding another element's point or another body's fails by centimetres.
+    prepared = prepare(thesis_tank)
+    posts = {thesis_tank.surface_names.index(item.name): (np.asarray(item.parameter("center_m"), dtype=float),
+                                                          float(item.parameter("radius_m")))
+             for item in thesis_tank.objects if item.kind == "post"}
+    checked = 0
+    for reach in (None, 3.0):
+        rows = solve(prepared, config=SolverConfig(mechanisms=("edge",), amplitude_floor_db=None, backend=backend,
+                                                   edge_reflection_fresnel_v=reach)).rows
+        rows = rows[(rows["kind"] == PathKind.EDGE) & (rows["order"] == 2)]
+        for slot in (0, 1):
+            for surface, (center, radius) in posts.items():
+                mine = rows[rows["object_ids"][:, slot] == surface]
+                distance = np.hypot(*(mine["points_m"][:, slot, :2] - center).T)
+                assert np.all(np.abs(distance - radius) < 1e-6), (reach, slot, surface)
+                checked += mine.size
+    assert checked > 10_000

@@ -592,6 +592,7 @@ def curved_impulses(context: SolveContext, config: SolverConfig, prepared: Prepa
         return None
     a, b = (centres[keep], rx[receiver[keep]]) if after else (np.broadcast_to(tx, (keep.size, 3)), centres[keep])
     factor = curved_factor(context, prepared, reflector[keep], found, keep, a, b)
+    x = found.point[keep]
     # each element integrated with its own image: its own constants
     own = EdgeElements(np.arange(keep.size), elements.z_start_m[keep], elements.z_end_m[keep],
                        elements.path_length_m[keep])
