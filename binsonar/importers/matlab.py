@@ -39,7 +39,8 @@ def mat_version(path: Any) -> int:
     with open_input_file(path, "MATLAB file") as handle:
         try:
             major, _ = matfile_version(handle)
-        except (MatReadError, ValueError, OSError, EOFError, TypeError) as exc:
+        except (MatReadError, ValueError, OSError, EOFError, TypeError, IndexError) as exc:  # IndexError: a
+            # file shorter than the 128-byte header whose first bytes are not a v4 header
             raise InputError(f"{path}: not a MATLAB file: {str(exc).splitlines()[0] if str(exc) else exc!r}"
                              ) from None
     return int(major)

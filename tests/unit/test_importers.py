@@ -118,6 +118,8 @@ def test_csv_columns_by_name_and_codes(tmp_path, pings):
     (lambda p, x: np.save(p / "a.npy", x), {"colour": "blue"}, "unknown key"),
     (lambda p, x: np.save(p / "a.npy", x), {"template": "absent.npy"}, "no such file"),
     (lambda p, x: (p / "a.txt").write_text("1,2,3"), {}, "unknown format"),
+    # shorter than a MAT-file's 128-byte header, not a v4 one (hypothesis found it)
+    (lambda p, x: (p / "a.mat").write_bytes(b"\x01\x01\x01\x01" + bytes(16)), {}, "not a MATLAB file"),
 ])
 def test_bad_files_are_one_line(tmp_path, pings, make, settings, message):
     path = make(tmp_path, pings)
