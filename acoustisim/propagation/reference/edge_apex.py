@@ -166,7 +166,14 @@ def stationary_points(scene_edges: DiffractingEdges, edge: NDArray[np.int64], we
     # lengthens along the next segment
     vertex = edges.end_m[edge]
     towards = unit(vertex - source) + unit(vertex - receiver)
-    next_tangent = edges.direction[np.maximum(end_partner, 0)]
+    # the neighbours' tangents oriented along this segment's (a chain's segments may run either way)
+    following = np.maximum(end_partner, 0)
+    onwards = np.where(np.linalg.norm(edges.start_m[following] - vertex, axis=1)
+                       <= np.linalg.norm(edges.end_m[following] - vertex, axis=1), 1.0, -1.0)
+    next_tangent = onwards[:, None] * edges.direction[following]
+    preceding = np.maximum(start_partner, 0)
+    inwards = np.where(np.linalg.norm(edges.end_m[preceding] - edges.start_m[edge], axis=1)
+                       <= np.linalg.norm(edges.start_m[preceding] - edges.start_m[edge], axis=1), 1.0, -1.0)
     slope_end = np.einsum("ij,ij->i", tangent, towards)
     slope_next = np.einsum("ij,ij->i", next_tangent, towards)
     at_joint = joint_end & (slope_end < 0.0) & (slope_next >= 0.0)
@@ -180,7 +187,7 @@ def stationary_points(scene_edges: DiffractingEdges, edge: NDArray[np.int64], we
         via_end = np.hypot(wedge.r_s, end - wedge.z_s) + np.hypot(wedge.r_r, wedge.z_r - end)
         clear &= joint | (2.0 * np.sqrt(np.maximum(via_end - path, 0.0) / wavelength) > reach_v)
     # the chain's curvature vector kappa n at the point (central differences of its tangents)
-    prev_tangent = np.where(joint_start[:, None], edges.direction[np.maximum(start_partner, 0)], tangent)
+    prev_tangent = np.where(joint_start[:, None], inwards[:, None] * edges.direction[preceding], tangent)
     after_tangent = np.where(joint_end[:, None], next_tangent, tangent)
     prev_length = np.where(joint_start, scene_edges.length_m[np.maximum(start_partner, 0)], 0.0)
     next_length = np.where(joint_end, scene_edges.length_m[np.maximum(end_partner, 0)], 0.0)
