@@ -91,13 +91,13 @@ from numpy.typing import NDArray
 from acoustisim.propagation.context import SolveContext
 from acoustisim.propagation.edge_extraction import DiffractingEdges
 from acoustisim.propagation.apex_response import APEX_RESPONSE_ID
-from acoustisim.propagation.paths import MAX_INTERACTIONS, PathKind, empty_paths_array
+from acoustisim.propagation.paths import empty_paths_array
 from acoustisim.propagation.prepared import PreparedScene
 from acoustisim.propagation.reference.btm import WedgePairs, beta, least_time
-from acoustisim.propagation.reference.edge_reflections import (ElementKernels, FarPairs, ReflectedPairs,
+from acoustisim.propagation.reference.edge_reflections import (EdgePathBlock, ElementKernels, FarPairs, ReflectedPairs,
                                                                boundary_faces, curved_factor, curved_images, diffracting,
-                                                               path_vertices, reflection_points, reflection_products)
-from acoustisim.propagation.reference.specular import REAL_TOLERANCE
+                                                               edge_path_rows, path_vertices, reflection_points,
+                                                               reflection_products, times_factor)
 
 APEX_ITERATIONS = 3
 """Curved reflectors: rounds of (apex -> specular point -> image -> apex)."""
@@ -206,11 +206,10 @@ def stationary_points(scene_edges: DiffractingEdges, edge: NDArray[np.int64], we
 
 def with_factor(gain: NDArray[np.float64], factor: NDArray[np.complex128]) -> tuple[NDArray[np.float64],
                                                                                    NDArray[np.float64]]:
-    """``gain`` times a complex ``factor``: a real factor keeps its sign in the gain, a complex
-    one gives |factor| and the phase -arg(factor); and the row phases, -pi / 4 added."""
-    real = np.abs(factor.imag) <= REAL_TOLERANCE * np.abs(factor)
-    return (gain * np.where(real, factor.real, np.abs(factor)),
-            np.where(real, 0.0, -np.angle(factor)) - 0.25 * np.pi)
+    """``gain`` times a complex ``factor`` (:func:`.edge_reflections.times_factor`), the row
+    phases with Keller's -pi / 4 added."""
+    gain, phase = times_factor(gain, factor)
+    return gain, phase - 0.25 * np.pi
 
 
 def planar_apex_rows(context: SolveContext, prepared: PreparedScene, far: FarPairs, kernels: ElementKernels
@@ -329,28 +328,11 @@ def apex_rows(context: SolveContext, prepared: PreparedScene, parts: list[ApexRo
     next_id = int(first_path_id)
     for part in parts:  # a loop over the few splits
         p = part.pairs
-        n = p.edge.size
-        order = 1 + part.split[0] + part.split[1]
         edge_points = edges.start_m[p.edge] + part.z_m[:, None] * edges.direction[p.edge]
         vertices = path_vertices(context, p.receiver, part.before_points, edge_points, part.after_points)
-        rows = empty_paths_array(n)
-        rows["path_id"] = next_id + np.arange(n)
-        next_id += n
-        rows["channel"] = p.receiver
-        rows["kind"] = PathKind.EDGE
-        rows["order"] = order
-        rows["path_length_m"] = part.path_length_m
-        rows["geometric_gain"] = part.gain
-        rows["phase_rad"] = part.phase
-        rows["response_id"] = APEX_RESPONSE_ID
-        departure = vertices[:, 1] - vertices[:, 0]
-        arrival = vertices[:, -1] - vertices[:, -2]
-        rows["departure_dir"] = departure / np.linalg.norm(departure, axis=1, keepdims=True)
-        rows["arrival_dir"] = arrival / np.linalg.norm(arrival, axis=1, keepdims=True)
-        stored = min(order, MAX_INTERACTIONS)
-        rows["object_ids"][:, :stored] = part.surfaces[:, :stored]
-        rows["points_m"][:, :stored] = vertices[:, 1:1 + stored]
-        blocks.append(rows)
+        blocks.append(edge_path_rows(EdgePathBlock(next_id + np.arange(p.edge.size), p.receiver, part.path_length_m,
+                                                   part.gain, part.phase, APEX_RESPONSE_ID, part.surfaces, vertices)))
+        next_id += p.edge.size
     return np.concatenate(blocks) if blocks else empty_paths_array(0)
 
 

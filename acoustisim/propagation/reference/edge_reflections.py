@@ -433,15 +433,20 @@ def reflection_products(context: SolveContext, mirrors: PlanarMirrors, sequence:
     return product
 
 
+def times_factor(gain: NDArray[np.float64], factor: NDArray[np.complex128]) -> tuple[NDArray[np.float64],
+                                                                                    NDArray[np.float64]]:
+    """``gain`` times a complex ``factor`` as a row holds it: a real factor keeps its sign in the
+    gain, a complex one gives |factor| and the phase -arg(factor) (rad); both (n,)."""
+    real = np.abs(factor.imag) <= REAL_TOLERANCE * np.abs(factor)
+    return gain * np.where(real, factor.real, np.abs(factor)), np.where(real, 0.0, -np.angle(factor))
+
+
 def weighted(impulses: EdgeImpulses, element: NDArray[np.int64], factor: NDArray[np.complex128]
              ) -> tuple[EdgeImpulses, NDArray[np.float64]]:
-    """``impulses`` times their element's complex ``factor``: a real factor keeps its sign in the
-    gain, a complex one gives |factor| and the phase -arg(factor)."""
-    f = factor[element]
-    real = np.abs(f.imag) <= REAL_TOLERANCE * np.abs(f)
-    gain = impulses.gain * np.where(real, f.real, np.abs(f))
-    return (EdgeImpulses(impulses.pair, gain, impulses.z_m, impulses.path_length_m),
-            np.where(real, 0.0, -np.angle(f)))
+    """``impulses`` times their element's complex ``factor`` (:func:`times_factor`), and their
+    phases."""
+    gain, phase = times_factor(impulses.gain, factor[element])
+    return EdgeImpulses(impulses.pair, gain, impulses.z_m, impulses.path_length_m), phase
 
 
 def split_impulses(context: SolveContext, config: SolverConfig, prepared: PreparedScene, split: tuple[int, int],
@@ -686,6 +691,46 @@ def pair_path_index(parts: list[SplitImpulses], kept: list[NDArray[np.int64]], c
     return out
 
 
+class EdgePathBlock(NamedTuple):
+    """Rows of edge paths of one split, shape (n,) each unless said: ``path_id``, ``receiver``,
+    ``path_length_m`` (m), ``gain`` (1/m), ``phase`` (rad), ``response_id`` (-1: none);
+    ``surfaces`` (n, order) and ``vertices`` (n, order + 2, 3) (:func:`path_vertices`, m) in path
+    order."""
+
+    path_id: NDArray[np.int64]
+    receiver: NDArray[np.int64]
+    path_length_m: NDArray[np.float64]
+    gain: NDArray[np.float64]
+    phase: NDArray[np.float64]
+    response_id: NDArray[np.int64] | int
+    surfaces: NDArray[np.int64]
+    vertices: NDArray[np.float64]
+
+
+def edge_path_rows(block: EdgePathBlock) -> NDArray[Any]:
+    """The PATH_DTYPE rows (kind ``edge``, order from the vertices) of ``block``, the mechanism's
+    columns only (the derived ones are left to the assembly)."""
+    vertices = block.vertices
+    order = vertices.shape[1] - 2
+    rows = empty_paths_array(vertices.shape[0])
+    rows["path_id"] = block.path_id
+    rows["channel"] = block.receiver
+    rows["kind"] = PathKind.EDGE
+    rows["order"] = order
+    rows["path_length_m"] = block.path_length_m
+    rows["geometric_gain"] = block.gain
+    rows["phase_rad"] = block.phase
+    rows["response_id"] = block.response_id
+    departure = vertices[:, 1] - vertices[:, 0]
+    arrival = vertices[:, -1] - vertices[:, -2]
+    rows["departure_dir"] = departure / np.linalg.norm(departure, axis=1, keepdims=True)
+    rows["arrival_dir"] = arrival / np.linalg.norm(arrival, axis=1, keepdims=True)
+    stored = min(order, MAX_INTERACTIONS)
+    rows["object_ids"][:, :stored] = block.surfaces[:, :stored]
+    rows["points_m"][:, :stored] = vertices[:, 1:1 + stored]
+    return rows
+
+
 def reflected_rows(context: SolveContext, prepared: PreparedScene, parts: list[SplitImpulses], floor: float,
                    first_path_id: int) -> NDArray[Any]:
     """The rows of the impulses of ``parts`` stronger than ``floor`` (|gain|), in (part, impulse)
@@ -697,34 +742,21 @@ def reflected_rows(context: SolveContext, prepared: PreparedScene, parts: list[S
     for part, strong, pair_index in zip(parts, kept, path_index):  # a loop over the few splits
         p = part.pairs
         pair = part.impulses.pair[strong]
-        order = 1 + part.split[0] + part.split[1]
         edge = p.edge[pair]
         element = part.element[strong]
         edge_points = edges.start_m[edge] + part.impulses.z_m[strong][:, None] * edges.direction[edge]
         vertices = path_vertices(context, p.receiver[pair], part.before_points[element], edge_points,
                                  part.after_points[element])
-        rows = empty_paths_array(strong.size)
-        rows["path_id"] = first_path_id + pair_index[pair]
-        rows["channel"] = p.receiver[pair]
-        rows["kind"] = PathKind.EDGE
-        rows["order"] = order
-        rows["path_length_m"] = part.impulses.path_length_m[strong]
-        rows["geometric_gain"] = part.impulses.gain[strong]
-        rows["phase_rad"] = part.phase[strong]
-        departure = vertices[:, 1] - vertices[:, 0]
-        arrival = vertices[:, -1] - vertices[:, -2]
-        rows["departure_dir"] = departure / np.linalg.norm(departure, axis=1, keepdims=True)
-        rows["arrival_dir"] = arrival / np.linalg.norm(arrival, axis=1, keepdims=True)
-        stored = min(order, MAX_INTERACTIONS)
-        rows["object_ids"][:, :stored] = part.surfaces[pair][:, :stored]
-        rows["points_m"][:, :stored] = vertices[:, 1:1 + stored]
-        blocks.append(rows)
+        blocks.append(edge_path_rows(EdgePathBlock(
+            first_path_id + pair_index[pair], p.receiver[pair], part.impulses.path_length_m[strong],
+            part.impulses.gain[strong], part.phase[strong], -1, part.surfaces[pair], vertices)))
     return np.concatenate(blocks) if blocks else empty_paths_array(0)
 
 
-__all__ = ("ElementKernels", "FACING_TOLERANCE_M", "FarPairs", "ReflectedParts", "ImageSides", "REPRESENTATIVE_FRACTIONS", "ReflectedPairs",
-           "SplitImpulses", "boundary_faces", "coefficients", "curved_factor", "curved_images", "curved_impulses", "curved_pairs",
-           "diffracting", "edges_facing", "element_centres", "fresnel_parameter", "image_sides", "joint_geometry", "pair_path_index",
-           "path_vertices", "reference_backtrace", "reference_kernels", "reference_path_visibility",
+__all__ = ("EdgePathBlock", "ElementKernels", "FACING_TOLERANCE_M", "FarPairs", "ImageSides",
+           "REPRESENTATIVE_FRACTIONS", "ReflectedPairs", "ReflectedParts", "SplitImpulses", "boundary_faces",
+           "coefficients", "curved_factor", "curved_images", "curved_impulses", "curved_pairs", "diffracting",
+           "edge_path_rows", "edges_facing", "element_centres", "fresnel_parameter", "image_sides", "joint_geometry",
+           "pair_path_index", "path_vertices", "reference_backtrace", "reference_kernels", "reference_path_visibility",
            "reflected_impulses", "reflected_pairs", "reflected_rows", "reflection_points", "reflection_products",
-           "reflection_splits", "split_impulses", "weighted", "within_reach")
+           "reflection_splits", "split_impulses", "times_factor", "weighted", "within_reach")
